@@ -1,0 +1,197 @@
+"""Simulated theodolite survey of a ski run: a true profile -> Leica GSI-16 file + survey YAML.
+
+The true run is a smooth closed-form profile, steep at the top and flattening out (the shape of
+the paper's 342 m / 73 m run). A surveyor sets up a total station at several known stations
+beside the run, observes centre-line points every few metres (snow roughness and pole tilt as
+target noise) and both posts of each photocell, with realistic instrument noise. The observed
+zenith angles include earth curvature and refraction (k = 0.13), so a reduction that corrects
+for them recovers the truth.
+
+Run ``python -m simulators.survey_sim OUTDIR`` to regenerate ``surveys/demo_run.*``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+EARTH_R = 6_371_000.0
+K_REFRACTION = 0.13
+GON = math.pi / 200.0
+
+
+@dataclass(frozen=True)
+class TrueRun:
+    """The true run in a local frame: origin (E0, N0, H0), downhill azimuth, profile h(x)."""
+
+    e0: float = 2480.0
+    n0: float = 5130.0
+    h0: float = 1710.0
+    azimuth_gon: float = 131.25
+    x_first: float = 30.0  # first photocell
+    spacing: float = 42.0  # between photocells
+    n_cells: int = 9
+    x_end: float = 400.0  # surveyed span 0 .. x_end
+
+    def slope(self, x: np.ndarray) -> np.ndarray:
+        """Slope angle in radians (downhill positive): 17° at the top easing to 8°, a roller."""
+        x = np.asarray(x, dtype=float)
+        deg = 12.0 + 4.5 * np.cos(math.pi * np.clip(x, 0, 400) / 400.0) + 1.2 * np.sin(2 * math.pi * x / 160.0)
+        return np.radians(deg)
+
+    def h(self, x: np.ndarray) -> np.ndarray:
+        """Height: integral of −tan(slope), by fine quadrature (the truth for the tests)."""
+        x = np.atleast_1d(np.asarray(x, dtype=float))
+        fine = np.linspace(-50.0, 450.0, 50001)
+        dy = -np.tan(self.slope(fine))
+        y = np.concatenate([[0.0], np.cumsum(0.5 * (dy[1:] + dy[:-1]) * np.diff(fine))])
+        y -= np.interp(0.0, fine, y)
+        return self.h0 + np.interp(x, fine, y)
+
+    @property
+    def cell_x(self) -> np.ndarray:
+        return self.x_first + self.spacing * np.arange(self.n_cells)
+
+    def to_en(self, x: np.ndarray, lateral: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Local (x along the fall line, lateral + left) -> grid E, N."""
+        az = self.azimuth_gon * GON
+        ue, un = math.sin(az), math.cos(az)
+        le, ln = -un, ue
+        return self.e0 + x * ue + lateral * le, self.n0 + x * un + lateral * ln
+
+
+def _word16(wi: str, info: str, value: int | str) -> str:
+    """A GSI-16 word: WI, 4 info characters, sign, 16 data characters."""
+    if isinstance(value, str):
+        data = value.rjust(16, "0")[-16:]
+        sign = "+"
+    else:
+        sign = "-" if value < 0 else "+"
+        data = str(abs(int(value))).rjust(16, "0")
+    return f"{wi}{info}{sign}{data}"
+
+
+def simulate_survey(run: TrueRun, seed: int = 7) -> tuple[str, list[str]]:
+    """Observe the run; return the GSI-16 text and the photocell ids."""
+    rng = np.random.default_rng(seed)
+    sigma_angle = 1.5 / 3600.0 * math.pi / 180.0  # 1.5" instrument
+    lines: list[str] = []
+    block = [0]
+
+    def add(words: list[str]) -> None:
+        block[0] += 1
+        lines.append("*" + " ".join(words) + " ")
+
+    def obs(pid: str, e: float, n: float, h: float, st: tuple[float, float, float, float], hr: float):
+        se, sn, sh, hi = st
+        de, dn = e - se, n - sn
+        hd = math.hypot(de, dn)
+        dh = h + hr - (sh + hi)
+        # what the instrument sees: the target lowered by curvature, raised by refraction
+        dh_seen = dh - (1.0 - K_REFRACTION) * hd * hd / (2.0 * EARTH_R)
+        sd = math.hypot(hd, dh_seen)
+        zen = math.atan2(hd, dh_seen)
+        az = math.atan2(de, dn) % (2 * math.pi)
+        sd += rng.normal(0.0, 1e-3 + 1.5e-6 * sd)
+        zen += rng.normal(0.0, sigma_angle)
+        az += rng.normal(0.0, sigma_angle)
+        add(
+            [
+                _word16("11", f"{block[0]:04d}", pid),
+                _word16("21", ".322", round((az % (2 * math.pi)) / GON * 1e5)),
+                _word16("22", ".322", round(zen / GON * 1e5)),
+                _word16("31", "..06", round(sd * 1e4)),
+                _word16("87", "..16", round(hr * 1e4)),
+            ]
+        )
+
+    # instrument stations 28-35 m to the left of the fall line, known coordinates (GNSS)
+    station_x = [60.0, 200.0, 340.0]
+    stations = []
+    for i, sx in enumerate(station_x):
+        lat = -30.0 - 2.0 * i
+        e, n = run.to_en(np.array([sx]), np.array([lat]))
+        h = float(run.h(np.array([sx]))[0]) + 1.0  # a small mound beside the run
+        stations.append((f"ST{i + 1}", float(e[0]), float(n[0]), h, 1.55 + 0.05 * i))
+
+    profile_x = np.arange(0.0, run.x_end + 1e-9, 5.0)
+    cell_ids = [f"PC{i + 1}" for i in range(run.n_cells)]
+    for sid, se, sn, sh, hi in stations:
+        add(
+            [
+                _word16("11", f"{block[0] + 1:04d}", sid),
+                _word16("84", "..46", round(se * 1e4)),
+                _word16("85", "..46", round(sn * 1e4)),
+                _word16("86", "..46", round(sh * 1e4)),
+                _word16("88", "..46", round(hi * 1e4)),
+            ]
+        )
+        st = (se, sn, sh, hi)
+        sx = station_x[int(sid[2:]) - 1]
+        for j, px in enumerate(profile_x):
+            if abs(px - sx) > 80.0:  # each setup covers the run 80 m either side
+                continue
+            lat = rng.normal(0.0, 0.3)
+            e, n = run.to_en(np.array([px]), np.array([lat]))
+            h = float(run.h(np.array([px]))[0]) + rng.normal(0.0, 0.005)
+            obs(f"P{j:03d}", float(e[0]), float(n[0]), h, st, 2.0)
+        for cid, cx in zip(cell_ids, run.cell_x, strict=True):
+            if abs(cx - sx) > 80.0:
+                continue
+            for side, lat in (("L", 4.0), ("R", -4.0)):
+                # posts stand on the snow beside the track, ±4 m, a beam across the run
+                e, n = run.to_en(np.array([cx + rng.normal(0, 0.01)]), np.array([lat]))
+                h = float(run.h(np.array([cx]))[0]) + rng.normal(0.0, 0.02)
+                obs(f"{cid}{side}", float(e[0]), float(n[0]), h, st, 1.3)
+    return "\r\n".join(lines) + "\r\n", cell_ids
+
+
+SURVEY_YAML = """\
+# Demo run: a 340 m timed section with nine photocells, surveyed from three setups.
+# Produced by `python -m simulators.survey_sim surveys` (true profile in simulators/survey_sim.py).
+name: Demo run (simulated survey)
+observations: demo_run.gsi
+refraction_k: 0.13
+precision:
+  angle_arcsec: 1.5
+  distance_mm: 1.0
+  distance_ppm: 1.5
+  target_mm: 5
+# the profile is every point named P...; each photocell is the mean of its two posts
+profile_pattern: "^P\\\\d+$"
+photocells:
+{cells}
+"""
+
+
+def write_demo(outdir: str, seed: int = 7) -> tuple[str, str]:
+    """Write demo_run.gsi and demo_run.yaml into ``outdir``."""
+    run = TrueRun()
+    gsi, cells = simulate_survey(run, seed)
+    os.makedirs(outdir, exist_ok=True)
+    gsi_path = os.path.join(outdir, "demo_run.gsi")
+    yaml_path = os.path.join(outdir, "demo_run.yaml")
+    with open(gsi_path, "w", encoding="ascii", newline="") as fh:
+        fh.write(gsi)
+    cell_lines = "\n".join(f"  - {{id: {c}, points: [{c}L, {c}R]}}" for c in cells)
+    with open(yaml_path, "w", encoding="utf-8") as fh:
+        fh.write(SURVEY_YAML.format(cells=cell_lines))
+    return gsi_path, yaml_path
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("outdir")
+    ap.add_argument("--seed", type=int, default=7)
+    args = ap.parse_args(argv)
+    for path in write_demo(args.outdir, args.seed):
+        print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

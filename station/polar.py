@@ -1,0 +1,222 @@
+"""Polar observations (Hz, zenith angle, distance) -> local coordinates E, N, H with precision.
+
+Reduction used (survey-formats.md §3.2):
+
+    HD = SD·sin Z,   ΔH = SD·cos Z + hi − hr + (1 − k)·HD² / (2R)
+    E = E0 + HD·sin(Hz + ω),   N = N0 + HD·cos(Hz + ω),   H = H0 + ΔH
+
+ω is the setup's orientation. Leica instruments record *oriented* circle readings once the
+circle was set (WI 25 holds the correction Hz0 − Hz the instrument already applied), so ω
+defaults to 0 and WI 25 is kept for the record, not added again: on the real ertola file,
+adding it breaks every point of that setup, leaving it out reproduces all of them.
+
+Each point carries a height and a horizontal standard deviation from the instrument's angle
+and distance precision and the target's centring on snow, used to weight the profile spline.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from station.errors import InputError
+from station.gsi import GsiBlock
+
+EARTH_RADIUS_M = 6_371_000.0
+ARCSEC = math.pi / (180.0 * 3600.0)
+
+
+@dataclass(frozen=True)
+class Precision:
+    """Instrument and target precision, used to weight each reduced point."""
+
+    angle_arcsec: float = 3.0
+    distance_mm: float = 2.0
+    distance_ppm: float = 2.0
+    target_mm: float = 5.0  # pole tilt, sinking into snow, surface roughness
+
+
+@dataclass(frozen=True)
+class Setup:
+    """An instrument setup: station coordinates, instrument height, circle orientation ω."""
+
+    station: str
+    e: float = 0.0
+    n: float = 0.0
+    h: float = 0.0
+    instrument_height: float = 0.0
+    orientation: float = 0.0  # radians, added to Hz to give the azimuth
+    line: int | None = None
+
+
+@dataclass(frozen=True)
+class Observation:
+    """One polar observation of a target point from a setup."""
+
+    point: str
+    hz: float  # radians
+    zenith: float  # radians
+    slope_distance: float | None
+    horizontal_distance: float | None
+    reflector_height: float
+    setup: Setup
+    instrument_height: float | None = None  # per-block override (GSI-16 files carry WI 88)
+    line: int | None = None
+    instrument_enh: tuple[float, float, float] | None = None  # the instrument's own 81/82/83
+
+
+@dataclass(frozen=True)
+class KnownPoint:
+    """A point given by coordinates (WI 81/82/83 without angles), e.g. a station or control."""
+
+    point: str
+    e: float
+    n: float
+    h: float
+    line: int | None = None
+
+
+@dataclass(frozen=True)
+class ReducedPoint:
+    """A target reduced to local coordinates, with its precision and provenance."""
+
+    point: str
+    e: float
+    n: float
+    h: float
+    sigma_h: float
+    sigma_xy: float
+    horizontal_distance: float
+    setup: str
+    line: int | None = None
+    instrument_enh: tuple[float, float, float] | None = None
+
+
+@dataclass
+class ObservationSet:
+    """What a survey file holds once its blocks are interpreted."""
+
+    setups: list[Setup] = field(default_factory=list)
+    observations: list[Observation] = field(default_factory=list)
+    known: list[KnownPoint] = field(default_factory=list)
+
+
+def curvature_refraction(hd: float, k: float | None) -> float:
+    """Height correction for earth curvature and refraction, (1 − k)·HD²/(2R); 0 if k is None."""
+    if k is None:
+        return 0.0
+    return (1.0 - k) * hd * hd / (2.0 * EARTH_RADIUS_M)
+
+
+def reduce_observation(
+    obs: Observation, k: float | None = 0.13, precision: Precision = Precision()
+) -> ReducedPoint:
+    """Reduce one observation to E, N, H in the setup's frame."""
+    s = obs.setup
+    sin_z, cos_z = math.sin(obs.zenith), math.cos(obs.zenith)
+    if obs.slope_distance is not None:
+        sd = obs.slope_distance
+        hd = sd * sin_z
+        dv = sd * cos_z
+    else:
+        hd = float(obs.horizontal_distance or 0.0)
+        sd = hd / sin_z if abs(sin_z) > 1e-12 else hd
+        dv = hd * cos_z / sin_z if abs(sin_z) > 1e-12 else 0.0
+    hi = obs.instrument_height if obs.instrument_height is not None else s.instrument_height
+    az = obs.hz + s.orientation
+    e = s.e + hd * math.sin(az)
+    n = s.n + hd * math.cos(az)
+    h = s.h + hi + dv - obs.reflector_height + curvature_refraction(hd, k)
+    sigma_sd = (precision.distance_mm + precision.distance_ppm * sd * 1e-3) * 1e-3
+    sigma_ang = precision.angle_arcsec * ARCSEC
+    tgt = precision.target_mm * 1e-3
+    sigma_h = math.sqrt((cos_z * sigma_sd) ** 2 + (sd * sin_z * sigma_ang) ** 2 + tgt**2)
+    sigma_xy = math.sqrt((sin_z * sigma_sd) ** 2 + (hd * sigma_ang) ** 2 + tgt**2)
+    return ReducedPoint(
+        point=obs.point,
+        e=e,
+        n=n,
+        h=h,
+        sigma_h=sigma_h,
+        sigma_xy=sigma_xy,
+        horizontal_distance=hd,
+        setup=s.station,
+        line=obs.line,
+        instrument_enh=obs.instrument_enh,
+    )
+
+
+def interpret_gsi(
+    blocks: list[GsiBlock], path: str, default_setup: Setup | None = None
+) -> ObservationSet:
+    """Sort GSI blocks into station setups, polar observations and known points.
+
+    - a block with any of WI 84/85/86 starts a new setup (88 instrument height, 25 recorded);
+    - a block with 21, 22 and 31 or 32 is an observation (87 reflector height, 88 if present
+      overrides the setup's instrument height, 81–83 kept as the instrument's own result);
+    - a block with 81/82/83 but no angles is a known point;
+    - anything else (code blocks 41–49, remarks) is passed over.
+    Observations before the first station block belong to ``default_setup`` (the survey YAML's
+    ``default_setup``, else a station at 0, 0, 0 with instrument height 0).
+    """
+    out = ObservationSet()
+    setup = default_setup or Setup(station="default")
+    out.setups.append(setup)
+    for b in blocks:
+        pid = b.point_id or f"block{b.line}"
+        if b.has("21", "22") and (b.has("31") or b.has("32")):
+            zenith = b.value("22")
+            assert zenith is not None
+            if not (0.0 < zenith < math.pi * 2):
+                raise InputError(
+                    "zenith angle must lie between 0 and 400 gon",
+                    path=path,
+                    line=b.line,
+                    field="WI 22 (zenith angle)",
+                )
+            enh = None
+            if b.has("81", "82", "83"):
+                enh = (b.value("81"), b.value("82"), b.value("83"))
+            out.observations.append(
+                Observation(
+                    point=pid,
+                    hz=float(b.value("21")),
+                    zenith=float(zenith),
+                    slope_distance=b.value("31"),
+                    horizontal_distance=b.value("32"),
+                    reflector_height=float(b.value("87") or 0.0),
+                    instrument_height=b.value("88"),
+                    setup=setup,
+                    line=b.line,
+                    instrument_enh=enh,  # type: ignore[arg-type]
+                )
+            )
+        elif b.has("84") or b.has("85") or b.has("86"):
+            setup = Setup(
+                station=pid,
+                e=float(b.value("84") or 0.0),
+                n=float(b.value("85") or 0.0),
+                h=float(b.value("86") or 0.0),
+                instrument_height=float(b.value("88") or 0.0),
+                orientation=default_setup.orientation if default_setup else 0.0,
+                line=b.line,
+            )
+            out.setups.append(setup)
+        elif b.has("81") or b.has("82") or b.has("83"):
+            out.known.append(
+                KnownPoint(
+                    point=pid,
+                    e=float(b.value("81") or 0.0),
+                    n=float(b.value("82") or 0.0),
+                    h=float(b.value("83") or 0.0),
+                    line=b.line,
+                )
+            )
+    return out
+
+
+def reduce_all(
+    obs: ObservationSet, k: float | None = 0.13, precision: Precision = Precision()
+) -> list[ReducedPoint]:
+    """Reduce every observation, in file order."""
+    return [reduce_observation(o, k, precision) for o in obs.observations]

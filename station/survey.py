@@ -1,0 +1,335 @@
+"""Survey files: a YAML file naming the observations and the photocells, reduced to points.
+
+A survey YAML (documented in ``surveys/README.md``)::
+
+    name: Demo run
+    observations: demo_run.gsi        # a Leica GSI-8/16 file, relative to this YAML ...
+    # setups: [...]                    # ... or the polar observations inline (see README)
+    refraction_k: 0.13                 # null: no curvature and refraction correction
+    angle_unit: gon                    # of inline observations and orientations
+    default_setup: {station: S0, e: 0, n: 0, h: 0, instrument_height: 1.5}
+    precision: {angle_arcsec: 3, distance_mm: 2, distance_ppm: 2, target_mm: 5}
+    photocells: [PC1, PC2, PC3]        # in order down the run; or {id: PC1, points: [a, b]}
+    exclude: [BS1]                     # observed points that are neither profile nor photocell
+    profile_pattern: "^P"              # optional: only ids matching this are profile points
+
+A point observed more than once (from two setups) is merged into the precision-weighted mean.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass, field
+
+from station.errors import InputError
+from station.gsi import read_gsi
+from station.polar import (
+    KnownPoint,
+    Observation,
+    ObservationSet,
+    Precision,
+    ReducedPoint,
+    Setup,
+    interpret_gsi,
+    reduce_all,
+)
+from station.yamlio import LineList, Section, load_yaml
+
+ANGLE_UNITS = {
+    "gon": math.pi / 200.0,
+    "deg": math.pi / 180.0,
+    "mil": 2.0 * math.pi / 6400.0,
+    "rad": 1.0,
+}
+
+
+@dataclass(frozen=True)
+class PhotocellDef:
+    """A photocell as the survey names it: its id and the surveyed point(s) of its posts."""
+
+    id: str
+    points: tuple[str, ...]
+    line: int | None = None
+
+
+@dataclass
+class Survey:
+    """A reduced survey: every observed point, the profile points and the photocells."""
+
+    path: str
+    name: str
+    points: dict[str, ReducedPoint]
+    profile_ids: list[str]
+    photocells: list[PhotocellDef]
+    known: list[KnownPoint] = field(default_factory=list)
+    setups: list[Setup] = field(default_factory=list)
+    refraction_k: float | None = 0.13
+    warnings: list[str] = field(default_factory=list)
+
+
+def parse_angle(value: object, unit: str, where: Section, key: str) -> float:
+    """An angle in ``unit`` (gon, deg, mil, rad, or dms as DDD.MMSS) -> radians."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise where.error(key, f"expected an angle as a number, got {value!r}")
+    if unit == "dms":
+        sign = -1.0 if value < 0 else 1.0
+        v = abs(float(value))
+        deg = math.floor(v)
+        mm = math.floor(round((v - deg) * 100.0, 6))
+        ss = round(((v - deg) * 100.0 - mm) * 100.0, 6)
+        if mm >= 60 or ss >= 60:
+            raise where.error(key, f"{value!r} is not DDD.MMSS")
+        return sign * math.radians(deg + mm / 60.0 + ss / 3600.0)
+    return float(value) * ANGLE_UNITS[unit]
+
+
+def _merge(points: list[ReducedPoint]) -> ReducedPoint:
+    """Precision-weighted mean of repeated observations of one point."""
+    if len(points) == 1:
+        return points[0]
+    wh = [1.0 / p.sigma_h**2 for p in points]
+    wxy = [1.0 / p.sigma_xy**2 for p in points]
+    sh, sxy = sum(wh), sum(wxy)
+    first = points[0]
+    return ReducedPoint(
+        point=first.point,
+        e=sum(w * p.e for w, p in zip(wxy, points, strict=True)) / sxy,
+        n=sum(w * p.n for w, p in zip(wxy, points, strict=True)) / sxy,
+        h=sum(w * p.h for w, p in zip(wh, points, strict=True)) / sh,
+        sigma_h=1.0 / math.sqrt(sh),
+        sigma_xy=1.0 / math.sqrt(sxy),
+        horizontal_distance=min(p.horizontal_distance for p in points),
+        setup="+".join(sorted({p.setup for p in points})),
+        line=first.line,
+        instrument_enh=first.instrument_enh,
+    )
+
+
+def _setup_from(sec: Section, unit: str, default_name: str) -> Setup:
+    return Setup(
+        station=sec.get("station", str, default_name),
+        e=sec.get("e", float, 0.0),
+        n=sec.get("n", float, 0.0),
+        h=sec.get("h", float, 0.0),
+        instrument_height=sec.get("instrument_height", float, 0.0),
+        orientation=(
+            parse_angle(sec.data["orientation"], unit, sec, "orientation")
+            if sec.has("orientation")
+            else 0.0
+        ),
+        line=getattr(sec.data, "line", None),
+    )
+
+
+_SETUP_KEYS = {"station", "e", "n", "h", "instrument_height", "orientation"}
+_OBS_KEYS = {"point", "hz", "zenith", "sd", "hd", "reflector_height"}
+
+
+def _inline_observations(top: Section, path: str, unit: str) -> ObservationSet:
+    setups = top.data["setups"]
+    if not isinstance(setups, list) or not setups:
+        raise top.error("setups", "expected a list of instrument setups")
+    out = ObservationSet()
+    for i, raw in enumerate(setups):
+        line = setups.lines[i] if isinstance(setups, LineList) else None
+        sec = Section(raw, path, f"setups[{i}]", _SETUP_KEYS | {"observations"}, line or 0)
+        setup = _setup_from(sec, unit, f"S{i + 1}")
+        out.setups.append(setup)
+        obs_list = sec.data.get("observations")
+        if not isinstance(obs_list, list):
+            raise sec.error("observations", "expected a list of observations")
+        for j, o in enumerate(obs_list):
+            oline = obs_list.lines[j] if isinstance(obs_list, LineList) else None
+            osec = Section(o, path, f"setups[{i}].observations[{j}]", _OBS_KEYS, oline or 0)
+            point = osec.get("point", str, required=True)
+            hz = parse_angle(osec.get("hz", float, required=True), unit, osec, "hz")
+            zen = parse_angle(osec.get("zenith", float, required=True), unit, osec, "zenith")
+            sd = osec.get("sd", float)
+            hd = osec.get("hd", float)
+            if sd is None and hd is None:
+                raise InputError(
+                    "an observation needs sd (slope distance) or hd (horizontal distance)",
+                    path=path,
+                    line=oline,
+                    field=f"setups[{i}].observations[{j}]",
+                )
+            if not 0.0 < zen < 2.0 * math.pi:
+                raise osec.error("zenith", "zenith angle must lie between 0 and 400 gon")
+            out.observations.append(
+                Observation(
+                    point=point,
+                    hz=hz,
+                    zenith=zen,
+                    slope_distance=sd,
+                    horizontal_distance=hd,
+                    reflector_height=osec.get("reflector_height", float, 0.0),
+                    setup=setup,
+                    line=oline,
+                )
+            )
+    return out
+
+
+_TOP_KEYS = {
+    "name",
+    "observations",
+    "setups",
+    "refraction_k",
+    "angle_unit",
+    "default_setup",
+    "precision",
+    "photocells",
+    "exclude",
+    "profile_pattern",
+    "notes",
+}
+
+
+def load_survey(path: str) -> Survey:
+    """Load a survey YAML (or a bare .gsi file, which has no photocells) and reduce it."""
+    if path.lower().endswith(".gsi"):
+        blocks = read_gsi(path)
+        obs = interpret_gsi(blocks, path)
+        reduced = reduce_all(obs)
+        return _assemble(path, os.path.basename(path), obs, reduced, [], [], None, 0.13)
+
+    data = load_yaml(path)
+    top = Section(data, path, "", _TOP_KEYS)
+    unit = top.get("angle_unit", str, "gon")
+    if unit not in ANGLE_UNITS and unit != "dms":
+        raise top.error("angle_unit", f"unknown angle unit {unit!r} (gon, deg, dms, mil, rad)")
+    k = top.get("refraction_k", float, 0.13) if "refraction_k" in top.data else 0.13
+    if "refraction_k" in top.data and top.data["refraction_k"] is None:
+        k = None
+    psec = Section(
+        top.data.get("precision"),
+        path,
+        "precision",
+        {"angle_arcsec", "distance_mm", "distance_ppm", "target_mm"},
+    )
+    precision = Precision(
+        angle_arcsec=psec.positive("angle_arcsec", 3.0),
+        distance_mm=psec.positive("distance_mm", 2.0),
+        distance_ppm=psec.get("distance_ppm", float, 2.0),
+        target_mm=psec.positive("target_mm", 5.0),
+    )
+    default_setup = None
+    if top.has("default_setup"):
+        dsec = Section(top.data["default_setup"], path, "default_setup", _SETUP_KEYS)
+        default_setup = _setup_from(dsec, unit, "default")
+
+    has_file, has_inline = top.has("observations"), top.has("setups")
+    if has_file == has_inline:
+        raise InputError(
+            "give either 'observations: FILE' or inline 'setups:', exactly one of them",
+            path=path,
+            line=getattr(data, "line", None),
+            field="observations",
+        )
+    if has_file:
+        obs_path = top.get("observations", str)
+        full = os.path.join(os.path.dirname(os.path.abspath(path)), obs_path)
+        if not full.lower().endswith(".gsi"):
+            raise top.error("observations", f"unknown observation file type {obs_path!r} (expected .gsi)")
+        if not os.path.exists(full):
+            raise top.error("observations", f"observation file {obs_path!r} not found")
+        obs = interpret_gsi(read_gsi(full), full, default_setup)
+    else:
+        obs = _inline_observations(top, path, unit)
+    reduced = reduce_all(obs, k, precision)
+
+    photocells: list[PhotocellDef] = []
+    raw_pcs = top.data.get("photocells") or []
+    if not isinstance(raw_pcs, list):
+        raise top.error("photocells", "expected a list of photocell point ids, in order down the run")
+    for i, item in enumerate(raw_pcs):
+        line = raw_pcs.lines[i] if isinstance(raw_pcs, LineList) else None
+        if isinstance(item, dict):
+            sec = Section(item, path, f"photocells[{i}]", {"id", "points"}, line or 0)
+            pid = sec.get("id", str, required=True)
+            pts = sec.data.get("points") or [pid]
+            if not isinstance(pts, list) or not pts:
+                raise sec.error("points", "expected a list of surveyed point ids")
+            photocells.append(PhotocellDef(pid, tuple(str(p) for p in pts), line))
+        elif isinstance(item, (str, int)) and not isinstance(item, bool):
+            photocells.append(PhotocellDef(str(item), (str(item),), line))
+        else:
+            raise InputError(
+                f"expected a point id, got {item!r}", path=path, line=line, field=f"photocells[{i}]"
+            )
+    seen: set[str] = set()
+    for pc in photocells:
+        if pc.id in seen:
+            raise InputError("photocell listed twice", path=path, line=pc.line, field=f"photocells {pc.id}")
+        seen.add(pc.id)
+
+    exclude = top.data.get("exclude") or []
+    if not isinstance(exclude, list):
+        raise top.error("exclude", "expected a list of point ids")
+    pattern = None
+    if top.has("profile_pattern"):
+        try:
+            pattern = re.compile(top.get("profile_pattern", str))
+        except re.error as exc:
+            raise top.error("profile_pattern", f"not a regular expression: {exc}") from None
+    survey = _assemble(
+        path,
+        top.get("name", str, os.path.basename(path)),
+        obs,
+        reduced,
+        photocells,
+        [str(e) for e in exclude],
+        pattern,
+        k,
+    )
+    observed = set(survey.points)
+    for pc in photocells:
+        for p in pc.points:
+            if p not in observed:
+                raise InputError(
+                    f"photocell point {p!r} was never observed in the survey",
+                    path=path,
+                    line=pc.line,
+                    field=f"photocells {pc.id}",
+                )
+    return survey
+
+
+def _assemble(
+    path: str,
+    name: str,
+    obs: ObservationSet,
+    reduced: list[ReducedPoint],
+    photocells: list[PhotocellDef],
+    exclude: list[str],
+    pattern: re.Pattern[str] | None,
+    k: float | None,
+) -> Survey:
+    by_id: dict[str, list[ReducedPoint]] = {}
+    for p in reduced:
+        by_id.setdefault(p.point, []).append(p)
+    points = {pid: _merge(ps) for pid, ps in by_id.items()}
+    not_profile = set(exclude) | {p for pc in photocells for p in pc.points}
+    not_profile |= {s.station for s in obs.setups}
+    warnings = []
+    profile_ids = []
+    for pid, p in points.items():
+        if pid in not_profile or (pattern is not None and not pattern.search(pid)):
+            continue
+        if p.horizontal_distance < 1e-6:
+            warnings.append(f"point {pid} (line {p.line}) has no distance; left out of the profile")
+            continue
+        profile_ids.append(pid)
+    return Survey(
+        path=path,
+        name=name,
+        points=points,
+        profile_ids=profile_ids,
+        photocells=photocells,
+        known=obs.known,
+        setups=obs.setups,
+        refraction_k=k,
+        warnings=warnings,
+    )
