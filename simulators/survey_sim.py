@@ -40,7 +40,11 @@ class TrueRun:
     def slope(self, x: np.ndarray) -> np.ndarray:
         """Slope angle in radians (downhill positive): 17° at the top easing to 8°, a roller."""
         x = np.asarray(x, dtype=float)
-        deg = 12.0 + 4.5 * np.cos(math.pi * np.clip(x, 0, 400) / 400.0) + 1.2 * np.sin(2 * math.pi * x / 160.0)
+        deg = (
+            12.0
+            + 4.5 * np.cos(math.pi * np.clip(x, 0, 400) / 400.0)
+            + 1.2 * np.sin(2 * math.pi * x / 160.0)
+        )
         return np.radians(deg)
 
     def h(self, x: np.ndarray) -> np.ndarray:
@@ -86,7 +90,9 @@ def simulate_survey(run: TrueRun, seed: int = 7) -> tuple[str, list[str]]:
         block[0] += 1
         lines.append("*" + " ".join(words) + " ")
 
-    def obs(pid: str, e: float, n: float, h: float, st: tuple[float, float, float, float], hr: float):
+    def obs(
+        pid: str, e: float, n: float, h: float, st: tuple[float, float, float, float], hr: float
+    ):
         se, sn, sh, hi = st
         de, dn = e - se, n - sn
         hd = math.hypot(de, dn)

@@ -103,6 +103,57 @@ class FitResult:
         return out
 
 
+@dataclass
+class Uncertainty:
+    """Linearised uncertainty of a least-squares solution."""
+
+    covariance: list[list[float]] | None
+    stderr: dict[str, float | None]
+    ci90: dict[str, tuple[float, float] | None]
+    corr_mu_cda: float | None
+    not_identifiable: list[str]
+
+
+def uncertainty(
+    jac: np.ndarray,
+    r: np.ndarray,
+    p: np.ndarray,
+    names: list[str],
+    dof: int,
+    scale: np.ndarray,
+    nuisance: tuple[str, ...] = ("v0", "s0"),
+) -> Uncertainty:
+    """Cov = σ²(JᵀJ)⁻¹ with σ² = Σ/dof; 90 % intervals p ± t(0.95, dof)·sd, clipped at the
+    lower bound 0 of the physical parameters. A parameter (other than the nuisance ones) whose
+    half-width exceeds its own value, or a singular JᵀJ, makes it not identifiable."""
+    out = Uncertainty(None, {k: None for k in names}, {k: None for k in names}, None, [])
+    if dof < 1:
+        return out
+    js = jac * scale
+    cond = np.linalg.cond(js) if np.all(np.isfinite(js)) else math.inf
+    if not cond < 1e12:
+        out.not_identifiable = [k for k in names if k not in nuisance]
+        return out
+    sigma2 = float(r @ r) / dof
+    cov = np.linalg.inv(jac.T @ jac) * sigma2
+    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    q = float(student_t.ppf(0.95, dof))
+    out.covariance = cov.tolist()
+    for i, k in enumerate(names):
+        out.stderr[k] = float(sd[i])
+        lo = p[i] - q * sd[i]
+        if k not in nuisance or k == "v0":
+            lo = max(lo, 0.0)
+        out.ci90[k] = (float(lo), float(p[i] + q * sd[i]))
+        if k not in nuisance and q * sd[i] > abs(p[i]):
+            out.not_identifiable.append(k)
+    if "cda" in names and "mu" in names:
+        i, j = names.index("cda"), names.index("mu")
+        if sd[i] > 0 and sd[j] > 0:
+            out.corr_mu_cda = float(cov[i, j] / (sd[i] * sd[j]))
+    return out
+
+
 def speed_estimates(s: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Speed at each photocell from the quadratic s(t) through it and its neighbours."""
     n = len(s)
@@ -117,9 +168,7 @@ def speed_estimates(s: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.maximum(v, 0.1)
 
 
-def initial_guess(
-    run: StraightRun, t: np.ndarray, c: Conditions, n_params: int
-) -> np.ndarray:
+def initial_guess(run: StraightRun, t: np.ndarray, c: Conditions, n_params: int) -> np.ndarray:
     """(CdA, μ, v0[, μ1]) from the energy balance of each interval; linear in μ and CdA."""
     grid = run.fine
     idx = grid.cell_index
@@ -290,28 +339,9 @@ def fit_descent(
         speeds_ms={i: float(v) for i, v in zip(ids, desc.v, strict=True)},
     )
 
-    # uncertainty
-    jtj = jm.T @ jm
-    js = jm * scale
-    cond = np.linalg.cond(js) if np.all(np.isfinite(js)) else math.inf
-    if dof >= 1 and cond < 1e12:
-        cov = np.linalg.inv(jtj) * (sigma_s2 / dof)
-        sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
-        q = float(student_t.ppf(0.95, dof))
-        result.covariance = cov.tolist()
-        for i, k in enumerate(names):
-            result.stderr[k] = float(sd[i])
-            lo, hi = p[i] - q * sd[i], p[i] + q * sd[i]
-            result.ci90[k] = (float(max(lo, 0.0)), float(hi))
-        if sd[0] > 0 and sd[1] > 0:
-            result.corr_mu_cda = float(cov[0, 1] / (sd[0] * sd[1]))
-        for i, k in enumerate(names):
-            if k == "v0":
-                continue
-            if q * sd[i] > abs(p[i]):
-                result.not_identifiable.append(k)
-    elif dof >= 1:
-        result.not_identifiable = [k for k in names if k != "v0"]
+    unc = uncertainty(jm, r, p, names, dof, scale)
+    result.covariance, result.stderr, result.ci90 = unc.covariance, unc.stderr, unc.ci90
+    result.corr_mu_cda, result.not_identifiable = unc.corr_mu_cda, unc.not_identifiable
 
     # status, most serious first
     if dof < 1:
@@ -328,7 +358,9 @@ def fit_descent(
         )
     elif desc.stopped_x is not None:
         result.status = "stopped"
-        result.message = f"the fitted skier stops at x = {desc.stopped_x:.1f} m, before the last photocell"
+        result.message = (
+            f"the fitted skier stops at x = {desc.stopped_x:.1f} m, before the last photocell"
+        )
     elif not verified(best) or not desc.converged:
         result.status = "not-converged"
         result.message = (

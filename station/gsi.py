@@ -100,7 +100,9 @@ def _dms_to_rad(digits: str) -> float:
 def decode_word(token: str) -> GsiWord:
     """Decode one word; raises ValueError with a plain reason when it is malformed."""
     if len(token) not in (15, 23):
-        raise ValueError(f"word {token!r} has {len(token)} characters, expected 15 (GSI-8) or 23 (GSI-16)")
+        raise ValueError(
+            f"word {token!r} has {len(token)} characters, expected 15 (GSI-8) or 23 (GSI-16)"
+        )
     wi = token[0:2]
     info = token[2:6]
     unit = token[5]
@@ -117,13 +119,12 @@ def decode_word(token: str) -> GsiWord:
             raise ValueError(f"word {token!r}: unknown unit digit {unit!r}")
         kind, divisor, factor = UNITS[unit]
         if kind != want:
-            raise ValueError(f"word {token!r}: unit digit {unit!r} is a {kind} unit, WI {wi} needs a {want}")
+            raise ValueError(
+                f"word {token!r}: unit digit {unit!r} is a {kind} unit, WI {wi} needs a {want}"
+            )
         if not data.isdigit():
             raise ValueError(f"word {token!r}: data {data!r} is not a number")
-        if unit == "4":
-            value = _dms_to_rad(data)
-        else:
-            value = int(data) / divisor * factor
+        value = _dms_to_rad(data) if unit == "4" else int(data) / divisor * factor
         if sign == "-":
             value = -value
     return GsiWord(wi=wi, info=info, unit=unit, text=data, value=value)

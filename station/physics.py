@@ -113,11 +113,15 @@ def _solve_linear(ds: Array, a: Array, b: Array, y0: Array) -> Array:
     a: (R, n), b: (n,) or (R, n), y0: (R,).
     """
     zero = np.zeros(b.shape[:-1] + (1,))
-    big_b = np.concatenate([zero, np.cumsum(0.5 * (b[..., 1:] + b[..., :-1]) * ds, axis=-1)], axis=-1)
+    big_b = np.concatenate(
+        [zero, np.cumsum(0.5 * (b[..., 1:] + b[..., :-1]) * ds, axis=-1)], axis=-1
+    )
     ebb = np.exp(big_b)
     f = a * ebb
     zero_a = np.zeros(f.shape[:-1] + (1,))
-    integral = np.concatenate([zero_a, np.cumsum(0.5 * (f[..., 1:] + f[..., :-1]) * ds, axis=-1)], axis=-1)
+    integral = np.concatenate(
+        [zero_a, np.cumsum(0.5 * (f[..., 1:] + f[..., :-1]) * ds, axis=-1)], axis=-1
+    )
     return (y0[..., None] + integral) / ebb
 
 
@@ -228,7 +232,9 @@ class StraightRun:
         self.coarse = make_grid(profile, self.xs, step)
         self.fine = make_grid(profile, self.xs, step, refine=2)
 
-    def solve(self, p: Params, c: Conditions, n_params: int = 3, sensitivities: bool = True) -> Descent:
+    def solve(
+        self, p: Params, c: Conditions, n_params: int = 3, sensitivities: bool = True
+    ) -> Descent:
         sc = solve_grid(self.coarse, p, c, n_params, sensitivities)
         sf = solve_grid(self.fine, p, c, n_params, sensitivities)
         ic, jf = self.coarse.cell_index, self.fine.cell_index

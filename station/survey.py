@@ -232,7 +232,9 @@ def load_survey(path: str) -> Survey:
         obs_path = top.get("observations", str)
         full = os.path.join(os.path.dirname(os.path.abspath(path)), obs_path)
         if not full.lower().endswith(".gsi"):
-            raise top.error("observations", f"unknown observation file type {obs_path!r} (expected .gsi)")
+            raise top.error(
+                "observations", f"unknown observation file type {obs_path!r} (expected .gsi)"
+            )
         if not os.path.exists(full):
             raise top.error("observations", f"observation file {obs_path!r} not found")
         obs = interpret_gsi(read_gsi(full), full, default_setup)
@@ -243,7 +245,9 @@ def load_survey(path: str) -> Survey:
     photocells: list[PhotocellDef] = []
     raw_pcs = top.data.get("photocells") or []
     if not isinstance(raw_pcs, list):
-        raise top.error("photocells", "expected a list of photocell point ids, in order down the run")
+        raise top.error(
+            "photocells", "expected a list of photocell point ids, in order down the run"
+        )
     for i, item in enumerate(raw_pcs):
         line = raw_pcs.lines[i] if isinstance(raw_pcs, LineList) else None
         if isinstance(item, dict):
@@ -262,7 +266,9 @@ def load_survey(path: str) -> Survey:
     seen: set[str] = set()
     for pc in photocells:
         if pc.id in seen:
-            raise InputError("photocell listed twice", path=path, line=pc.line, field=f"photocells {pc.id}")
+            raise InputError(
+                "photocell listed twice", path=path, line=pc.line, field=f"photocells {pc.id}"
+            )
         seen.add(pc.id)
 
     exclude = top.data.get("exclude") or []

@@ -24,6 +24,9 @@ Array = np.ndarray
 
 #: a profile point further than this from the spline, in units of its σ, is left out
 OUTLIER_SIGMA = 4.0
+#: ... and one further than this from a quadratic through its neighbours, before the spline
+SCREEN_SIGMA = 5.0
+SCREEN_NEIGHBOURS = 3  # on each side
 #: gaps between profile points wider than this (m) cannot carry the curvature
 MAX_GAP_M = 10.0
 #: photocells closer than this (m) to the surveyed ends sit where the spline is least reliable
@@ -135,10 +138,6 @@ class Track:
         return math.degrees(math.atan2(ue, un)) % 360.0
 
 
-def _fit_spline(x: Array, y: Array, sigma: Array) -> Callable:
-    return make_splrep(x, y, w=1.0 / sigma, k=3, s=float(len(x)))
-
-
 def _merge_close(x: Array, y: Array, sigma: Array, tol: float = 1e-3) -> tuple[Array, Array, Array]:
     """Points at (almost) the same x become one, the precision-weighted mean."""
     xs, ys, ss = [x[0]], [y[0]], [sigma[0]]
@@ -153,6 +152,38 @@ def _merge_close(x: Array, y: Array, sigma: Array, tol: float = 1e-3) -> tuple[A
             ys.append(yi)
             ss.append(si)
     return np.array(xs), np.array(ys), np.array(ss)
+
+
+def screen_outliers(x: Array, y: Array, sigma: Array) -> list[int]:
+    """Indices of points that a quadratic through their neighbours does not explain.
+
+    A smoothing spline adds knots until it meets its residual target, so it *follows* a gross
+    error (a wrong reflector height) and turns it into a curvature spike instead of leaving it
+    as a residual. Each point is therefore first compared with a weighted quadratic through up
+    to three neighbours on each side; the worst point beyond SCREEN_SIGMA is removed and the
+    check repeated, so one bad point does not condemn its neighbours.
+    """
+    keep = list(range(len(x)))
+    removed: list[int] = []
+    while len(keep) >= 2 * SCREEN_NEIGHBOURS + 1:
+        worst, worst_z = -1, SCREEN_SIGMA
+        for pos, i in enumerate(keep):
+            lo = max(0, pos - SCREEN_NEIGHBOURS)
+            hi = min(len(keep), pos + SCREEN_NEIGHBOURS + 1)
+            nb = [keep[j] for j in range(lo, hi) if j != pos]
+            if len(nb) < 4:
+                continue
+            xn, yn, sn = x[nb], y[nb], sigma[nb]
+            coef = np.polyfit(xn - x[i], yn, 2, w=1.0 / sn)
+            scale = math.sqrt(sigma[i] ** 2 + float(np.median(sn)) ** 2)
+            z = abs(y[i] - coef[-1]) / scale
+            if z > worst_z:
+                worst, worst_z = i, z
+        if worst < 0:
+            break
+        keep.remove(worst)
+        removed.append(worst)
+    return removed
 
 
 def build_track(survey: Survey) -> Track:
@@ -177,6 +208,8 @@ def build_track(survey: Survey) -> Track:
     left = np.array([-u[1], u[0]])
     origin = centre + u * proj.min()
     x_all = (en - origin) @ u
+    origin = origin + u * x_all.min()  # exactly 0 at the uppermost point, no -0.0 from rounding
+    x_all = (en - origin) @ u
     lat_all = (en - origin) @ left
 
     order = np.argsort(x_all)
@@ -195,9 +228,11 @@ def build_track(survey: Survey) -> Track:
             )
         return make_splrep(xm, ym, w=1.0 / sm, k=3, s=float(len(xm)))
 
+    for i in screen_outliers(x, y, s_):
+        used[i] = False
     spl = fit(used)
     resid = y - spl(x)
-    bad = np.abs(resid) > OUTLIER_SIGMA * s_
+    bad = (np.abs(resid) > OUTLIER_SIGMA * s_) | ~used
     if bad.any():
         for i in np.flatnonzero(bad):
             warnings.append(

@@ -1,0 +1,218 @@
+"""Survey YAML -> track: truth recovered from the simulated survey, bad input located."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from simulators.survey_sim import TrueRun
+from station.errors import InputError
+from station.survey import load_survey
+from station.track import build_track
+
+
+def _true_offset(track, run: TrueRun) -> float:
+    """x of the track's origin on the true run's axis."""
+    az = run.azimuth_gon * math.pi / 200.0
+    u = np.array([math.sin(az), math.cos(az)])
+    return float((np.array(track.origin_en) - np.array([run.e0, run.n0])) @ u)
+
+
+def test_demo_track_recovers_the_true_profile(demo_track):
+    run = TrueRun()
+    x0 = _true_offset(demo_track, run)
+    prof = demo_track.profile
+    x = np.linspace(prof.x_min + 10, prof.x_max - 10, 400)
+    assert np.max(np.abs(prof.h(x) - run.h(x + x0))) < 0.012  # m
+    assert np.max(np.abs(prof.slope_deg(x) - np.degrees(run.slope(x + x0)))) < 0.1  # degrees
+    xs = np.array([pc.x for pc in demo_track.photocells]) + x0
+    assert np.max(np.abs(xs - run.cell_x)) < 0.02
+    assert demo_track.photocell_ids == [f"PC{i}" for i in range(1, 10)]
+    assert 330 < demo_track.length_m < 350 and 65 < demo_track.drop_m < 78
+    assert demo_track.warnings == []
+    # the posts stand ±4 m beside the track: their mean lies on the centre line
+    assert all(abs(pc.lateral_m) < 0.3 for pc in demo_track.photocells)
+
+
+def test_spline_smooths_instead_of_interpolating(demo_track):
+    """Noisy points must not become curvature spikes: an interpolating spline through the same
+    points gets the curvature several times worse than the smoothing spline does."""
+    from scipy.interpolate import CubicSpline
+
+    run = TrueRun()
+    x0 = _true_offset(demo_track, run)
+    pts = [p for p in demo_track.points if p.used]
+    xp = np.array([p.x for p in pts])
+    yp = np.array([p.y for p in pts])
+    residuals = np.array([p.residual_m for p in pts])
+    assert 0.002 < np.sqrt(np.mean(residuals**2)) < 0.01
+    x = np.linspace(20, 380, 721)
+    xt = x + x0
+    dx = 0.01
+    true_k = -(np.tan(run.slope(xt + dx)) - np.tan(run.slope(xt - dx))) / (2 * dx)
+    true_k /= (1 + np.tan(run.slope(xt)) ** 2) ** 1.5
+    smooth_err = np.sqrt(np.mean((demo_track.profile.curvature(x) - true_k) ** 2))
+    cs = CubicSpline(xp, yp)
+    interp_k = cs(x, 2) / (1 + cs(x, 1) ** 2) ** 1.5
+    interp_err = np.sqrt(np.mean((interp_k - true_k) ** 2))
+    assert smooth_err < 3e-4
+    assert interp_err > 3 * smooth_err
+
+
+INLINE = """\
+name: Inline test run
+angle_unit: {unit}
+refraction_k: null
+setups:
+  - station: S1
+    e: 1000.0
+    n: 2000.0
+    h: 500.0
+    instrument_height: 1.5
+    observations:
+{obs}
+photocells: [C1, C2, C3]
+exclude: [BS]
+"""
+
+
+def _inline(tmp_path, unit="gon", extra_obs="", body=None):
+    """A straight 10 % slope along grid north, observed from a station on its axis."""
+    lines = []
+    for i, x in enumerate(np.arange(10.0, 131.0, 5.0)):
+        dh = -0.1 * x - 1.5 + 1.3  # target height on the slope minus station eye, + reflector
+        sd = math.hypot(x, dh)
+        zen = math.atan2(x, dh)
+        zen_u = zen * (200 / math.pi) if unit == "gon" else math.degrees(zen)
+        lines.append(
+            f"      - {{point: P{i:02d}, hz: 0.0, zenith: {zen_u:.9f}, sd: {sd:.6f}, reflector_height: 1.3}}"
+        )
+    for c, x in (("C1", 30.0), ("C2", 70.0), ("C3", 110.0)):
+        dh = -0.1 * x - 1.5
+        hz = math.atan2(3.0, x)  # posts 3 m to the right
+        hd = math.hypot(x, 3.0)
+        zen = math.atan2(hd, dh)
+        conv = (200 / math.pi) if unit == "gon" else 180 / math.pi
+        lines.append(
+            f"      - {{point: {c}, hz: {hz * conv:.9f}, zenith: {zen * conv:.9f}, hd: {hd:.6f}}}"
+        )
+    text = body or INLINE.format(unit=unit, obs="\n".join(lines) + extra_obs)
+    path = tmp_path / "inline.yaml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("unit", ["gon", "deg"])
+def test_inline_observations_give_the_exact_plane(tmp_path, unit):
+    track = build_track(load_survey(str(_inline(tmp_path, unit))))
+    x = np.linspace(20, 120, 11)
+    assert track.profile.slope_deg(x) == pytest.approx(math.degrees(math.atan(0.1)), abs=1e-6)
+    assert [pc.x for pc in track.photocells] == pytest.approx([20.0, 60.0, 100.0], abs=1e-6)
+    assert [pc.lateral_m for pc in track.photocells] == pytest.approx([-3.0] * 3, abs=1e-6)
+    assert track.azimuth_deg == pytest.approx(0.0, abs=1e-6)
+
+
+def _error(path) -> str:
+    with pytest.raises(InputError) as err:
+        build_track(load_survey(str(path)))
+    return str(err.value)
+
+
+def test_unknown_key_names_file_line_and_field(tmp_path):
+    path = _inline(tmp_path)
+    text = path.read_text().replace("refraction_k: null", "refraction_k: null\nrefraktion: 0.1")
+    path.write_text(text)
+    msg = _error(path)
+    assert msg.startswith(f"{path}:4: field refraktion: unknown key")
+
+
+def test_photocell_never_observed(tmp_path):
+    path = _inline(tmp_path)
+    path.write_text(
+        path.read_text().replace("photocells: [C1, C2, C3]", "photocells: [C1, C2, C9]")
+    )
+    msg = _error(path)
+    assert "photocell point 'C9' was never observed" in msg
+    assert msg.startswith(f"{path}:")
+
+
+def test_photocells_out_of_order(tmp_path):
+    path = _inline(tmp_path)
+    path.write_text(
+        path.read_text().replace("photocells: [C1, C2, C3]", "photocells: [C1, C3, C2]")
+    )
+    assert "list photocells in order down the run" in _error(path)
+
+
+def test_bad_value_type_is_located(tmp_path):
+    path = _inline(tmp_path)
+    path.write_text(path.read_text().replace("e: 1000.0", "e: east"))
+    msg = _error(path)
+    assert msg.startswith(f"{path}:6: field setups[0].e: expected a number")
+
+
+def test_missing_observation_file(tmp_path):
+    path = tmp_path / "s.yaml"
+    path.write_text("observations: nowhere.gsi\nphotocells: [A]\n")
+    assert "observation file 'nowhere.gsi' not found" in _error(path)
+
+
+def test_unknown_angle_unit(tmp_path):
+    path = _inline(tmp_path)
+    path.write_text(path.read_text().replace("angle_unit: gon", "angle_unit: grad"))
+    assert "field angle_unit: unknown angle unit 'grad'" in _error(path)
+
+
+def test_broken_yaml(tmp_path):
+    path = tmp_path / "s.yaml"
+    path.write_text("name: x\nphotocells: [A, B\n")
+    assert "not valid YAML" in _error(path)
+
+
+def test_sparse_points_and_outliers_warn(tmp_path):
+    path = _inline(tmp_path)
+    text = path.read_text()
+    # drop the points between 50 and 75 m and push one point 20 cm off the slope
+    lines = [
+        ln for ln in text.splitlines() if not any(f"P{i:02d}," in ln for i in (8, 9, 10, 11, 12))
+    ]
+    path.write_text("\n".join(lines) + "\n")
+    track = build_track(load_survey(str(path)))
+    assert any("too sparse to resolve the curvature" in w for w in track.warnings)
+
+    # P05 booked with a reflector height 0.2 m too low: it lies 0.2 m above the slope
+    path2 = _inline(tmp_path)
+    lines = path2.read_text().splitlines()
+    lines = [
+        ln.replace("reflector_height: 1.3}", "reflector_height: 1.1}") if "P05," in ln else ln
+        for ln in lines
+    ]
+    path2.write_text("\n".join(lines) + "\n")
+    track2 = build_track(load_survey(str(path2)))
+    assert [w for w in track2.warnings if "left out" in w] == [
+        next(w for w in track2.warnings if "profile point P05" in w)
+    ]
+    assert not next(p for p in track2.points if p.id == "P05").used
+    x = np.linspace(15, 125, 50)
+    assert np.max(np.abs(track2.profile.curvature(x))) < 1e-6  # no spike left behind
+
+
+def test_photocell_outside_surveyed_span(tmp_path):
+    path = _inline(tmp_path)
+    lines = [
+        ln
+        for ln in path.read_text().splitlines()
+        if not any(f"P{i:02d}," in ln for i in range(0, 6))
+    ]
+    path.write_text("\n".join(lines) + "\n")
+    msg = _error(path)
+    assert "photocell C1" in msg and "outside the surveyed profile" in msg
+
+
+def test_bare_gsi_survey_reduces_without_photocells(real):
+    from station.survey import load_survey
+
+    s = load_survey(str(real / "leica_gsi" / "leica_gsi16_gurob.gsi"))
+    assert s.photocells == [] and len(s.points) > 300
