@@ -85,8 +85,9 @@ def _density(args: argparse.Namespace) -> float:
     if all(v is None for v in given):
         rho = air_density(DEFAULT_PRESSURE_HPA, DEFAULT_TEMPERATURE_C, DEFAULT_HUMIDITY_PCT)
         _warn(
-            f"no air data given; assuming {DEFAULT_PRESSURE_HPA} hPa, {DEFAULT_TEMPERATURE_C:g} °C, "
-            f"{DEFAULT_HUMIDITY_PCT:g} % (ρ = {rho:.3f} kg/m³). Give --pressure-hpa at the run's "
+            f"no air data given; assuming {DEFAULT_PRESSURE_HPA} hPa, "
+            f"{DEFAULT_TEMPERATURE_C:g} °C, {DEFAULT_HUMIDITY_PCT:g} % (ρ = {rho:.3f} kg/m³). "
+            "Give --pressure-hpa at the run's "
             "altitude: ρ enters CdA one to one"
         )
         return rho
@@ -195,7 +196,8 @@ def cmd_survey(args: argparse.Namespace) -> int:
             f"axis azimuth {track.azimuth_deg:.2f}°, largest lateral offset {max(lat):.2f} m"
         )
         print(
-            f"spline   residual RMS {track.residual_rms_m * 1000:.1f} mm (point σ {sig * 1000:.1f} mm), "
+            f"spline   residual RMS {track.residual_rms_m * 1000:.1f} mm "
+            f"(point σ {sig * 1000:.1f} mm), "
             f"curvature {kg.min():+.5f} .. {kg.max():+.5f} 1/m"
         )
         if track.photocells:
@@ -379,7 +381,8 @@ def cmd_fit_traverse(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     ap = _Parser(
         prog="station",
-        description="Measurement station for ski-friction test days (Kaps, Nachbauer & Mössner 1996).",
+        description="Measurement station for ski-friction test days "
+        "(Kaps, Nachbauer & Mössner 1996).",
     )
     ap.add_argument("--version", action="version", version=f"station {__version__}")
     sub = ap.add_subparsers(dest="command", required=True, parser_class=_Parser)

@@ -113,7 +113,10 @@ def test_malformed_words_name_line_and_field(text, field, fragment):
 
 
 def test_bare_cr_line_numbers_count_each_line_end():
-    text = "\r110001+00000100 21.102+11545200 22.102+09885300 31..00+00000000\r\r\r110002+0000010X 21.102+1154520\r"
+    text = (
+        "\r110001+00000100 21.102+11545200 22.102+09885300 31..00+00000000\r\r"
+        "\r110002+0000010X 21.102+1154520\r"
+    )
     with pytest.raises(InputError) as err:
         parse_gsi(text, "old.gsi")
     assert str(err.value).startswith("old.gsi:5:")

@@ -87,7 +87,8 @@ def _inline(tmp_path, unit="gon", extra_obs="", body=None):
         zen = math.atan2(x, dh)
         zen_u = zen * (200 / math.pi) if unit == "gon" else math.degrees(zen)
         lines.append(
-            f"      - {{point: P{i:02d}, hz: 0.0, zenith: {zen_u:.9f}, sd: {sd:.6f}, reflector_height: 1.3}}"
+            f"      - {{point: P{i:02d}, hz: 0.0, zenith: {zen_u:.9f}, sd: {sd:.6f}, "
+            "reflector_height: 1.3}"
         )
     for c, x in (("C1", 30.0), ("C2", 70.0), ("C3", 110.0)):
         dh = -0.1 * x - 1.5
