@@ -54,6 +54,20 @@ def _nonnegative(text: str) -> float:
     return value
 
 
+def _percent(text: str) -> float:
+    value = _nonnegative(text)
+    if value > 100:
+        raise argparse.ArgumentTypeError(f"must lie between 0 and 100 %, got {text!r}")
+    return value
+
+
+def _celsius(text: str) -> float:
+    value = _number(text)
+    if not -60 <= value <= 50:
+        raise argparse.ArgumentTypeError(f"{text!r} °C is not an air temperature on snow")
+    return value
+
+
 def _number(text: str) -> float:
     try:
         value = float(text)
@@ -71,8 +85,8 @@ def _warn(message: str) -> None:
 def _add_air(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("air (station pressure, not sea-level QNH)")
     g.add_argument("--pressure-hpa", type=_positive, metavar="P")
-    g.add_argument("--temperature-c", type=_number, metavar="T")
-    g.add_argument("--humidity-pct", type=_nonnegative, metavar="H")
+    g.add_argument("--temperature-c", type=_celsius, metavar="T")
+    g.add_argument("--humidity-pct", type=_percent, metavar="H")
     g.add_argument("--air-density", type=_positive, metavar="RHO", help="kg/m³, instead of P, T, H")
 
 

@@ -200,13 +200,24 @@ def initial_guess(run: StraightRun, t: np.ndarray, c: Conditions, n_params: int)
 
 
 def _predicted_decrease(jac: np.ndarray, r: np.ndarray, x: np.ndarray, scale: np.ndarray) -> float:
-    """What one more Gauss-Newton step on the free parameters would still gain in Σ."""
-    free = ~((x <= 1e-12 * scale) & (jac.T @ r > 0))
-    if not free.any():
-        return 0.0
-    js = jac[:, free]
-    step, *_ = np.linalg.lstsq(js, -r, rcond=None)
-    return float(np.sum(r**2) - np.sum((r + js @ step) ** 2))
+    """What one more feasible Gauss-Newton step could still gain in Σ.
+
+    Parameters at their lower bound 0 whose step points outward are held there; the step of the
+    others is shortened so that none crosses 0. A verified minimum gains (almost) nothing.
+    """
+    free = np.ones(len(x), dtype=bool)
+    for _ in range(len(x)):
+        if not free.any():
+            return 0.0
+        step = np.zeros(len(x))
+        step[free], *_ = np.linalg.lstsq(jac[:, free], -r, rcond=None)
+        blocked = free & (x <= 1e-6 * scale) & (step < 0)
+        if not blocked.any():
+            break
+        free &= ~blocked
+    neg = step < 0
+    frac = min(1.0, float(np.min(x[neg] / -step[neg]))) if neg.any() else 1.0
+    return float(np.sum(r**2) - np.sum((r + frac * (jac @ step)) ** 2))
 
 
 def fit_descent(
