@@ -100,7 +100,8 @@ def case(name, track, xs, truth, cond, model, noise_s, repeats, slow_repeats):
     for label, (secs, sres) in slow.items():
         print(f"  straightforward, {label}: median {secs * 1e3:8.1f} ms over {slow_repeats} "
               f"fits, reached minimum: {reached(sres.x)} (μ {sres.x[1]:.6f} vs {p_best[1]:.6f}, "
-              f"Σ {sigma(sres.x):.3e} vs {s_best:.3e} s²); station is {secs / ours:.0f}× faster")  # fmt: skip
+              f"Σ {sigma(sres.x):.3e} vs {s_best:.3e} s²); "
+              f"station is {secs / ours:.0f}× faster")  # fmt: skip
     print(f"  times vs DAE (rtol 1e-12): max |Δt| = {agree:.2e} s")
     return ours, slow, agree
 
