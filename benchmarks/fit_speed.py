@@ -51,7 +51,7 @@ def straightforward_fit(profile, xs, t, cond, x0, n_params, tol):
     return least_squares(fun, x0, bounds=(np.zeros(n_params), upper), method="trf")
 
 
-def case(name, track, xs, truth, cond, model, noise_s, repeats, slow_repeats):
+def case(name, track, xs, truth, cond, model, noise_s, repeats, slow_repeats, station_only=False):
     n_params = 4 if model == "velocity" else 3
     prof = track.profile
     run = StraightRun(prof, xs)
@@ -69,7 +69,7 @@ def case(name, track, xs, truth, cond, model, noise_s, repeats, slow_repeats):
 
     x0 = initial_guess(run, t - t[0], cond, n_params)
     slow = {}
-    for label, tol in VARIANTS.items():
+    for label, tol in ({} if station_only else VARIANTS).items():
         slow_times = []
         for _ in range(slow_repeats):
             t0 = time.perf_counter()
@@ -110,6 +110,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=30)
     ap.add_argument("--slow-repeats", type=int, default=1)
+    ap.add_argument("--station-only", action="store_true", help="skip the straightforward fits")
     args = ap.parse_args()
     track = build_track(load_survey(str(ROOT / "surveys" / "demo_run.yaml")))
     cond = Conditions(88.0, 1.04)
@@ -125,6 +126,7 @@ def main() -> int:
         1e-4,
         args.repeats,
         args.slow_repeats,
+        args.station_only,
     )
     xs20 = np.linspace(xs9[0], xs9[-1], 20)
     case(
@@ -137,6 +139,7 @@ def main() -> int:
         1e-4,
         args.repeats,
         args.slow_repeats,
+        args.station_only,
     )
     return 0
 

@@ -124,8 +124,20 @@ def simulate_survey(run: TrueRun, seed: int = 7) -> tuple[str, list[str]]:
         h = float(run.h(np.array([sx]))[0]) + 1.0  # a small mound beside the run
         stations.append((f"ST{i + 1}", float(e[0]), float(n[0]), h, 1.55 + 0.05 * i))
 
+    # the true points, placed once: centre-line points with lateral jitter and snow roughness,
+    # and both posts of each photocell, ±4 m beside the track with a beam across the run
     profile_x = np.arange(0.0, run.x_end + 1e-9, 5.0)
     cell_ids = [f"PC{i + 1}" for i in range(run.n_cells)]
+    targets: list[tuple[str, float, float, float, float, float]] = []  # id, x, E, N, H, hr
+    for j, px in enumerate(profile_x):
+        e, n = run.to_en(np.array([px]), np.array([rng.normal(0.0, 0.3)]))
+        h = float(run.h(np.array([px]))[0]) + rng.normal(0.0, 0.005)
+        targets.append((f"P{j:03d}", float(px), float(e[0]), float(n[0]), h, 2.0))
+    for cid, cx in zip(cell_ids, run.cell_x, strict=True):
+        for side, lat in (("L", 4.0), ("R", -4.0)):
+            e, n = run.to_en(np.array([cx + rng.normal(0, 0.01)]), np.array([lat]))
+            h = float(run.h(np.array([cx]))[0]) + rng.normal(0.0, 0.02)
+            targets.append((f"{cid}{side}", float(cx), float(e[0]), float(n[0]), h, 1.3))
     for sid, se, sn, sh, hi in stations:
         add(
             [
@@ -138,21 +150,9 @@ def simulate_survey(run: TrueRun, seed: int = 7) -> tuple[str, list[str]]:
         )
         st = (se, sn, sh, hi)
         sx = station_x[int(sid[2:]) - 1]
-        for j, px in enumerate(profile_x):
-            if abs(px - sx) > 80.0:  # each setup covers the run 80 m either side
-                continue
-            lat = rng.normal(0.0, 0.3)
-            e, n = run.to_en(np.array([px]), np.array([lat]))
-            h = float(run.h(np.array([px]))[0]) + rng.normal(0.0, 0.005)
-            obs(f"P{j:03d}", float(e[0]), float(n[0]), h, st, 2.0)
-        for cid, cx in zip(cell_ids, run.cell_x, strict=True):
-            if abs(cx - sx) > 80.0:
-                continue
-            for side, lat in (("L", 4.0), ("R", -4.0)):
-                # posts stand on the snow beside the track, ±4 m, a beam across the run
-                e, n = run.to_en(np.array([cx + rng.normal(0, 0.01)]), np.array([lat]))
-                h = float(run.h(np.array([cx]))[0]) + rng.normal(0.0, 0.02)
-                obs(f"{cid}{side}", float(e[0]), float(n[0]), h, st, 1.3)
+        for pid, tx, e, n, h, hr in targets:
+            if abs(tx - sx) <= 80.0:  # each setup covers the run 80 m either side
+                obs(pid, e, n, h, st, hr)
     return "\r\n".join(lines) + "\r\n", cell_ids
 
 

@@ -144,7 +144,75 @@ def _print_json(obj: Any) -> None:
 # ----------------------------------------------------------------------------- survey
 
 
+def cmd_survey_points(args: argparse.Namespace) -> int:
+    """A bare observation file has no photocells: list the reduced points for checking."""
+    from station.survey import load_survey
+
+    survey = load_survey(args.survey)
+    pts = list(survey.points.values())
+    if args.csv:
+        with open(args.csv, "w", newline="", encoding="utf-8") as fh:
+            w = csv.writer(fh)
+            w.writerow(["point", "e", "n", "h", "sigma_h_m", "setup", "line"])
+            for p in pts:
+                w.writerow([p.point, f"{p.e:.4f}", f"{p.n:.4f}", f"{p.h:.4f}", f"{p.sigma_h:.4f}",
+                            p.setup, p.line])  # fmt: skip
+    if args.json:
+        _print_json(
+            {
+                "points": [
+                    {
+                        "id": p.point,
+                        "e": p.e,
+                        "n": p.n,
+                        "h": p.h,
+                        "sigma_h_m": p.sigma_h,
+                        "setup": p.setup,
+                        "line": p.line,
+                    }  # fmt: skip
+                    for p in pts
+                ],
+                "setups": [
+                    {
+                        "station": s.station,
+                        "e": s.e,
+                        "n": s.n,
+                        "h": s.h,
+                        "instrument_height": s.instrument_height,
+                        "line": s.line,
+                    }  # fmt: skip
+                    for s in survey.setups
+                ],
+                "warnings": survey.warnings,
+            }
+        )
+        return 0
+    print(f"observations  {args.survey}: {len(pts)} points from {len(survey.setups)} setup(s)")
+    print(f"{'setup':<12}{'E':>12}{'N':>12}{'H':>10}{'hi':>7}  line")
+    for s in survey.setups:
+        line = "" if s.line is None else str(s.line)
+        print(
+            f"{s.station:<12}{s.e:>12.3f}{s.n:>12.3f}{s.h:>10.3f}{s.instrument_height:>7.3f}  {line}"
+        )
+    print()
+    print(f"{'point':<12}{'E':>12}{'N':>12}{'H':>10}{'σH [mm]':>9}  setup")
+    for p in pts:
+        print(
+            f"{p.point:<12}{p.e:>12.3f}{p.n:>12.3f}{p.h:>10.3f}{p.sigma_h * 1000:>9.1f}  {p.setup}"
+        )
+    for w in survey.warnings:
+        _warn(w)
+    _warn(
+        "a bare observation file has no photocells; blocks before the first station block "
+        "were reduced from station 0, 0, 0 with instrument height 0. Write a survey YAML "
+        "(surveys/README.md) to name the photocells and the first setup and get the track"
+    )
+    return 0
+
+
 def cmd_survey(args: argparse.Namespace) -> int:
+    if args.survey.lower().endswith(".gsi"):
+        return cmd_survey_points(args)
     track = _load_track(args.survey)
     prof = track.profile
     xg = np.arange(math.ceil(prof.x_min), math.floor(prof.x_max) + 1e-9, 1.0)

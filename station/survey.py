@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 import os
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from station.errors import InputError
 from station.gsi import read_gsi
@@ -105,6 +105,47 @@ def _merge(points: list[ReducedPoint]) -> ReducedPoint:
         line=first.line,
         instrument_enh=first.instrument_enh,
     )
+
+
+#: repeated observations of one id closer than this (m), or within 5σ, are the same point
+SAME_POINT_M = 0.05
+
+
+def _group_points(reduced: list[ReducedPoint], warnings: list[str]) -> dict[str, ReducedPoint]:
+    """Merge repeated observations of one point id, but only where they agree.
+
+    Surveyors reuse point numbers (the real ertola file uses 111 ids twice, for points tens of
+    metres apart). Observations that agree with the first one within max(5 cm, 5σ) are merged
+    into their precision-weighted mean; another point under the same id keeps its own identity
+    as ``id@line`` and a warning says so.
+    """
+    clusters: dict[str, list[list[ReducedPoint]]] = {}
+    for p in reduced:
+        groups = clusters.setdefault(p.point, [])
+        for g in groups:
+            ref = g[0]
+            dxy = math.hypot(p.e - ref.e, p.n - ref.n)
+            dh = abs(p.h - ref.h)
+            tol_xy = max(SAME_POINT_M, 5 * math.hypot(p.sigma_xy, ref.sigma_xy))
+            tol_h = max(SAME_POINT_M, 5 * math.hypot(p.sigma_h, ref.sigma_h))
+            if dxy <= tol_xy and dh <= tol_h:
+                g.append(p)
+                break
+        else:
+            groups.append([p])
+    points: dict[str, ReducedPoint] = {}
+    for pid, groups in clusters.items():
+        points[pid] = _merge(groups[0])
+        for g in groups[1:]:
+            first = groups[0][0]
+            new_id = f"{pid}@{g[0].line}"
+            dist = math.hypot(g[0].e - first.e, g[0].n - first.n)
+            warnings.append(
+                f"point id {pid} names another point on line {g[0].line}, {dist:.2f} m from the "
+                f"one on line {first.line}; kept apart as {new_id}"
+            )
+            points[new_id] = replace(_merge(g), point=new_id)
+    return points
 
 
 def _setup_from(sec: Section, unit: str, default_name: str) -> Setup:
@@ -313,13 +354,20 @@ def _assemble(
     pattern: re.Pattern[str] | None,
     k: float | None,
 ) -> Survey:
-    by_id: dict[str, list[ReducedPoint]] = {}
-    for p in reduced:
-        by_id.setdefault(p.point, []).append(p)
-    points = {pid: _merge(ps) for pid, ps in by_id.items()}
+    warnings: list[str] = []
+    points = _group_points(reduced, warnings)
+    ambiguous = {pid.split("@")[0] for pid in points if "@" in pid}
+    for pc in photocells:
+        for p in pc.points:
+            if p in ambiguous:
+                raise InputError(
+                    f"point id {p!r} names different points in the survey; rename them",
+                    path=path,
+                    line=pc.line,
+                    field=f"photocells {pc.id}",
+                )
     not_profile = set(exclude) | {p for pc in photocells for p in pc.points}
     not_profile |= {s.station for s in obs.setups}
-    warnings = []
     profile_ids = []
     for pid, p in points.items():
         if pid in not_profile or (pattern is not None and not pattern.search(pid)):

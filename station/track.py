@@ -27,6 +27,10 @@ OUTLIER_SIGMA = 4.0
 #: ... and one further than this from a quadratic through its neighbours, before the spline
 SCREEN_SIGMA = 5.0
 SCREEN_NEIGHBOURS = 3  # on each side
+#: more outliers than this fraction of the profile points: it is not a profile of one run
+MAX_OUTLIER_FRACTION = 0.2
+#: profile points further than this (m) from the fall-line axis are not on the centre line
+MAX_LATERAL_M = 5.0
 #: gaps between profile points wider than this (m) cannot carry the curvature
 MAX_GAP_M = 10.0
 #: photocells closer than this (m) to the surveyed ends sit where the spline is least reliable
@@ -208,8 +212,9 @@ def build_track(survey: Survey) -> Track:
     left = np.array([-u[1], u[0]])
     origin = centre + u * proj.min()
     x_all = (en - origin) @ u
-    origin = origin + u * x_all.min()  # exactly 0 at the uppermost point, no -0.0 from rounding
+    origin = origin + u * x_all.min()
     x_all = (en - origin) @ u
+    x_all -= x_all.min()  # exactly 0 at the uppermost point (rounding left ±1e-14)
     lat_all = (en - origin) @ left
 
     order = np.argsort(x_all)
@@ -228,7 +233,16 @@ def build_track(survey: Survey) -> Track:
             )
         return make_splrep(xm, ym, w=1.0 / sm, k=3, s=float(len(xm)))
 
-    for i in screen_outliers(x, y, s_):
+    removed = screen_outliers(x, y, s_)
+    if len(removed) > max(2, MAX_OUTLIER_FRACTION * len(x)):
+        raise InputError(
+            f"{len(removed)} of {len(x)} profile points do not lie on one smooth line along the "
+            f"fall line (lateral offsets up to {np.abs(lat).max():.1f} m): this is not a profile "
+            "of the run; name the centre-line points with profile_pattern or exclude the others",
+            path=survey.path,
+            field="profile points",
+        )
+    for i in removed:
         used[i] = False
     spl = fit(used)
     resid = y - spl(x)
@@ -247,6 +261,14 @@ def build_track(survey: Survey) -> Track:
     d2 = spl.derivative(2)
     profile = Profile(h=spl, dh=d1, d2h=d2, x_min=float(x[used].min()), x_max=float(x[used].max()))
 
+    off = used & (np.abs(lat) > MAX_LATERAL_M)
+    if off.any():
+        worst = int(np.argmax(np.where(off, np.abs(lat), 0.0)))
+        warnings.append(
+            f"{int(off.sum())} profile points lie more than {MAX_LATERAL_M:.0f} m off the "
+            f"fall-line axis (largest {lat[worst]:+.1f} m at {ids[worst]}): does the run curve "
+            "in plan, or are these not centre-line points?"
+        )
     xu = x[used]
     gaps = np.diff(xu)
     for i in np.flatnonzero(gaps > MAX_GAP_M):

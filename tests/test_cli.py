@@ -172,3 +172,15 @@ def test_bad_input_gets_one_line_and_exit_2(run_station, tmp_path, case, expect)
     assert len(lines) == 1, r.stderr
     assert "Traceback" not in r.stderr
     assert expect in lines[0], lines[0]
+
+
+def test_a_bare_gsi_file_lists_its_reduced_points(run_station, real, tmp_path):
+    out = tmp_path / "points.csv"
+    r = run_station("survey", real / "leica_gsi" / "leica_gsi16_gurob.gsi", "--csv", out)
+    assert r.returncode == 0, r.stderr
+    assert "GDEM5415" in r.stdout and "has no photocells" in r.stderr
+    df = pd.read_csv(out)
+    row = df[df["point"] == "GDEM5415"].iloc[0]
+    assert (row["e"], row["n"]) == pytest.approx((8.0757, 11.2167), abs=1e-4)
+    r = run_station("survey", real / "leica_gsi" / "RILIEVO.gsi", "--json")
+    assert len(json.loads(r.stdout)["points"]) == 23

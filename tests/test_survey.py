@@ -217,3 +217,28 @@ def test_bare_gsi_survey_reduces_without_photocells(real):
 
     s = load_survey(str(real / "leica_gsi" / "leica_gsi16_gurob.gsi"))
     assert s.photocells == [] and len(s.points) > 300
+
+
+def test_reused_point_ids_stay_apart(real):
+    s = load_survey(str(real / "leica_gsi" / "leica_gsi8_ertola.gsi"))
+    reused = [w for w in s.warnings if "names another point" in w]
+    assert len(reused) >= 100
+    assert "1" in s.points and "1@384" in s.points
+    a, b = s.points["1"], s.points["1@384"]
+    assert math.hypot(a.e - b.e, a.n - b.n) > 50
+
+
+def test_a_photocell_on_an_ambiguous_id_is_an_error(real, tmp_path):
+    gsi = real / "leica_gsi" / "leica_gsi8_ertola.gsi"
+    path = tmp_path / "s.yaml"
+    path.write_text(f"observations: {gsi}\nphotocells: [1, 7]\n")
+    msg = _error(path)
+    assert "point id '1' names different points" in msg and msg.startswith(f"{path}:2:")
+
+
+def test_an_area_survey_is_not_taken_for_a_run_profile(real, tmp_path):
+    gsi = real / "leica_gsi" / "leica_gsi16_gurob.gsi"
+    path = tmp_path / "s.yaml"
+    path.write_text(f"observations: {gsi}\nphotocells: [GDEM5415, GDEM5416]\n")
+    msg = _error(path)
+    assert "do not lie on one smooth line along the fall line" in msg
