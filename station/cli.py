@@ -192,7 +192,8 @@ def cmd_survey_points(args: argparse.Namespace) -> int:
     for s in survey.setups:
         line = "" if s.line is None else str(s.line)
         print(
-            f"{s.station:<12}{s.e:>12.3f}{s.n:>12.3f}{s.h:>10.3f}{s.instrument_height:>7.3f}  {line}"
+            f"{s.station:<12}{s.e:>12.3f}{s.n:>12.3f}{s.h:>10.3f}"
+            f"{s.instrument_height:>7.3f}  {line}"
         )
     print()
     print(f"{'point':<12}{'E':>12}{'N':>12}{'H':>10}{'σH [mm]':>9}  setup")
