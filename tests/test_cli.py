@@ -184,3 +184,17 @@ def test_a_bare_gsi_file_lists_its_reduced_points(run_station, real, tmp_path):
     assert (row["e"], row["n"]) == pytest.approx((8.0757, 11.2167), abs=1e-4)
     r = run_station("survey", real / "leica_gsi" / "RILIEVO.gsi", "--json")
     assert len(json.loads(r.stdout)["points"]) == 23
+
+
+def test_velocity_model_reports_mu1_or_says_it_is_not_identifiable(run_station):
+    times = DEMO_SURVEY.parent / "demo_descent.csv"
+    r = run_station(
+        "fit", "--survey", DEMO_SURVEY, "--times", times, "--mass", "88", *AIR,
+        "--model", "velocity", "--json",
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert "mu1" in d and "mu1" in d["ci90"]
+    # nine photocells at 0.5 ms cannot separate μ1 from μ and CdA: it must say so
+    assert d["status"] == "ill-conditioned" and "mu1" in d["not_identifiable"]
+    assert d["mu1"] is None
