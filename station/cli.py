@@ -459,6 +459,82 @@ def cmd_fit_traverse(args: argparse.Namespace) -> int:
     return 0
 
 
+# ----------------------------------------------------------------------------- timing input
+
+
+def _date(text: str | None):
+    import datetime as dt
+
+    if text is None:
+        return None
+    try:
+        return dt.date.fromisoformat(text)
+    except ValueError:
+        raise InputError(f"--date {text!r} is not YYYY-MM-DD") from None
+
+
+def cmd_record(args: argparse.Namespace) -> int:
+    from station import session as sessions
+    from station.config import load_config
+    from station.recorder import record
+
+    cfg = load_config(args.config)
+    folder = args.session_dir or sessions.default_dir()
+    print(f"recording to {folder} from {cfg.serial.port} ({cfg.serial.protocol}); Ctrl-C ends",
+          file=sys.stderr)  # fmt: skip
+    run = record(cfg, folder, max_descents=args.max_descents, duration_s=args.duration)
+    print(run.summary(), file=sys.stderr)
+    print(f"results: {os.path.join(folder, sessions.RESULTS)}", file=sys.stderr)
+    return 0
+
+
+def _replay_run(args: argparse.Namespace, quiet: bool = False):
+    from station import session as sessions
+    from station.config import load_config
+    from station.recorder import replay
+
+    source = args.source
+    if not os.path.exists(source):
+        raise InputError("no such session or capture", path=source)
+    if getattr(args, "config", None):
+        cfg = load_config(args.config)
+    elif sessions.is_session(source):
+        cfg = sessions.load_session_config(source)
+    else:
+        raise InputError("a plain capture needs --config (protocol, channels, survey)", path=source)
+    warnings: list[str] = []
+    speed = None if getattr(args, "fast", True) else getattr(args, "speed", None)
+    out = (lambda _m: None) if quiet else print
+    run = replay(source, cfg, out=out, speed=speed, date=_date(getattr(args, "date", None)),
+                 warnings=warnings)  # fmt: skip
+    for w in warnings:
+        _warn(w)
+    return run
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    from station.recorder import write_events
+
+    run = _replay_run(args)
+    print(run.summary(), file=sys.stderr)
+    if args.csv:
+        run.write_csv(args.csv)
+    if args.events:
+        write_events(run, args.events)
+    return 0
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from station import session as sessions
+
+    if not sessions.is_session(args.source):
+        raise InputError("not a session directory (no raw.jsonl)", path=args.source)
+    run = _replay_run(args, quiet=True)
+    run.write_csv(args.csv)
+    print(f"{len(run.results)} descents -> {args.csv}", file=sys.stderr)
+    return 0
+
+
 # ----------------------------------------------------------------------------- main
 
 
@@ -511,6 +587,29 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     _add_air(p)
     p.set_defaults(func=cmd_fit_traverse)
+
+    p = sub.add_parser("record", help="record a timer headless: raw log, descents, fits, CSV")
+    p.add_argument("--config", required=True, help="station config YAML")
+    p.add_argument("--session-dir", metavar="DIR", help="default: sessions/DATE_TIME")
+    p.add_argument("--max-descents", type=int, metavar="N", help="stop after N descents")
+    p.add_argument("--duration", type=_positive, metavar="S", help="stop after S seconds")
+    p.set_defaults(func=cmd_record)
+
+    p = sub.add_parser("replay", help="replay a session or a plain capture of a timer's output")
+    p.add_argument("source", metavar="CAPTURE_OR_SESSION")
+    p.add_argument("--config", help="station config (default: the session's own)")
+    p.add_argument("--csv", metavar="OUT", help="write the results CSV")
+    p.add_argument("--events", metavar="OUT", help="write every parsed impulse and its fate")
+    p.add_argument("--date", help="date of a plain capture, YYYY-MM-DD (default: file date)")
+    pace = p.add_mutually_exclusive_group()
+    pace.add_argument("--speed", type=_positive, metavar="X", help="replay at X times real time")
+    pace.add_argument("--fast", action="store_true", help="as fast as possible (the default)")
+    p.set_defaults(func=cmd_replay)
+
+    p = sub.add_parser("export", help="write a session's results CSV")
+    p.add_argument("source", metavar="SESSION")
+    p.add_argument("--csv", required=True, metavar="OUT")
+    p.set_defaults(func=cmd_export)
     return ap
 
 

@@ -1,0 +1,117 @@
+"""Replay speed: parse and assemble a long capture, and a test day end to end with fits.
+
+1. A plain ALGE capture of 11 200 descents × 9 photocells = 100 800 impulse lines (2.7 MB),
+   replayed through framer, parser and descent assembler (no fits). Target ≥ 200 000 lines/s.
+2. A 50-descent capture with timing noise, double triggers and running-time lines, replayed
+   end to end: parse, assemble, fit every descent, write the results CSV.
+
+Run: python benchmarks/replay_speed.py
+"""
+
+from __future__ import annotations
+
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from station.config import load_config  # noqa: E402
+from station.impulse import format_tod  # noqa: E402
+from station.physics import Conditions, Params, StraightRun  # noqa: E402
+from station.pipeline import Processor  # noqa: E402
+from station.protocols import format_alge  # noqa: E402
+from station.rawlog import Chunk  # noqa: E402
+from station.recorder import replay  # noqa: E402
+from station.survey import load_survey  # noqa: E402
+from station.track import build_track  # noqa: E402
+
+CONFIG = """\
+serial: {{port: loop://, protocol: alge}}
+survey: {survey}
+photocells: {{C0: PC1, C1: PC2, C2: PC3, C3: PC4, C4: PC5, C5: PC6, C6: PC7, C7: PC8, C8: PC9}}
+skier: {{mass_kg: 88}}
+air: {{density: 1.079}}
+"""
+
+
+def main() -> int:
+    tmp = tempfile.mkdtemp(prefix="station-bench-")
+    cfg_path = os.path.join(tmp, "station.yaml")
+    with open(cfg_path, "w") as fh:
+        fh.write(CONFIG.format(survey=ROOT / "surveys" / "demo_run.yaml"))
+    cfg = load_config(cfg_path)
+    track = build_track(load_survey(cfg.survey_path))
+    xs = np.array([pc.x for pc in track.photocells])
+    run = StraightRun(track.profile, xs)
+    times = run.solve(Params(0.22, 0.0085, 3.4), Conditions(88, 1.079), sensitivities=False).t
+
+    # 1. parse + assemble
+    lines = []
+    t0 = 8 * 3600 * 10**6
+    n = 0
+    for _ in range(11_200):
+        for i, ti in enumerate(times):
+            n += 1
+            lines.append(format_alge(f"C{i}", (t0 + int(ti * 1e6)) % 86_400_000_000, n) + "\r")
+        t0 += 25_000_000
+    data = "".join(lines).encode("ascii")
+    rates = []
+    for _ in range(3):
+        proc = Processor(cfg, track)
+        start = time.perf_counter()
+        done = 0
+        for k in range(0, len(data), 4096):
+            done += len(proc.feed(Chunk(None, data[k : k + 4096])))  # type: ignore[arg-type]
+        done += len(proc.finish())
+        rates.append(len(lines) / (time.perf_counter() - start))
+    print(f"parse + assemble: {len(lines)} impulse lines ({len(data) / 1e6:.1f} MB), "
+          f"{done} descents")  # fmt: skip
+    print(f"  median {statistics.median(rates):,.0f} lines/s over 3 runs "
+          f"(target 200,000: {statistics.median(rates) / 200_000:.2f}× the target)")  # fmt: skip
+
+    # 2. a 50-descent day end to end
+    rng = np.random.default_rng(7)
+    out = []
+    t0 = 9 * 3600 * 10**6
+    n = 0
+    for _ in range(50):
+        p = Params(rng.uniform(0.18, 0.3), rng.uniform(0.006, 0.03), rng.uniform(2, 6))
+        t = run.solve(p, Conditions(88, 1.079), sensitivities=False).t
+        t = t + np.concatenate([[0], rng.normal(0, 3e-4, len(t) - 1)])
+        for s in range(0, 20, 1):  # running-time lines before the start
+            out.append(format_tod(t0 - (20 - s) * 1_000_000, 1) + "\r")
+        for i, ti in enumerate(t):
+            n += 1
+            tod = t0 + int(round(ti * 1e6))
+            out.append(format_alge(f"C{i}", tod, n) + "\r")
+            if rng.random() < 0.1:
+                n += 1
+                out.append(format_alge(f"C{i}", tod + 50_000, n) + "\r")
+        t0 += 40_000_000
+    cap = os.path.join(tmp, "day.txt")
+    with open(cap, "w", newline="") as fh:
+        fh.write("".join(out))
+    secs = []
+    for _ in range(3):
+        start = time.perf_counter()
+        r = replay(cap, cfg, out=lambda _m: None)
+        r.write_csv(os.path.join(tmp, "results.csv"))
+        secs.append(time.perf_counter() - start)
+    med = statistics.median(secs)
+    statuses = {}
+    for res in r.results:
+        statuses[res.row["status"]] = statuses.get(res.row["status"], 0) + 1
+    print(f"end to end: 50 descents, {len(out)} lines, fits and CSV: median {med * 1e3:.0f} ms "
+          f"({med / 50 * 1e3:.1f} ms per descent); statuses {statuses}")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,205 @@
+"""The station config (YAML): serial port, protocol, survey, channel map, skier, air, descents.
+
+    serial:
+      port: /dev/ttyUSB0          # a device, COM3, socket://host:port, loop://, or a pty
+      baudrate: 9600
+      protocol: alge              # alge | tag | microgate
+      bytesize: 8
+      parity: N                   # N E O M S
+      stopbits: 1                 # 1 | 1.5 | 2
+      rtscts: false
+      xonxoff: false
+    survey: surveys/demo_run.yaml # relative to this file
+    photocells:                   # timer channel -> photocell id in the survey
+      C0: PC1
+      C1: PC2
+    skier: {mass_kg: 88, name: A. Skier}
+    ski: pair 3                   # optional, into the results
+    wax: LF blue
+    notes: morning, hard snow
+    air: {pressure_hpa: 835, temperature_c: -4, humidity_pct: 70}   # or {density: 1.08}
+    descent: {debounce_s: 0.3, timeout_s: null, min_speed_ms: 1.0}
+    fit: {model: constant}        # constant | velocity
+
+Unknown keys and wrong types are one clear line naming the file, line and key.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+from station.air import air_density
+from station.errors import InputError
+from station.protocols import PARSERS
+from station.yamlio import Section, load_yaml
+
+PARITIES = {"N", "E", "O", "M", "S"}
+
+
+@dataclass(frozen=True)
+class SerialConfig:
+    port: str
+    protocol: str
+    baudrate: int = 9600
+    bytesize: int = 8
+    parity: str = "N"
+    stopbits: float = 1
+    rtscts: bool = False
+    xonxoff: bool = False
+
+
+@dataclass(frozen=True)
+class DescentConfig:
+    debounce_s: float = 0.3
+    timeout_s: float | None = None
+    min_speed_ms: float = 1.0
+
+
+@dataclass
+class StationConfig:
+    path: str
+    serial: SerialConfig
+    survey_path: str
+    channels: dict[str, str]
+    mass_kg: float
+    air_density: float
+    air: dict[str, float]
+    descent: DescentConfig = field(default_factory=DescentConfig)
+    model: str = "constant"
+    metadata: dict[str, str] = field(default_factory=dict)
+    text: str = ""
+
+
+_TOP = {"serial", "survey", "photocells", "skier", "ski", "wax", "notes", "air", "descent", "fit"}
+
+
+def load_config(path: str) -> StationConfig:
+    data = load_yaml(path)
+    top = Section(data, path, "", _TOP)
+    ser = Section(
+        top.data.get("serial"),
+        path,
+        "serial",
+        {"port", "baudrate", "protocol", "bytesize", "parity", "stopbits", "rtscts", "xonxoff"},
+    )
+    if "serial" not in top.data:
+        raise InputError("missing required key", path=path, field="serial")
+    protocol = ser.get("protocol", str, required=True)
+    if protocol not in PARSERS:
+        raise ser.error("protocol", f"unknown protocol {protocol!r} ({', '.join(sorted(PARSERS))})")
+    parity = ser.get("parity", str, "N")
+    if parity not in PARITIES:
+        raise ser.error("parity", f"unknown parity {parity!r} (N, E, O, M, S)")
+    stopbits = ser.get("stopbits", float, 1.0)
+    if stopbits not in (1, 1.5, 2):
+        raise ser.error("stopbits", f"stop bits must be 1, 1.5 or 2, got {stopbits!r}")
+    bytesize = ser.get("bytesize", int, 8)
+    if bytesize not in (5, 6, 7, 8):
+        raise ser.error("bytesize", f"byte size must be 5..8, got {bytesize!r}")
+    baud = ser.get("baudrate", int, 9600)
+    if baud <= 0:
+        raise ser.error("baudrate", f"must be positive, got {baud!r}")
+    serial = SerialConfig(
+        port=ser.get("port", str, required=True),
+        protocol=protocol,
+        baudrate=baud,
+        bytesize=bytesize,
+        parity=parity,
+        stopbits=int(stopbits) if stopbits != 1.5 else 1.5,
+        rtscts=ser.get("rtscts", bool, False),
+        xonxoff=ser.get("xonxoff", bool, False),
+    )
+
+    survey = top.get("survey", str, required=True)
+    survey_path = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(path)), survey))
+    if not os.path.exists(survey_path):
+        raise top.error("survey", f"survey file {survey!r} not found")
+
+    pcs = top.data.get("photocells")
+    if not isinstance(pcs, dict) or not pcs:
+        raise top.error("photocells", "expected a mapping of timer channel to photocell id")
+    channels: dict[str, str] = {}
+    for ch, pc in pcs.items():
+        if not isinstance(pc, (str, int)) or isinstance(pc, bool):
+            raise InputError(
+                f"expected a photocell id, got {pc!r}",
+                path=path,
+                line=pcs.lines.get(ch) if hasattr(pcs, "lines") else None,
+                field=f"photocells.{ch}",
+            )
+        channels[str(ch)] = str(pc)
+
+    sk = Section(top.data.get("skier"), path, "skier", {"mass_kg", "name"})
+    if "skier" not in top.data:
+        raise InputError("missing required key (skier: {mass_kg: …})", path=path, field="skier")
+    mass = sk.positive("mass_kg", required=True)
+
+    air_sec = Section(
+        top.data.get("air"),
+        path,
+        "air",
+        {"pressure_hpa", "temperature_c", "humidity_pct", "density"},
+    )
+    if air_sec.has("density"):
+        if any(air_sec.has(k) for k in ("pressure_hpa", "temperature_c", "humidity_pct")):
+            raise air_sec.error(
+                "density", "give density or pressure/temperature/humidity, not both"
+            )
+        rho = air_sec.positive("density")
+        air = {"density": rho}
+    else:
+        if "air" not in top.data:
+            raise InputError(
+                "missing required key (air: {pressure_hpa, temperature_c, humidity_pct}); "
+                "ρ enters CdA one to one",
+                path=path,
+                field="air",
+            )
+        air = {
+            "pressure_hpa": air_sec.positive("pressure_hpa", required=True),
+            "temperature_c": air_sec.get("temperature_c", float, required=True),
+            "humidity_pct": air_sec.get("humidity_pct", float, 80.0),
+        }
+        try:
+            rho = air_density(air["pressure_hpa"], air["temperature_c"], air["humidity_pct"])
+        except ValueError as exc:
+            raise air_sec.error("humidity_pct", str(exc)) from None
+
+    dsec = Section(
+        top.data.get("descent"), path, "descent", {"debounce_s", "timeout_s", "min_speed_ms"}
+    )
+    debounce = dsec.get("debounce_s", float, 0.3)
+    if debounce < 0:
+        raise dsec.error("debounce_s", "must not be negative")
+    descent = DescentConfig(
+        debounce_s=debounce,
+        timeout_s=dsec.positive("timeout_s"),
+        min_speed_ms=dsec.positive("min_speed_ms", 1.0),
+    )
+    fsec = Section(top.data.get("fit"), path, "fit", {"model"})
+    model = fsec.get("model", str, "constant")
+    if model not in ("constant", "velocity"):
+        raise fsec.error("model", f"unknown model {model!r} (constant, velocity)")
+
+    metadata = {}
+    if sk.has("name"):
+        metadata["skier"] = sk.get("name", str)
+    for key in ("ski", "wax", "notes"):
+        if top.has(key):
+            metadata[key] = top.get(key, str)
+    with open(path, encoding="utf-8") as fh:
+        text = fh.read()
+    return StationConfig(
+        path=path,
+        serial=serial,
+        survey_path=survey_path,
+        channels=channels,
+        mass_kg=mass,
+        air_density=rho,
+        air=air,
+        descent=descent,
+        model=model,
+        metadata=metadata,
+        text=text,
+    )

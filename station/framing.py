@@ -1,0 +1,40 @@
+"""Bytes from the port -> lines of text, whatever the line end and however the bytes arrive.
+
+Timers end lines with CR (ALGE, Microgate) or CR LF (TAG); captures may have LF. A line may
+arrive split across reads, so the framer keeps the unfinished tail. Bytes are decoded as
+latin-1, which maps every byte to one character: nothing is lost or replaced, and the raw log
+keeps the bytes anyway. A runaway line without terminator (garbage, wrong baud rate) is cut at
+MAX_LINE so memory stays bounded; it then parses as nothing and is counted.
+"""
+
+from __future__ import annotations
+
+MAX_LINE = 512
+
+
+class LineFramer:
+    """Feed bytes, get complete lines (without their terminators)."""
+
+    def __init__(self) -> None:
+        self._tail = ""
+        self._after_cr = False
+
+    def feed(self, data: bytes) -> list[str]:
+        text = data.decode("latin-1")
+        if self._after_cr and text.startswith("\n"):
+            text = text[1:]  # the LF of a CR LF split across two reads
+        self._after_cr = text.endswith("\r")
+        text = self._tail + text
+        if "\r" in text:
+            text = text.replace("\r\n", "\n").replace("\r", "\n")
+        parts = text.split("\n")
+        self._tail = parts.pop()
+        while len(self._tail) > MAX_LINE:
+            parts.append(self._tail[:MAX_LINE])
+            self._tail = self._tail[MAX_LINE:]
+        return parts
+
+    def flush(self) -> list[str]:
+        """The unfinished last line, at the end of a capture."""
+        tail, self._tail = self._tail, ""
+        return [tail] if tail else []

@@ -1,0 +1,287 @@
+"""Timer wire formats: one line of text -> Impulse, Edit, Skip or Unparsed; and back again.
+
+Parsers are small classes with a ``parse(line)`` method. ALGE's is stateful: a classement
+print-out spans several lines that are skipped as a block. Parsing is by fixed columns, as the
+devices send them (timing-protocols.md §1.2, §2.1, §3.1), and it is written for speed:
+replaying a day means hundreds of thousands of lines.
+
+The ``format_*`` functions write lines byte for byte like the hardware. The simulated timer
+uses them, and the tests use them for round trips.
+"""
+
+from __future__ import annotations
+
+from station.impulse import Edit, Impulse, Parsed, Skip, Unparsed, format_tod
+
+# ----------------------------------------------------------------------------- helpers
+
+
+_TWO = {f"{i:02d}": i for i in range(100)}
+_TWO.update({f" {i}": i for i in range(10)})  # a blank-padded hour (TAG)
+
+
+def _tod(text: str) -> tuple[int, int] | None:
+    """``HH:MM:SS[.,:]f…`` (fraction right-padded with blanks, hour may be blank-padded)
+    -> (µs since midnight, resolution µs), or None. Two-digit fields are looked up in a
+    table, which checks and converts them at once (this runs for every line of a replay)."""
+    n = len(text)
+    if n < 8 or text[2] != ":" or text[5] != ":":
+        return None
+    h = _TWO.get(text[0:2])
+    m = _TWO.get(text[3:5])
+    s = _TWO.get(text[6:8])
+    if h is None or m is None or s is None or h > 23 or m > 59 or s > 59 or text[3] == " ":
+        return None
+    base = ((h * 60 + m) * 60 + s) * 1_000_000
+    if n == 8:
+        return base, 1_000_000
+    if text[8] not in ".,:":
+        return None
+    frac = text[9:]
+    if not frac.isdigit():
+        frac = frac.rstrip()
+        if not frac:
+            return base, 1_000_000
+        if not frac.isdigit():
+            return None
+    k = len(frac)
+    if k > 6:
+        return None
+    res = _POW[6 - k]
+    return base + int(frac) * res, res
+
+
+_POW = [10**i for i in range(7)]
+
+
+def _frac(tod_us: int, decimals: int) -> str:
+    return format_tod(tod_us, decimals)
+
+
+# ----------------------------------------------------------------------------- ALGE
+
+
+ALGE_EDIT_FLAGS = {
+    "c": "cleared",
+    "C": "memory time deleted",
+    "d": "disqualified",
+    "i": "edited",
+    "m": "repeated from memory",
+}
+ALGE_STATUS_PREFIXES = (
+    "TIMY:",
+    "CLR",
+    "HW_SN",
+    "NSF",
+    "PROG",
+    "PULSE HOLD",
+    "ALGE",
+    "OK",
+    "ACK",
+)
+ALGE_COMPUTED = {"RT", "TT", "SQ", "DT", "km"}
+
+
+def alge_checksum(line26: str) -> str:
+    """Timy CHK1: low byte of the ASCII sum, as two nibble characters 0x30 + n.
+
+    The algorithm is metarace's; the nibble characters are inferred (timing-protocols.md §1.3).
+    """
+    total = sum(ord(c) for c in line26) & 0xFF
+    return chr(0x30 + (total >> 4)) + chr(0x30 + (total & 0xF))
+
+
+class AlgeParser:
+    """ALGE Timy / TdC 8000/8001 PC output: ``yNNNNxCCCxHH:MM:SS.zhtqxGG``."""
+
+    name = "alge"
+
+    def __init__(self) -> None:
+        self.in_printout = False
+
+    def parse(self, line: str) -> Parsed:
+        s = line
+        n = len(s)
+        if self.in_printout:
+            if n >= 15 and s[2] == "-" and s[5] == "-":  # the footer's date line "21-11-28  17:04"
+                self.in_printout = False
+            return Skip("classement print-out", line)
+        if n == 0 or s.isspace():
+            return Skip("blank line", line)
+        if n == 28:  # CHK1 checksum appended
+            body = s[:26]
+            if s[26:28] != alge_checksum(body):
+                return Unparsed(
+                    f"checksum {s[26:28]!r} does not match {alge_checksum(body)!r}", line
+                )
+            s, n = body, 26
+        if n >= 26 and s[9] == " " and s[23] == " ":
+            flag = s[0]
+            chan = s[6:9]
+            c0 = chan[0]
+            if c0 in "cC" and chan[1].isdigit():
+                channel = "C" + chan[1] + ("M" if chan[2] in "mM" else "")
+                if chan[2] not in " mM":
+                    return Unparsed(f"unknown channel {chan!r}", line)
+            elif chan[:2] in ALGE_COMPUTED:
+                return Skip(f"computed time ({chan.strip()})", line)
+            else:
+                return Unparsed(f"unknown channel {chan!r}", line)
+            t = _tod(s[10:23])
+            if t is None:
+                return Unparsed(f"time {s[10:23]!r} is not HH:MM:SS.ffff", line)
+            bib = s[1:5].strip()
+            if flag == " " or flag == "?":
+                return Impulse(channel, t[0], t[1], flag.strip(), bib, None, line)
+            kind = ALGE_EDIT_FLAGS.get(flag)
+            if kind is not None:
+                return Edit(kind, channel, t[0], flag, bib, line)
+            return Skip(f"flag {flag!r} is not an impulse", line)
+        if n in (5, 6) and s[0] in "ns" and s[1:5].isdigit():
+            return Skip("start number shown", line)
+        if n == 10 and _tod(s) is not None:
+            return Skip("running time", line)
+        stripped = s.strip()
+        if stripped.startswith("CLASSEMENT"):
+            self.in_printout = True
+            return Skip("classement print-out", line)
+        if stripped.startswith(ALGE_STATUS_PREFIXES):
+            return Skip("status line", line)
+        if stripped in ("?",):
+            return Skip("status line", line)
+        return Unparsed("not an ALGE line", line)
+
+
+def format_alge(
+    channel: str, tod_us: int, bib: int | str = 0, flag: str = " ", checksum: bool = False
+) -> str:
+    """A 26-character ALGE line (28 with CHK1), without the CR.
+
+    ``channel`` is "C0".."C9" or a keypad "C0M"; photocell channels carry 1e-4 s, keypad 1e-2 s.
+    """
+    ch = channel.upper()
+    keypad = ch.endswith("M")
+    decimals = 2 if keypad else 4
+    tod = _frac(tod_us, decimals).ljust(13)
+    b = str(bib).rjust(4, "0")[-4:]
+    line = f"{flag[:1] or ' '}{b} {ch:<3} {tod} 00"
+    return line + alge_checksum(line) if checksum else line
+
+
+# ----------------------------------------------------------------------------- TAG Heuer
+
+
+def tag_cs16(data: str) -> str:
+    """THCOM08 CS16: 16-bit sum of the data bytes (a leading # excluded), 4 hex digits."""
+    body = data[1:] if data.startswith("#") else data
+    return f"{sum(body.encode('latin-1')) & 0xFFFF:04X}"
+
+
+TAG_EDITS = {
+    "T-": "identification removed",
+    "T*": "new identification",
+    "T+": "inserted",
+    "T=": "duplicated",
+    "TC": "cancelled",
+    "TI": "ideal start",
+}
+TAG_STATUS = ("AK", "SN", "OP", "CL", "DS", "DE", "AN", "A-", "RR", "GR", "IR", "DR", "VE", "&P",
+              "&S", "!T")  # fmt: skip
+
+
+class TagParser:
+    """TAG Heuer THCOM08 (CP540/545, HL440/940/975): ``Tx NNNN SSSS CC HH:MM:SS.FFFFF DDDDD``."""
+
+    name = "tag"
+
+    def parse(self, line: str) -> Parsed:
+        data, tab, cs = line.partition("\t")
+        if tab and cs.strip() and cs.strip() != tag_cs16(data):
+            return Unparsed(f"checksum {cs.strip()!r} does not match {tag_cs16(data)!r}", line)
+        s = data.lstrip("#")
+        if not s.strip():
+            return Skip("blank line", line)
+        kind = s[:2]
+        if kind == "TN" or kind in TAG_EDITS:
+            if len(s) < 30:
+                return Unparsed("time message too short", line)
+            t = _tod(s[16:30])
+            if t is None:
+                return Unparsed(f"time {s[16:30]!r} is not HH:MM:SS.FFFFF", line)
+            channel = s[13:15].strip()
+            bib = s[3:7].strip()
+            if kind != "TN":
+                return Edit(TAG_EDITS[kind], channel, t[0], kind, bib, line)
+            rest = s[30:].split()
+            day = int(rest[0]) if rest and rest[0].isdigit() else None
+            return Impulse(channel, t[0], t[1], "" if bib else "?", bib, day, line)
+        if kind in TAG_STATUS:
+            return Skip("status line", line)
+        return Unparsed("not a THCOM08 line", line)
+
+
+def format_tag(
+    channel: str, tod_us: int, seq: int, bib: int | str = "", day: int = 0, kind: str = "TN"
+) -> str:
+    """A THCOM08 time message with TAB and CS16, without CR LF (hour blank-padded)."""
+    tod = _frac(tod_us, 5)
+    if tod[0] == "0":
+        tod = " " + tod[1:]
+    data = f"{kind} {str(bib):>4} {seq:>4} {channel:>2} {tod} {day:>5}"
+    return f"{data}\t{tag_cs16(data)}"
+
+
+# ----------------------------------------------------------------------------- Microgate
+
+
+class RacetimeParser:
+    """Microgate Racetime2 ASCII record: ``QQQQSSSSRRRCCCLLLIOPHHMMSSttt`` (29 characters)."""
+
+    name = "microgate"
+
+    def parse(self, line: str) -> Parsed:
+        s = line
+        if not s.strip():
+            return Skip("blank line", line)
+        if s[0] in "\x02\x03":
+            return Skip("transfer header or epilog", line)
+        if len(s) != 29 or not s[0:17].isdigit() or not s[20:29].isdigit():
+            return Unparsed("not a Racetime2 record", line)
+        info, origin = s[17], s[18]
+        t = s[20:29]
+        h, m, sec, ms = int(t[0:2]), int(t[2:4]), int(t[4:6]), int(t[6:9])
+        if h > 23 or m > 59 or sec > 59:
+            return Unparsed(f"time {t!r} is not HHMMSSttt", line)
+        tod = ((h * 60 + m) * 60 + sec) * 1_000_000 + ms * 1000
+        channel = s[14:17]
+        bib = s[4:8].lstrip("0")
+        if info != "0":
+            return Skip(f"not a time of day (info {info!r})", line)
+        if origin in "Ss":
+            return Skip("skipped time", line)
+        return Impulse(channel, tod, 1000, "", bib, None, line)
+
+
+def format_racetime(
+    channel: str, tod_us: int, counter: int, bib: int = 0, origin: str = "E"
+) -> str:
+    """A 29-character Racetime2 record, without the CR."""
+    s, us = divmod(tod_us, 1_000_000)
+    h, rest = divmod(s, 3600)
+    m, sec = divmod(rest, 60)
+    ch = f"{int(channel):03d}"
+    tod = f"{h:02d}{m:02d}{sec:02d}{us // 1000:03d}"
+    return f"{counter % 10000:04d}{bib:04d}001{ch}{ch}0{origin} {tod}"
+
+
+PARSERS = {"alge": AlgeParser, "tag": TagParser, "microgate": RacetimeParser}
+
+
+def make_parser(protocol: str):
+    """A fresh parser for a protocol name from the config."""
+    try:
+        return PARSERS[protocol]()
+    except KeyError:
+        raise ValueError(
+            f"unknown protocol {protocol!r} (known: {', '.join(sorted(PARSERS))})"
+        ) from None
