@@ -174,7 +174,7 @@ def run(args: argparse.Namespace) -> int:
                 print(f"station-sim: descent {k + 1} would stop; skipped", file=sys.stderr)
                 continue
             t = d.t + np.concatenate([[0.0], rng.normal(0.0, args.noise_ms * 1e-3, len(d.t) - 1)])
-            start = next_start
+            start = -(-next_start // 1_000_000) * 1_000_000  # on a whole second: reproducible
             events: list[tuple[int, str, str]] = []  # (tod, channel, kind)
             sent_ids = []
             for i, (ch, ti) in enumerate(zip(channels, t, strict=True)):

@@ -591,7 +591,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("record", help="record a timer headless: raw log, descents, fits, CSV")
     p.add_argument("--config", required=True, help="station config YAML")
     p.add_argument("--session-dir", metavar="DIR", help="default: sessions/DATE_TIME")
-    p.add_argument("--max-descents", type=int, metavar="N", help="stop after N descents")
+    p.add_argument(
+        "--max-descents",
+        type=int,
+        metavar="N",
+        help="stop after N descents (aborted ones not counted)",
+    )
     p.add_argument("--duration", type=_positive, metavar="S", help="stop after S seconds")
     p.set_defaults(func=cmd_record)
 

@@ -136,7 +136,8 @@ def record(
             out(describe(res))
         if done:
             run.write_csv(results_path)
-            if max_descents is not None and len(run.results) >= max_descents:
+            real = sum(r.descent.status != "aborted" for r in run.results)
+            if max_descents is not None and real >= max_descents:
                 stop.set()
 
     def on_chunk(t: float, data: bytes) -> None:

@@ -1,0 +1,170 @@
+"""End to end on a real pseudo-terminal: station-sim speaks, station records, replays, exports."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import time
+
+import pandas as pd
+import pytest
+
+from tests.conftest import station_cmd
+from tests.timing_helpers import start_sim, write_config
+
+SIM_FAST = ["--speed", "10", "--first-after", "2", "--hold", "1"]
+
+
+def record(cfg, session, *extra, timeout=90) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [*station_cmd(), "record", "--config", str(cfg), "--session-dir", str(session), *extra],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+
+
+def test_record_gets_the_true_parameters_back_and_replay_reproduces_it(tmp_path, run_station):
+    sim, port, truth = start_sim(
+        tmp_path, *SIM_FAST, "--descents", "3", "--vary", "--seed", "11", "--noise-ms", "0.3",
+        "--double-trigger", "0.2", "--running-time", "--garbage", "0.05", "--walkthrough", "0.5",
+    )  # fmt: skip
+    cfg = write_config(tmp_path, port, extra='ski: pair 3\nwax: "=1+2"\nnotes: "hard #snow"\n')
+    session = tmp_path / "session"
+    try:
+        r = record(cfg, session, "--max-descents", "3")
+    finally:
+        sim.wait(timeout=30)
+    assert r.returncode == 0, r.stderr
+    df = pd.read_csv(session / "results.csv", comment="#")
+    truths = [json.loads(line) for line in truth.read_text().splitlines()]
+    ok = df[df["status"] == "ok"].reset_index(drop=True)
+    assert len(ok) == 3 and len(truths) == 3
+    for row, tr in zip(ok.itertuples(), truths, strict=True):
+        assert row.mu_lo <= tr["mu"] <= row.mu_hi
+        assert row.cda_lo <= tr["cda"] <= row.cda_hi
+    assert (df["wax"] == "'=1+2").all() and (df["notes"] == "hard #snow").all()
+    assert r.stdout.count("descent ") >= 3
+
+    # replay reproduces the live CSV byte for byte; export too
+    out = tmp_path / "replay.csv"
+    events = tmp_path / "events.csv"
+    rr = run_station("replay", session, "--csv", out, "--events", events)
+    assert rr.returncode == 0, rr.stderr
+    assert out.read_bytes() == (session / "results.csv").read_bytes()
+    ev = pd.read_csv(events)
+    assert {"line", "channel", "time", "flag", "kept", "reason"} <= set(ev.columns)
+    # 27 photocell crossings, plus the start impulse of every walk-through (an aborted descent)
+    assert (ev["kept"] == "yes").sum() == 27 + (df["status"] == "aborted").sum()
+    exp = tmp_path / "export.csv"
+    assert run_station("export", session, "--csv", exp).returncode == 0
+    assert exp.read_bytes() == out.read_bytes()
+    # the session holds the config and survey it ran with
+    assert (session / "config.yaml").exists() and (session / "raw.jsonl").exists()
+
+
+def test_sigkill_mid_descent_loses_nothing_that_was_flushed(tmp_path, run_station):
+    sim, port, _ = start_sim(tmp_path, *SIM_FAST, "--descents", "4", "--seed", "3")
+    cfg = write_config(tmp_path, port)
+    session = tmp_path / "session"
+    rec = subprocess.Popen(
+        [*station_cmd(), "record", "--config", str(cfg), "--session-dir", str(session)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        printed = []
+        while len(printed) < 2:
+            line = rec.stdout.readline()
+            assert line, rec.stderr.read()
+            if line.startswith("descent"):
+                printed.append(line)
+        time.sleep(0.8)  # into the third descent (17 s of device time take 1.7 s)
+        os.kill(rec.pid, signal.SIGKILL)
+        rec.wait(timeout=10)
+    finally:
+        sim.terminate()
+        sim.wait(timeout=10)
+    live = pd.read_csv(session / "results.csv", comment="#")
+    assert len(live) == 2
+    out = tmp_path / "replay.csv"
+    r = run_station("replay", session, "--csv", out)
+    assert r.returncode == 0, r.stderr
+    replayed = pd.read_csv(out, comment="#")
+    assert len(replayed) == 3  # the third was cut off by the kill: incomplete, fitted with the rest
+    # an all-empty text column reads back as float, a partly filled one as text: compare values
+    pd.testing.assert_frame_equal(replayed.iloc[:2], live, check_dtype=False)
+    assert replayed.loc[2, "descent_status"] == "incomplete"
+    assert "the recording ended" in replayed.loc[2, "flags"]
+
+
+def test_an_unplugged_timer_is_reported_and_reconnected(tmp_path):
+    sim, port, _ = start_sim(
+        tmp_path, "--speed", "20", "--first-after", "2", "--hold", "1", "--descents", "3",
+        "--interval", "80", "--disconnect-after", "1", "--disconnect-s", "1", "--seed", "2",
+    )  # fmt: skip
+    cfg = write_config(tmp_path, port)
+    session = tmp_path / "session"
+    try:
+        r = record(cfg, session, "--max-descents", "3")
+    finally:
+        sim.wait(timeout=30)
+    assert r.returncode == 0, r.stderr
+    assert "timer disconnected" in r.stdout
+    events = [json.loads(x).get("event") for x in (session / "raw.jsonl").read_text().splitlines()]
+    assert events.count("disconnected") >= 1 and events.count("connected") >= 2
+    df = pd.read_csv(session / "results.csv", comment="#")
+    assert list(df["status"]) == ["ok", "ok", "ok"]
+
+
+@pytest.mark.parametrize(
+    ("protocol", "channels"),
+    [
+        ("tag", {str(i + 1): f"PC{i + 1}" for i in range(9)}),
+        (
+            "microgate",
+            {"000": "PC1", **{f"{i:03d}": f"PC{i + 1}" for i in range(1, 8)}, "255": "PC9"},
+        ),
+    ],
+)
+def test_tag_and_microgate_timers(tmp_path, protocol, channels):
+    sim, port, truth = start_sim(
+        tmp_path, *SIM_FAST, "--descents", "1", "--protocol", protocol, "--seed", "4"
+    )
+    cfg = write_config(tmp_path, port, protocol, channels)
+    try:
+        r = record(cfg, tmp_path / "s", "--max-descents", "1")
+    finally:
+        sim.wait(timeout=30)
+    assert r.returncode == 0, r.stderr
+    df = pd.read_csv(tmp_path / "s" / "results.csv", comment="#")
+    assert list(df["status"]) == ["ok"] and df.loc[0, "photocells_used"] == 9
+    assert df.loc[0, "mu_lo"] <= 0.0085 <= df.loc[0, "mu_hi"]
+
+
+def test_replay_of_the_real_tdc_capture(tmp_path, real, run_station):
+    cfg = write_config(tmp_path, "/dev/null", channels={"C0": "PC1", "C1": "PC9"})
+    out, events = tmp_path / "r.csv", tmp_path / "e.csv"
+    cap = real / "alge" / "ALGETdC8001-202002020841.dump"
+    r = run_station("replay", cap, "--config", cfg, "--csv", out, "--events", events,
+                    "--date", "2020-02-02")  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert "299 impulses, 6 edits" in r.stderr and "0 unparsed" in r.stderr
+    df = pd.read_csv(out, comment="#")
+    assert len(df) > 20
+    # two photocells cannot carry three unknowns: said so, never a number
+    assert set(df["status"]) <= {"too-few-photocells", "aborted"}
+    assert df["start_time"].str.startswith("2020-02-02T").all()
+    ev = pd.read_csv(events)
+    assert len(ev) == 299 + 6
+    assert (ev["reason"].str.contains("not a photocell", na=False)).sum() == 2  # the keypad
+
+
+def test_record_against_a_missing_port_keeps_retrying(tmp_path):
+    cfg = write_config(tmp_path, str(tmp_path / "no-such-tty"))
+    r = record(cfg, tmp_path / "s", "--duration", "1.5", timeout=30)
+    assert r.returncode == 0
+    assert "cannot open" in r.stdout and "retrying" in r.stdout
