@@ -46,7 +46,22 @@ def results_frame(rows: list[dict[str, Any]]) -> pd.DataFrame:
     df = pd.DataFrame(rows, columns=COLUMNS)
     for col in TEXT_COLUMNS:
         df[col] = df[col].map(safe_text)
+    # numbers as numbers (None -> empty), so they are written unquoted and read back as floats
+    for col in COLUMNS:
+        if col in TEXT_COLUMNS or col == "start_time":
+            continue
+        kind = "Int64" if col in ("descent", "photocells_used") else "float64"
+        df[col] = pd.to_numeric(df[col]).astype(kind)
     return df
+
+
+def _plain(value: Any) -> Any:
+    """NaN/NA -> None (written empty); numpy scalars -> Python numbers (written unquoted)."""
+    if value is None or value is pd.NA or (isinstance(value, float) and value != value):
+        return None
+    if hasattr(value, "item"):
+        return value.item()
+    return value
 
 
 def write_results(rows: list[dict[str, Any]], path: str, header: dict[str, str]) -> None:
@@ -59,7 +74,12 @@ def write_results(rows: list[dict[str, Any]], path: str, header: dict[str, str])
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
             fh.write("\n".join(lines) + "\n")
-            df.to_csv(fh, index=False, float_format="%.10g", quoting=csv.QUOTE_NONNUMERIC)
+            # the csv module, not DataFrame.to_csv: numbers must stay numbers (unquoted, full
+            # precision) while every text field is quoted, so a "#" in the notes is safe
+            w = csv.writer(fh, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
+            w.writerow(list(df.columns))
+            for row in df.itertuples(index=False):
+                w.writerow([_plain(v) for v in row])
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

@@ -1,0 +1,35 @@
+"""The results CSV as a user opens it: pandas with comment="#", or a spreadsheet."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from station.results import COLUMNS, write_results
+
+
+def test_results_csv_round_trip_and_spreadsheet_safety(tmp_path):
+    rows = [
+        {c: None for c in COLUMNS}
+        | {"descent": 1, "start_time": "2026-02-02T10:41:07.234500", "photocells_used": 9,
+           "mu": 0.008452428372456, "mu_lo": 0.0083, "mu_hi": 0.0086, "status": "ok",
+           "notes": "pair #3, hard snow", "wax": "=HYPERLINK(\"x\")", "ski": "+A", "skier": "@me",
+           "missing": "", "mass_kg": 88.0},
+        {c: None for c in COLUMNS}
+        | {"descent": 2, "start_time": "2026-02-02T10:45:00", "photocells_used": 1,
+           "status": "aborted", "flags": "-lone start impulse", "mass_kg": 88.0},
+    ]  # fmt: skip
+    path = tmp_path / "results.csv"
+    write_results(rows, str(path), {"survey": "Demo run", "config": "station.yaml"})
+    text = path.read_text()
+    assert text.startswith("# station ") and "# survey: Demo run\n" in text
+    body = [ln for ln in text.splitlines() if not ln.startswith("#")]
+    assert body[1].startswith('1,"2026-02-02T10:41:07.234500",9,')  # numbers are not quoted
+    assert "0.008452428372456" in body[1]  # at full precision
+    df = pd.read_csv(path, comment="#")
+    assert list(df.columns) == COLUMNS
+    assert df.loc[0, "mu"] == 0.008452428372456
+    assert df.loc[0, "notes"] == "pair #3, hard snow"
+    assert df.loc[0, "wax"] == '\'=HYPERLINK("x")'
+    assert df.loc[0, "ski"] == "'+A" and df.loc[0, "skier"] == "'@me"
+    assert df.loc[1, "flags"] == "'-lone start impulse"
+    assert pd.isna(df.loc[1, "mu"]) and df["mu"].dtype == float
