@@ -154,6 +154,7 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
     rng = timer.rng
+    skis = [float(v) for v in args.skis.split(",")] if args.skis else []
     next_start = timer.tod_us() + int(args.first_after * args.speed * 1e6)
     prev_end: int | None = None
     last_running = timer.tod_us() // 1_000_000 * 1_000_000
@@ -161,7 +162,14 @@ def run(args: argparse.Namespace) -> int:
         for k in range(args.descents):
             if stop["now"]:
                 break
-            if args.vary:
+            if skis:
+                # pairs of skis in rotation, each with its own friction; the skier varies a little
+                p = Params(
+                    cda=float(rng.normal(0.22, 0.01)),
+                    mu=skis[k % len(skis)] * float(rng.normal(1.0, 0.03)),
+                    v0=float(rng.uniform(2.5, 4.5)),
+                )
+            elif args.vary:
                 p = Params(
                     cda=float(rng.uniform(0.18, 0.30)),
                     mu=float(rng.uniform(0.006, 0.030)),
@@ -257,6 +265,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--mu1", type=float, default=0.0)
     ap.add_argument("--v0", type=float, default=3.4)
     ap.add_argument("--vary", action="store_true", help="draw CdA, μ, v0 per descent")
+    ap.add_argument("--skis", help="μ of ski pairs used in rotation, e.g. 0.008,0.0095,0.011")
     ap.add_argument("--noise-ms", type=float, default=0.3)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--double-trigger", type=float, default=0.0, metavar="P")

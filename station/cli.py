@@ -515,6 +515,8 @@ def _replay_run(args: argparse.Namespace, quiet: bool = False):
 def cmd_replay(args: argparse.Namespace) -> int:
     from station.recorder import write_events
 
+    if args.ui:
+        return _replay_ui(args)
     run = _replay_run(args)
     print(run.summary(), file=sys.stderr)
     if args.csv:
@@ -522,6 +524,30 @@ def cmd_replay(args: argparse.Namespace) -> int:
     if args.events:
         write_events(run, args.events)
     return 0
+
+
+def _replay_ui(args: argparse.Namespace) -> int:
+    from station import session as sessions
+    from station.config import load_config
+    from station.ui.app import StationApp
+
+    if not os.path.exists(args.source):
+        raise InputError("no such session or capture", path=args.source)
+    if args.config:
+        cfg = load_config(args.config)
+    elif sessions.is_session(args.source):
+        cfg = sessions.load_session_config(args.source)
+    else:
+        raise InputError(
+            "a plain capture needs --config (protocol, channels, survey)", path=args.source
+        )
+    date = _date(args.date)
+    if date is None and not sessions.is_session(args.source):
+        import datetime as dt
+
+        date = dt.date.fromtimestamp(os.path.getmtime(args.source))
+    speed = None if args.fast else args.speed
+    return _run_ui(StationApp(cfg, mode="replay", source=args.source, speed=speed, date=date))
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -533,6 +559,66 @@ def cmd_export(args: argparse.Namespace) -> int:
     run.write_csv(args.csv)
     print(f"{len(run.results)} descents -> {args.csv}", file=sys.stderr)
     return 0
+
+
+# ----------------------------------------------------------------------------- UI
+
+
+def _run_ui(app) -> int:
+    app.run()
+    return 0
+
+
+def cmd_live(args: argparse.Namespace) -> int:
+    from station import session as sessions
+    from station.config import load_config
+    from station.ui.app import StationApp
+
+    cfg = load_config(args.config)
+    folder = args.session_dir or sessions.default_dir()
+    return _run_ui(StationApp(cfg, mode="live", session_dir=folder))
+
+
+DEMO_SKIS = [("demo pair A", 0.0080), ("demo pair B", 0.0095), ("demo pair C", 0.0110)]
+
+
+def demo_config_path() -> str:
+    """The bundled demo station config (package data, so it works without a checkout)."""
+    from importlib.resources import files
+
+    return str(files("surveys") / "demo_station.yaml")
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    import random
+    import tempfile
+
+    from station import session as sessions
+    from station.config import load_config
+    from station.ui.app import StationApp
+
+    cfg = load_config(demo_config_path())
+    folder = args.session_dir or sessions.default_dir("sessions").replace(
+        os.sep + "20", os.sep + "demo-20", 1
+    )
+    link = os.path.join(tempfile.mkdtemp(prefix="station-demo-"), "timer")
+    # the simulated timer runs as a process of its own, as a real timer would
+    sim = [
+        sys.executable, "-m", "simulators.timer", "--survey", cfg.survey_path, "--link", link,
+        "--descents", "100000", "--interval", str(args.interval), "--first-after", "3",
+        "--speed", str(args.speed), "--skis", ",".join(f"{mu}" for _n, mu in DEMO_SKIS),
+        "--seed", str(args.seed if args.seed is not None else random.randrange(1 << 30)),
+        "--noise-ms", "0.3", "--double-trigger", "0.05", "--hold", "0",
+        "--air-density", f"{cfg.air_density}", "--mass", f"{cfg.mass_kg}",
+    ]  # fmt: skip
+    app = StationApp(
+        cfg,
+        mode="demo",
+        session_dir=folder,
+        sim_command=sim,
+        demo_skis=[n for n, _mu in DEMO_SKIS],
+    )
+    return _run_ui(app)
 
 
 # ----------------------------------------------------------------------------- main
@@ -609,7 +695,20 @@ def build_parser() -> argparse.ArgumentParser:
     pace = p.add_mutually_exclusive_group()
     pace.add_argument("--speed", type=_positive, metavar="X", help="replay at X times real time")
     pace.add_argument("--fast", action="store_true", help="as fast as possible (the default)")
+    p.add_argument("--ui", action="store_true", help="show the replay in the terminal UI")
     p.set_defaults(func=cmd_replay)
+
+    p = sub.add_parser("live", help="the trackside terminal UI on a timer")
+    p.add_argument("--config", required=True, help="station config YAML")
+    p.add_argument("--session-dir", metavar="DIR", help="default: sessions/DATE_TIME")
+    p.set_defaults(func=cmd_live)
+
+    p = sub.add_parser("demo", help="the terminal UI on a simulated timer and the demo run")
+    p.add_argument("--session-dir", metavar="DIR", help="default: sessions/demo-DATE_TIME")
+    p.add_argument("--interval", type=_positive, default=20.0, help="seconds between descents")
+    p.add_argument("--speed", type=_positive, default=1.0, help="run the timer's clock faster")
+    p.add_argument("--seed", type=int, help="seed of the simulated descents")
+    p.set_defaults(func=cmd_demo)
 
     p = sub.add_parser("export", help="write a session's results CSV")
     p.add_argument("source", metavar="SESSION")

@@ -23,7 +23,7 @@ from station.errors import InputError
 from station.fit import FitResult, fit_descent
 from station.framing import LineFramer
 from station.impulse import DAY_US, Edit, Impulse, Skip, Unparsed
-from station.physics import Conditions, StraightRun
+from station.physics import Conditions, Params, StraightRun
 from station.protocols import make_parser
 from station.rawlog import Chunk
 from station.track import Track
@@ -132,6 +132,8 @@ class DescentResult:
     fit: FitResult | None
     start_time: str
     row: dict[str, Any]
+    speed_x: np.ndarray | None = None  # the fitted skier's speed along the run, for plots
+    speed_v: np.ndarray | None = None
 
 
 class Analyser:
@@ -162,12 +164,16 @@ class Analyser:
         d: Descent,
         host_t: float | None = None,
         date: dt.date | None = None,
-        metadata: dict[str, str] | None = None,
+        metadata: dict[str, Any] | None = None,
         model: str | None = None,
+        mass_kg: float | None = None,
+        air_density: float | None = None,
     ) -> DescentResult:
         cfg = self.config
         meta = {**cfg.metadata, **(metadata or {})}
         model = model or cfg.model
+        mass = mass_kg if mass_kg is not None else cfg.mass_kg
+        rho = air_density if air_density is not None else cfg.air_density
         fit = None
         if d.status != "aborted":
             ids = tuple(d.photocells)
@@ -180,23 +186,30 @@ class Analyser:
                 self.track.profile,
                 xs,
                 t,
-                Conditions(cfg.mass_kg, cfg.air_density),
+                Conditions(mass, rho),
                 list(ids),
                 model=model,
                 run=run,
             )
         start = self.start_time(d, host_t, date)
-        row = result_row(d, fit, start, cfg, meta, model)
-        return DescentResult(d, fit, start, row)
+        row = result_row(d, fit, start, meta, model, mass, rho)
+        res = DescentResult(d, fit, start, row)
+        if fit is not None and all(fit.estimates.get(k) is not None for k in ("cda", "mu", "v0")):
+            e = fit.estimates
+            p = Params(e["cda"], e["mu"], e["v0"], e.get("mu1") or 0.0)  # type: ignore[arg-type]
+            sol = run.solve(p, Conditions(mass, rho), sensitivities=False)
+            res.speed_x, res.speed_v = sol.x, sol.speed
+        return res
 
 
 def result_row(
     d: Descent,
     fit: FitResult | None,
     start: str,
-    cfg: StationConfig,
-    meta: dict[str, str],
+    meta: dict[str, Any],
     model: str,
+    mass_kg: float,
+    air_density: float,
 ) -> dict[str, Any]:
     """One row of the results CSV."""
 
@@ -230,10 +243,15 @@ def result_row(
         "descent_status": d.status,
         "flags": "; ".join(d.flags),
         "model": model,
-        "mass_kg": cfg.mass_kg,
-        "air_density": cfg.air_density,
+        "mass_kg": mass_kg,
+        "air_density": air_density,
         "skier": meta.get("skier", ""),
         "ski": meta.get("ski", ""),
         "wax": meta.get("wax", ""),
+        "air_temperature_c": meta.get("air_temperature_c"),
+        "snow_temperature_c": meta.get("snow_temperature_c"),
+        "pressure_hpa": meta.get("pressure_hpa"),
+        "humidity_pct": meta.get("humidity_pct"),
         "notes": meta.get("notes", ""),
+        "invalid_reason": "",
     }

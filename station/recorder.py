@@ -15,18 +15,19 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from station import session as sessions
 from station.config import StationConfig
+from station.day import Day
 from station.descents import Descent
 from station.errors import InputError
 from station.impulse import format_tod
-from station.pipeline import Analyser, DescentResult, Processor
+from station.pipeline import DescentResult, Processor
 from station.rawlog import Chunk, RawLogWriter, read_rawlog
 from station.results import write_results
 from station.survey import load_survey
-from station.track import Track, build_track
+from station.track import build_track
 
 CAPTURE_CHUNK = 4096
 
@@ -64,34 +65,35 @@ def _num(v: float | None, spec: str) -> str:
 
 @dataclass
 class Run:
-    """The processor, the analyser and what they produced."""
+    """A test day being recorded or replayed: its :class:`Day` and where it came from."""
 
-    config: StationConfig
-    track: Track
-    processor: Processor
-    analyser: Analyser
-    results: list[DescentResult] = field(default_factory=list)
-    date: dt.date | None = None
+    day: Day
 
     @classmethod
     def start(cls, config: StationConfig, date: dt.date | None = None) -> Run:
         track = build_track(load_survey(config.survey_path))
-        return cls(config, track, Processor(config, track), Analyser(config, track), date=date)
+        return cls(Day.start(config, track, date))
+
+    @property
+    def config(self) -> StationConfig:
+        return self.day.config
+
+    @property
+    def processor(self) -> Processor:
+        return self.day.processor
+
+    @property
+    def results(self) -> list[DescentResult]:
+        return [self.day.results[k] for k in sorted(self.day.results)]
 
     def finish_descents(self, done: list[Descent]) -> list[DescentResult]:
-        out = []
-        for d in done:
-            host = self.processor.start_host.get(d.number)
-            res = self.analyser.analyse(d, host, self.date)
-            self.results.append(res)
-            out.append(res)
-        return out
+        return self.day.finish(done)
 
     def header(self) -> dict[str, str]:
-        return sessions.results_header(self.config, self.track.name)
+        return sessions.results_header(self.config, self.day.track.name)
 
     def write_csv(self, path: str) -> None:
-        write_results([r.row for r in self.results], path, self.header())
+        write_results(self.day.rows(), path, self.header())
 
     def summary(self) -> str:
         c = self.processor.counts
@@ -218,6 +220,9 @@ def replay(
             date = dt.date.fromtimestamp(os.path.getmtime(source))
         chunks = capture_chunks(source)
     run = Run.start(config, date)
+    if sessions.is_session(source):
+        for record in sessions.read_annotations(source):
+            run.day.annotate(record)
     first_t = None
     m0 = time.monotonic()
     for chunk in chunks:

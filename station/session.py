@@ -5,6 +5,7 @@
       config.yaml      the station config as it was, verbatim
       <survey files>   the survey YAML and its observation file, at the same relative paths
       results.csv      one row per descent, rewritten after each descent
+      annotations.jsonl  what the engineer entered: metadata, invalid marks, refits
 
 Replaying a session (``station replay SESSION``) runs its own snapshot through the same
 processor and reproduces ``results.csv`` byte for byte.
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import datetime as dt
 import hashlib
+import json
 import os
 import re
 import shutil
@@ -25,6 +27,7 @@ from station.yamlio import load_yaml
 RAW = "raw.jsonl"
 CONFIG = "config.yaml"
 RESULTS = "results.csv"
+ANNOTATIONS = "annotations.jsonl"
 
 
 def is_session(path: str) -> bool:
@@ -108,3 +111,34 @@ def results_header(cfg: StationConfig, survey_name: str) -> dict[str, str]:
         "air": f"{air}; density {cfg.air_density:.4f} kg/m3",
         "fit": f"model {cfg.model}; 90 % intervals linearised (Wald), Student t",
     }
+
+
+def append_annotation(session: str, record: dict) -> None:
+    """Append one annotation (flushed and fsync'd: it is the engineer's word)."""
+    path = os.path.join(session, ANNOTATIONS)
+    with open(path, "a", encoding="utf-8") as fh:
+        fh.write(json.dumps(record, ensure_ascii=False, sort_keys=True) + "\n")
+        fh.flush()
+        os.fsync(fh.fileno())
+
+
+def read_annotations(session: str) -> list[dict]:
+    """The session's annotations in order; a torn last line is passed over."""
+    path = os.path.join(session, ANNOTATIONS)
+    if not os.path.exists(path):
+        return []
+    out = []
+    with open(path, encoding="utf-8") as fh:
+        lines = fh.read().splitlines()
+    for i, line in enumerate(lines, start=1):
+        if not line.strip():
+            continue
+        try:
+            rec = json.loads(line)
+        except ValueError:
+            if i == len(lines):
+                break
+            raise InputError("not an annotation record", path=path, line=i) from None
+        if isinstance(rec, dict):
+            out.append(rec)
+    return out

@@ -1,0 +1,1 @@
+"""The trackside terminal UI (Textual). The only part of ``station`` that imports textual."""

@@ -1,0 +1,208 @@
+"""The real Textual app: driven by Pilot against the simulated timer and replays, snapshots of
+the main screen, and ``station demo`` in tmux read off the captured pane."""
+
+from __future__ import annotations
+
+import asyncio
+import datetime as dt
+import functools
+import inspect
+import os
+import shutil
+import subprocess
+import time
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from station.config import load_config
+from station.physics import Conditions, Params, StraightRun
+from station.protocols import format_alge
+from station.ui.app import StationApp
+from tests.conftest import station_cmd
+from tests.timing_helpers import start_sim, write_config
+
+
+def run_async(fn):
+    """Run an async test with asyncio.run (no pytest plugin needed); fixtures pass through."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        return asyncio.run(fn(*args, **kwargs))
+
+    wrapper.__signature__ = inspect.signature(fn)  # type: ignore[attr-defined]
+    return wrapper
+
+
+async def wait_for(pilot, condition, timeout: float = 40.0) -> None:
+    end = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < end, "timed out waiting for the UI"
+        await pilot.pause(0.1)
+
+
+def make_capture(path, demo_track) -> None:
+    """A deterministic day: a clean descent, one with a missed photocell, a walk-through,
+    and one that stops being timed after three photocells (too few for a fit)."""
+    xs = np.array([pc.x for pc in demo_track.photocells])
+    t = (
+        StraightRun(demo_track.profile, xs)
+        .solve(Params(0.22, 0.0085, 3.4), Conditions(88, 1.079))
+        .t
+    )
+    lines, n = [], 0
+    starts = [10 * 3600, 10 * 3600 + 60, 10 * 3600 + 120, 10 * 3600 + 180]
+    for k, start in enumerate(starts):
+        for i, ti in enumerate(t):
+            if (k == 1 and i == 4) or (k == 2 and i > 0) or (k == 3 and i > 2):
+                continue
+            n += 1
+            lines.append(format_alge(f"C{i}", int((start + ti) * 1e6), n) + "\r")
+    path.write_text("".join(lines), newline="")
+
+
+def replay_app(tmp_path, demo_track) -> StationApp:
+    cap = tmp_path / "capture.txt"
+    make_capture(cap, demo_track)
+    cfg = load_config(str(write_config(tmp_path, "loop://")))
+    return StationApp(cfg, mode="replay", source=str(cap), date=dt.date(2026, 2, 2))
+
+
+@run_async
+async def test_live_ui_against_the_simulated_timer(tmp_path, run_station):
+    sim, port, truth = start_sim(
+        tmp_path, "--speed", "10", "--first-after", "2", "--hold", "1", "--descents", "3",
+        "--seed", "21",
+    )  # fmt: skip
+    cfg = load_config(str(write_config(tmp_path, port)))
+    session = tmp_path / "session"
+    app = StationApp(cfg, mode="live", session_dir=str(session))
+    try:
+        async with app.run_test(size=(100, 30)) as pilot:
+            await wait_for(pilot, lambda: len(app.day.results) >= 1)
+            table = app.main.query_one("#table")
+            await wait_for(pilot, lambda: table.row_count >= 1)
+            assert "timer connected" in str(app.main.query_one("#status").render())
+            result = str(app.main.query_one("#result").render())
+            assert "μ" in result and "CdA" in result and "ok" in result
+            assert "PC9" in str(app.main.query_one("#residuals").render())
+            # metadata for the following descents
+            await pilot.press("m")
+            await pilot.pause(0.3)
+            app.screen.query_one("#f_ski").value = "pair 7"
+            app.screen.query_one("#f_wax").value = "LF blue"
+            await pilot.press("enter")
+            await wait_for(pilot, lambda: app.day.metadata_changes != [])
+            start = app.day.metadata_changes[-1][0]
+            # mark descent 1 invalid with a reason (selected once descent 2 is in: the cursor
+            # follows new descents only while it is on the last row)
+            await wait_for(pilot, lambda: table.row_count >= 2)
+            table.move_cursor(row=0)
+            await pilot.press("i")
+            await pilot.pause(0.3)
+            await pilot.press(*"fell at PC7", "enter")
+            await wait_for(pilot, lambda: app.day.invalid.get(1) == "fell at PC7")
+            await wait_for(pilot, lambda: "INVALID" in str(table.get_row("1")))
+            # refit it with velocity-dependent friction
+            await pilot.press("v")
+            await wait_for(pilot, lambda: app.day.results[1].row["model"] == "velocity")
+            await wait_for(pilot, lambda: len(app.day.results) >= 3, timeout=60)
+            await pilot.press("e")
+            await pilot.pause(0.3)
+    finally:
+        sim.wait(timeout=30)
+    df = pd.read_csv(session / "results.csv", comment="#")
+    assert df.loc[0, "invalid_reason"] == "fell at PC7" and df.loc[0, "model"] == "velocity"
+    later = df[df["descent"] >= start]
+    assert (
+        len(later) >= 1 and (later["ski"] == "pair 7").all() and (later["wax"] == "LF blue").all()
+    )
+    # the session, annotations included, replays to the same CSV
+    out = tmp_path / "replay.csv"
+    r = run_station("replay", session, "--csv", out)
+    assert r.returncode == 0, r.stderr
+    assert out.read_bytes() == (session / "results.csv").read_bytes()
+
+
+@run_async
+async def test_ui_shows_an_unplugged_timer_and_goes_on(tmp_path):
+    sim, port, _ = start_sim(
+        tmp_path, "--speed", "20", "--first-after", "2", "--hold", "1", "--descents", "2",
+        "--interval", "80", "--disconnect-after", "1", "--disconnect-s", "1", "--seed", "2",
+    )  # fmt: skip
+    cfg = load_config(str(write_config(tmp_path, port)))
+    app = StationApp(cfg, mode="live", session_dir=str(tmp_path / "s"))
+    seen = []
+    try:
+        async with app.run_test(size=(80, 24)) as pilot:
+
+            def offline() -> bool:
+                seen.append(app.has_class("offline"))
+                return any(seen)
+
+            await wait_for(pilot, offline)
+            assert "TIMER DISCONNECTED" in str(app.main.query_one("#status").render())
+            await wait_for(pilot, lambda: len(app.day.results) >= 2, timeout=60)
+            assert not app.has_class("offline")
+    finally:
+        sim.wait(timeout=30)
+
+
+@run_async
+async def test_failed_fits_and_aborted_descents_show_their_status(tmp_path, demo_track):
+    app = replay_app(tmp_path, demo_track)
+    async with app.run_test(size=(120, 30)) as pilot:
+        await wait_for(pilot, lambda: len(app.day.results) == 4)
+        await pilot.pause(0.3)
+        table = app.main.query_one("#table")
+        statuses = [str(table.get_row(str(n))[4]) for n in range(1, 5)]
+        assert statuses == ["ok", "ok", "aborted", "too-few-photocells"]
+        notes = str(table.get_row("2")[10])
+        assert "missed PC5" in notes
+
+
+@pytest.mark.parametrize("size", [(80, 24), (160, 45)])
+def test_main_screen_snapshot(snap_compare, tmp_path, demo_track, size):
+    app = replay_app(tmp_path, demo_track)
+
+    async def finished(pilot) -> None:
+        await wait_for(pilot, lambda: "replay finished" in app.connection)
+        await pilot.pause(0.5)
+
+    assert snap_compare(app, terminal_size=size, run_before=finished)
+
+
+@pytest.mark.skipif(not shutil.which("tmux") and not os.environ.get("CI"), reason="needs tmux")
+def test_station_demo_in_tmux_shows_a_fitted_row(tmp_path):
+    assert shutil.which("tmux"), "tmux must be installed in CI (.ci/run installs it)"
+    name = f"station-demo-{os.getpid()}"
+    cmd = " ".join([*station_cmd(), "demo", "--speed", "4", "--seed", "5", "--session-dir",
+                    str(tmp_path / "demo")])  # fmt: skip
+    subprocess.run(["tmux", "kill-session", "-t", name], capture_output=True)
+    subprocess.run(
+        ["tmux", "new-session", "-d", "-s", name, "-x", "80", "-y", "24", cmd], check=True
+    )
+    try:
+        end = time.monotonic() + 60
+        screen = ""
+        while time.monotonic() < end:
+            screen = subprocess.run(
+                ["tmux", "capture-pane", "-p", "-t", name], capture_output=True, text=True
+            ).stdout
+            rows = [ln for ln in screen.splitlines() if ln.strip().startswith("1 ")]
+            if rows and " ok " in rows[0] + " ":
+                break
+            time.sleep(0.5)
+        rows = [ln for ln in screen.splitlines() if ln.strip().startswith("1 ")]
+        assert rows, screen
+        assert "demo pair A" in rows[0] and "ok" in rows[0], screen
+        assert "timer connected" in screen
+        mu = float(rows[0].split("demo pair A")[1].split()[0])
+        assert 0.006 < mu < 0.011
+        subprocess.run(["tmux", "send-keys", "-t", name, "q"], check=True)
+        time.sleep(1.5)
+    finally:
+        subprocess.run(["tmux", "kill-session", "-t", name], capture_output=True)
+    assert (tmp_path / "demo" / "raw.jsonl").exists()
+    assert (tmp_path / "demo" / "results.csv").exists()
