@@ -156,17 +156,25 @@ def run(args: argparse.Namespace) -> int:
     rng = timer.rng
     skis = [float(v) for v in args.skis.split(",")] if args.skis else []
     next_start = timer.tod_us() + int(args.first_after * args.speed * 1e6)
+    next_start = -(-next_start // 1_000_000) * 1_000_000  # whole seconds: reproducible
     prev_end: int | None = None
+    first_start = next_start
     last_running = timer.tod_us() // 1_000_000 * 1_000_000
     try:
         for k in range(args.descents):
             if stop["now"]:
                 break
-            if skis:
+            drift = args.mu_drift_per_hour * (next_start - first_start) / 3.6e9
+            if skis and args.order:
+                # a test design: pairs in the given order, one tuck (CdA) for the skier, the
+                # track drifting; only v0 varies from descent to descent
+                pair = ord(args.order[k % len(args.order)].upper()) - ord("A")
+                p = Params(cda=args.cda, mu=skis[pair] + drift, v0=float(rng.uniform(2.5, 4.5)))
+            elif skis:
                 # pairs of skis in rotation, each with its own friction; the skier varies a little
                 p = Params(
                     cda=float(rng.normal(0.22, 0.01)),
-                    mu=skis[k % len(skis)] * float(rng.normal(1.0, 0.03)),
+                    mu=skis[k % len(skis)] * float(rng.normal(1.0, 0.03)) + drift,
                     v0=float(rng.uniform(2.5, 4.5)),
                 )
             elif args.vary:
@@ -219,6 +227,7 @@ def run(args: argparse.Namespace) -> int:
                             "mu": p.mu,
                             "v0": p.v0,
                             "mu1": p.mu1,
+                            "pair": args.order[k % len(args.order)] if args.order else None,
                             "start_tod_us": start,
                             "photocells": sent_ids,
                             "t": [float(x) for x in t],
@@ -266,6 +275,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--v0", type=float, default=3.4)
     ap.add_argument("--vary", action="store_true", help="draw CdA, μ, v0 per descent")
     ap.add_argument("--skis", help="μ of ski pairs used in rotation, e.g. 0.008,0.0095,0.011")
+    ap.add_argument("--order", help="pairs of --skis in this order, e.g. ABBAABBA (fixed CdA)")
+    ap.add_argument("--mu-drift-per-hour", type=float, default=0.0, help="μ drift of the track")
     ap.add_argument("--noise-ms", type=float, default=0.3)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--double-trigger", type=float, default=0.0, metavar="P")

@@ -10,6 +10,7 @@ gives the same results as the live one. Pure: no I/O, no threads (callers hold a
 from __future__ import annotations
 
 import datetime as dt
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -29,8 +30,23 @@ METADATA_FIELDS: dict[str, type] = {
     "snow_temperature_c": float,
     "pressure_hpa": float,
     "humidity_pct": float,
+    "wind_ms": float,
+    "wind_from_deg": float,
     "notes": str,
 }
+
+
+def along_track_wind(speed_ms: float, from_deg: float | None, track_azimuth_deg: float) -> float:
+    """The wind component along the run, + tailwind (blowing downhill), − headwind.
+
+    ``from_deg`` is where the wind comes from (meteorological convention, degrees from grid
+    north); it blows toward ``from_deg + 180``. Without a direction the speed is taken as
+    already along the track.
+    """
+    if from_deg is None:
+        return speed_ms
+    toward = math.radians(from_deg + 180.0 - track_azimuth_deg)
+    return speed_ms * math.cos(toward)
 
 
 @dataclass
@@ -44,6 +60,7 @@ class Day:
     date: dt.date | None = None
     results: dict[int, DescentResult] = field(default_factory=dict)
     metadata_changes: list[tuple[int, dict[str, Any]]] = field(default_factory=list)
+    metadata_for_descents: list[tuple[set[int], dict[str, Any]]] = field(default_factory=list)
     invalid: dict[int, str] = field(default_factory=dict)
     models: dict[int, str] = field(default_factory=dict)
 
@@ -63,11 +80,23 @@ class Day:
         return meta
 
     def metadata_for(self, number: int) -> dict[str, Any]:
+        """Metadata in force for a descent: the config's, then the changes ``from`` a number on
+        in the order they were made, then those for listed descents only (the most specific)."""
         meta = self.base_metadata()
         for start, values in self.metadata_changes:
             if start <= number:
                 meta.update(values)
+        for descents, values in self.metadata_for_descents:
+            if number in descents:
+                meta.update(values)
         return meta
+
+    def wind_for(self, meta: dict[str, Any]) -> float:
+        if "wind_ms" not in meta:
+            return 0.0
+        return along_track_wind(
+            float(meta["wind_ms"]), meta.get("wind_from_deg"), self.track.azimuth_deg
+        )
 
     def next_number(self) -> int:
         """The number the next descent to start will get (an open one is already counted)."""
@@ -97,6 +126,7 @@ class Day:
             model=self.models.get(d.number),
             mass_kg=float(meta.get("mass_kg", self.config.mass_kg)),
             air_density=self.density_for(meta),
+            wind_ms=self.wind_for(meta),
         )
         res.row["invalid_reason"] = self.invalid.get(d.number, "")
         self.results[d.number] = res
@@ -115,6 +145,13 @@ class Day:
         kind = record.get("type")
         if kind == "metadata":
             values = {k: v for k, v in record.get("values", {}).items() if k in METADATA_FIELDS}
+            if "descents" in record:
+                numbers = {int(n) for n in record["descents"]}
+                self.metadata_for_descents.append((numbers, values))
+                for n in sorted(numbers):  # already fitted: fit again with the new metadata
+                    if n in self.results:
+                        self.analyse(self.results[n].descent)
+                return None
             self.metadata_changes.append((int(record["from"]), values))
             return None
         n = int(record.get("descent", 0))

@@ -168,6 +168,7 @@ class Analyser:
         model: str | None = None,
         mass_kg: float | None = None,
         air_density: float | None = None,
+        wind_ms: float = 0.0,
     ) -> DescentResult:
         cfg = self.config
         meta = {**cfg.metadata, **(metadata or {})}
@@ -186,18 +187,19 @@ class Analyser:
                 self.track.profile,
                 xs,
                 t,
-                Conditions(mass, rho),
+                Conditions(mass, rho, wind_ms),
                 list(ids),
                 model=model,
                 run=run,
             )
         start = self.start_time(d, host_t, date)
         row = result_row(d, fit, start, meta, model, mass, rho)
+        row["wind_ms"] = wind_ms
         res = DescentResult(d, fit, start, row)
         if fit is not None and all(fit.estimates.get(k) is not None for k in ("cda", "mu", "v0")):
             e = fit.estimates
             p = Params(e["cda"], e["mu"], e["v0"], e.get("mu1") or 0.0)  # type: ignore[arg-type]
-            sol = run.solve(p, Conditions(mass, rho), sensitivities=False)
+            sol = run.solve(p, Conditions(mass, rho, wind_ms), sensitivities=False)
             res.speed_x, res.speed_v = sol.x, sol.speed
         return res
 

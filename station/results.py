@@ -20,7 +20,8 @@ from station import __version__
 COLUMNS = [
     "descent", "start_time", "photocells_used", "missing", "v0", "cda", "cda_lo", "cda_hi",
     "mu", "mu_lo", "mu_hi", "mu1", "sigma_s2", "rms_residual_ms", "status", "descent_status",
-    "flags", "model", "mass_kg", "air_density", "skier", "ski", "wax", "air_temperature_c",
+    "flags", "model", "mass_kg", "air_density", "wind_ms", "skier", "ski", "wax",
+    "air_temperature_c",
     "snow_temperature_c", "pressure_hpa", "humidity_pct", "notes", "invalid_reason",
 ]  # fmt: skip
 TEXT_COLUMNS = ["missing", "status", "descent_status", "flags", "model", "skier", "ski", "wax",

@@ -206,3 +206,22 @@ def test_station_demo_in_tmux_shows_a_fitted_row(tmp_path):
         subprocess.run(["tmux", "kill-session", "-t", name], capture_output=True)
     assert (tmp_path / "demo" / "raw.jsonl").exists()
     assert (tmp_path / "demo" / "results.csv").exists()
+
+
+@run_async
+async def test_comparison_view_updates_after_each_descent(tmp_path, demo_track):
+    from station.ui.screens import ComparisonScreen
+
+    app = replay_app(tmp_path, demo_track)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await wait_for(pilot, lambda: "replay finished" in app.connection)
+        await wait_for(pilot, lambda: "joint fit of 2 descents" in app.comparison_text)
+        await pilot.press("c")
+        await pilot.pause(0.3)
+        assert isinstance(app.screen, ComparisonScreen)
+        text = str(app.screen.query_one("#comparison_text").render())
+        assert "joint fit of 2 descents" in text and "(no item)" in text
+        assert "descent 3 left out: aborted" in text
+        await pilot.press("escape")
+        await pilot.pause(0.2)
+        assert not isinstance(app.screen, ComparisonScreen)

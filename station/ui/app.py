@@ -34,6 +34,7 @@ from station.results import write_results
 from station.survey import load_survey
 from station.track import build_track
 from station.ui.messages import (
+    ComparisonUpdated,
     ConnectionChanged,
     DescentFitted,
     DescentProgress,
@@ -41,7 +42,7 @@ from station.ui.messages import (
     SourceEnded,
 )
 from station.ui.plots import residual_plot, speed_plot
-from station.ui.screens import HelpScreen, MetadataScreen, ReasonScreen
+from station.ui.screens import ComparisonScreen, HelpScreen, MetadataScreen, ReasonScreen
 
 #: (label, key, width): fixed widths, so the table does not jump as rows arrive and the
 #: columns that matter most fit in 80 columns
@@ -87,6 +88,7 @@ class StationApp(App):
         Binding("i", "invalid", "Invalid"),
         Binding("v", "refit", "Velocity fit"),
         Binding("e", "export", "Export CSV"),
+        Binding("c", "compare", "Compare"),
         Binding("question_mark,f1", "help", "Help", key_display="?"),
         Binding("q", "quit", "Quit"),
     ]
@@ -121,6 +123,9 @@ class StationApp(App):
         self.stop_event = threading.Event()
         self.latest: int | None = None
         self._announced: int | None = None
+        self.comparison_text = (
+            "no comparison yet: it needs fitted descents with ski or wax entered (m)"
+        )
         self.counts: dict[str, int] = {}
         self.connection = "starting"
         self.sub_title = mode
@@ -291,8 +296,24 @@ class StationApp(App):
             with self.lock:
                 res = self.day.analyse(payload) if kind == "descent" else self.day.annotate(payload)
                 self._write_results()
+                text = self._comparison()
             if res is not None:
                 self.post_message(DescentFitted(res))
+            self.post_message(ComparisonUpdated(text))
+
+    def _comparison(self) -> str:
+        """With the lock held: the joint fit of the session's valid descents, as text."""
+        from station.compare import CompareError, collect, format_comparison, joint_fit
+
+        data, excluded, windy = collect(self.day)
+        if len({d.item for d in data}) < 1 or len(data) < 2:
+            return "no comparison yet: it needs at least two fitted descents"
+        try:
+            res = joint_fit(self.track, data)
+        except CompareError as exc:
+            return f"no comparison yet: {exc}"
+        res.excluded, res.wind_flagged = excluded, windy
+        return format_comparison(res, len(data)) + "".join(f"\n! {w}" for w in res.warnings)
 
     def _write_results(self) -> None:
         """With the lock held: the session's results CSV, rewritten after every change."""
@@ -412,6 +433,14 @@ class StationApp(App):
         res = self.day.results.get(int(event.row_key.value))
         if res is not None:
             self._show(res)
+
+    def on_comparison_updated(self, msg: ComparisonUpdated) -> None:
+        self.comparison_text = msg.text
+        if isinstance(self.screen, ComparisonScreen):
+            self.screen.update(msg.text)
+
+    def action_compare(self) -> None:
+        self.push_screen(ComparisonScreen(self.comparison_text))
 
     def on_source_ended(self, msg: SourceEnded) -> None:
         self.connection = "replay finished"

@@ -50,3 +50,11 @@ class SourceEnded(Message):
     def __init__(self, summary: str) -> None:
         super().__init__()
         self.summary = summary
+
+
+class ComparisonUpdated(Message):
+    """The test-day comparison, recomputed after a descent or an annotation."""
+
+    def __init__(self, text: str) -> None:
+        super().__init__()
+        self.text = text

@@ -28,6 +28,7 @@ HELP = """\
   i   mark the selected descent invalid, with a reason (again: valid)
   v   refit the selected descent with velocity-dependent friction (again: constant)
   e   export the session's results CSV
+  c   compare the items (ski / wax) of the session: joint fit, Δμ, ranking, drift
   ?   this help        q   quit
 
 Every byte from the timer is recorded before it is parsed; a session replays with
@@ -44,6 +45,8 @@ LABELS = {
     "snow_temperature_c": "snow temperature [°C]",
     "pressure_hpa": "station pressure [hPa]",
     "humidity_pct": "relative humidity [%]",
+    "wind_ms": "wind speed [m/s]",
+    "wind_from_deg": "wind from [° from north]",
     "notes": "notes",
 }
 
@@ -71,11 +74,11 @@ class MetadataScreen(ModalScreen[dict[str, Any] | None]):
         self.next_number = next_number
 
     def compose(self) -> ComposeResult:
-        with Vertical(id="form"):
+        with VerticalScroll(id="form"):
             yield Label(f"Run metadata for descent {self.next_number} and after  (Enter saves)")
             with Grid(id="fields"):
                 for key in METADATA_FIELDS:
-                    yield Label(LABELS[key])
+                    yield Label(LABELS[key], markup=False)  # "[hPa]" is a unit, not markup
                     value = self.current.get(key)
                     yield Input(
                         ""
@@ -85,6 +88,7 @@ class MetadataScreen(ModalScreen[dict[str, Any] | None]):
                         else str(value),
                         id=f"f_{key}",
                         type="number" if METADATA_FIELDS[key] is float else "text",
+                        valid_empty=True,  # every field is optional
                     )
             yield Label("", id="error")
             with Grid(id="buttons"):
@@ -151,4 +155,26 @@ class ReasonScreen(ModalScreen[str | None]):
         self.dismiss(event.value.strip() or "marked invalid")
 
     def action_cancel(self) -> None:
+        self.dismiss(None)
+
+
+class ComparisonScreen(ModalScreen[None]):
+    """Which ski or wax glides better: the joint fit of the session, updated after each descent."""
+
+    BINDINGS = [Binding("escape,c,q", "dismiss", "close")]
+
+    def __init__(self, text: str) -> None:
+        super().__init__()
+        self.text = text
+
+    def compose(self) -> ComposeResult:
+        with VerticalScroll(id="comparison"):
+            yield Static(self.text, id="comparison_text", markup=False)
+            yield Button("Close", id="close")
+
+    def update(self, text: str) -> None:
+        self.text = text
+        self.query_one("#comparison_text", Static).update(text)
+
+    def on_button_pressed(self, _event: Button.Pressed) -> None:
         self.dismiss(None)
