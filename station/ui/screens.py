@@ -95,6 +95,9 @@ class MetadataScreen(ModalScreen[dict[str, Any] | None]):
                 yield Button("Save", variant="primary", id="save")
                 yield Button("Cancel", id="cancel")
 
+    def on_mount(self) -> None:
+        self.query_one("#f_skier", Input).focus()  # type at once; Enter saves
+
     def _values(self) -> dict[str, Any] | None:
         out: dict[str, Any] = {}
         for key, kind in METADATA_FIELDS.items():
