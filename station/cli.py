@@ -36,21 +36,15 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not math.isfinite(value) or value <= 0:
+    value = _number(text)
+    if value <= 0:
         raise argparse.ArgumentTypeError(f"must be a number greater than 0, got {text!r}")
     return value
 
 
 def _nonnegative(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not math.isfinite(value) or value < 0:
+    value = _number(text)
+    if value < 0:
         raise argparse.ArgumentTypeError(f"must be a number ≥ 0, got {text!r}")
     return value
 

@@ -28,6 +28,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.stats import t as student_t
 
+from station.fit import TOLERANCES
 from station.physics import Conditions, Params, StraightRun
 from station.track import Track
 
@@ -253,9 +254,7 @@ def joint_fit(
         bounds=(lower, upper),
         method="trf",
         x_scale=scale,
-        ftol=1e-12,
-        xtol=1e-12,
-        gtol=1e-12,
+        **TOLERANCES,
         max_nfev=200,
     )
     p = res.x

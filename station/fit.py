@@ -38,8 +38,8 @@ from station.track import Profile
 SCALE = np.array([0.1, 0.01, 1.0, 1e-4])
 UPPER = np.array([5.0, 1.0, 60.0, 0.05])
 CI_METHOD = "linearised (Wald) interval, Student t on the residual degrees of freedom"
-
-STATUSES = ("ok", "ill-conditioned", "lift-off", "stopped", "too-few-photocells", "not-converged")
+#: stopping tolerances of every least-squares search in station (one descent, a traverse, a day)
+TOLERANCES = {"ftol": 1e-12, "xtol": 1e-12, "gtol": 1e-12}
 
 
 @dataclass
@@ -294,10 +294,8 @@ def fit_descent(
             bounds=(np.zeros(n_params), upper),
             method="dogbox",
             x_scale=scale,
-            ftol=1e-12,
-            xtol=1e-12,
-            gtol=1e-12,
             max_nfev=200,
+            **TOLERANCES,
         )
 
     def verified(res) -> bool:

@@ -11,7 +11,6 @@ import csv
 import datetime as dt
 import os
 import signal
-import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -253,7 +252,3 @@ def write_events(run: Run, path: str) -> None:
             )  # fmt: skip
         for line, reason, text in run.processor.unparsed:
             w.writerow([line, "", "", "", "", "no", f"unparsed: {reason}: {text!r}", ""])
-
-
-def stderr(message: str) -> None:
-    print(message, file=sys.stderr)

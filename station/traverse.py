@@ -23,7 +23,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import least_squares
 
 from station.errors import InputError
-from station.fit import CI_METHOD, uncertainty
+from station.fit import CI_METHOD, TOLERANCES, uncertainty
 from station.physics import G_STANDARD
 
 NAMES = ["cda", "mu", "v0", "s0"]
@@ -196,9 +196,7 @@ def fit_traverse(
         bounds=(LOWER, UPPER),
         method="trf",
         x_scale=SCALE,
-        ftol=1e-12,
-        xtol=1e-12,
-        gtol=1e-12,
+        **TOLERANCES,
     )
     p = res.x
     s_fit, v_fit, jac = model(p)

@@ -293,20 +293,22 @@ class StationApp(App):
                     summary = Run(self.day).summary()
                 self.post_message(SourceEnded(summary))
                 continue
+            from station.compare import collect
+
             with self.lock:
                 res = self.day.analyse(payload) if kind == "descent" else self.day.annotate(payload)
                 self._write_results()
-                text = self._comparison()
+                snapshot = collect(self.day)
             if res is not None:
                 self.post_message(DescentFitted(res))
-            self.post_message(ComparisonUpdated(text))
+            # the joint fit of the whole day runs outside the lock: the reader goes on meanwhile
+            self.post_message(ComparisonUpdated(self._comparison(*snapshot)))
 
-    def _comparison(self) -> str:
-        """With the lock held: the joint fit of the session's valid descents, as text."""
-        from station.compare import CompareError, collect, format_comparison, joint_fit
+    def _comparison(self, data: list, excluded: list, windy: list) -> str:
+        """The joint fit of the session's valid descents, as text."""
+        from station.compare import CompareError, format_comparison, joint_fit
 
-        data, excluded, windy = collect(self.day)
-        if len({d.item for d in data}) < 1 or len(data) < 2:
+        if len(data) < 2:
             return "no comparison yet: it needs at least two fitted descents"
         try:
             res = joint_fit(self.track, data)
