@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
 
 import numpy as np
 import pytest
@@ -14,8 +13,7 @@ from station.dae import simulate_dae
 from station.day import along_track_wind
 from station.fit import fit_descent
 from station.physics import Conditions, Params, StraightRun
-from tests.conftest import station_cmd
-from tests.timing_helpers import start_sim, write_config
+from tests.timing_helpers import record_with_sim
 
 RHO = 1.079
 
@@ -112,22 +110,13 @@ def test_along_track_wind_and_its_effect_on_the_fit(demo_track):
 
 def _record_day(tmp_path, skis: str, seed: int):
     """Eight descents in ABBAABBA on a drifting track, recorded from the simulated timer."""
-    sim, port, truth = start_sim(
-        tmp_path, "--speed", "20", "--first-after", "2", "--hold", "1", "--descents", "8",
-        "--interval", "60", "--skis", skis, "--order", "ABBAABBA", "--noise-ms", "0.5",
-        "--mu-drift-per-hour", "0.02", "--seed", str(seed),
+    _, session, _ = record_with_sim(
+        tmp_path,
+        ["--speed", "20", "--first-after", "2", "--hold", "1", "--descents", "8",
+         "--interval", "60", "--skis", skis, "--order", "ABBAABBA", "--noise-ms", "0.5",
+         "--mu-drift-per-hour", "0.02", "--seed", str(seed)],
+        max_descents=8,
     )  # fmt: skip
-    cfg = write_config(tmp_path, port)
-    session = tmp_path / "session"
-    try:
-        r = subprocess.run(
-            [*station_cmd(), "record", "--config", str(cfg), "--session-dir", str(session),
-             "--max-descents", "8"],
-            capture_output=True, text=True, timeout=120,
-        )  # fmt: skip
-    finally:
-        sim.wait(timeout=30)
-    assert r.returncode == 0, r.stderr
     return session
 
 

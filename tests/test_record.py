@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from tests.conftest import station_cmd
-from tests.timing_helpers import start_sim, write_config
+from tests.timing_helpers import record_with_sim, start_sim, write_config
 
 SIM_FAST = ["--speed", "10", "--first-after", "2", "--hold", "1"]
 
@@ -27,17 +27,13 @@ def record(cfg, session, *extra, timeout=90) -> subprocess.CompletedProcess:
 
 
 def test_record_gets_the_true_parameters_back_and_replay_reproduces_it(tmp_path, run_station):
-    sim, port, truth = start_sim(
-        tmp_path, *SIM_FAST, "--descents", "3", "--vary", "--seed", "11", "--noise-ms", "0.3",
-        "--double-trigger", "0.2", "--running-time", "--garbage", "0.05", "--walkthrough", "0.5",
+    r, session, truth = record_with_sim(
+        tmp_path,
+        [*SIM_FAST, "--descents", "3", "--vary", "--seed", "11", "--noise-ms", "0.3",
+         "--double-trigger", "0.2", "--running-time", "--garbage", "0.05", "--walkthrough", "0.5"],
+        max_descents=3,
+        config_extra='ski: pair 3\nwax: "=1+2"\nnotes: "hard #snow"\n',
     )  # fmt: skip
-    cfg = write_config(tmp_path, port, extra='ski: pair 3\nwax: "=1+2"\nnotes: "hard #snow"\n')
-    session = tmp_path / "session"
-    try:
-        r = record(cfg, session, "--max-descents", "3")
-    finally:
-        sim.wait(timeout=30)
-    assert r.returncode == 0, r.stderr
     df = pd.read_csv(session / "results.csv", comment="#")
     truths = [json.loads(line) for line in truth.read_text().splitlines()]
     ok = df[df["status"] == "ok"].reset_index(drop=True)
@@ -102,17 +98,12 @@ def test_sigkill_mid_descent_loses_nothing_that_was_flushed(tmp_path, run_statio
 
 
 def test_an_unplugged_timer_is_reported_and_reconnected(tmp_path):
-    sim, port, _ = start_sim(
-        tmp_path, "--speed", "20", "--first-after", "2", "--hold", "1", "--descents", "3",
-        "--interval", "80", "--disconnect-after", "1", "--disconnect-s", "1", "--seed", "2",
+    r, session, _ = record_with_sim(
+        tmp_path,
+        ["--speed", "20", "--first-after", "2", "--hold", "1", "--descents", "3",
+         "--interval", "80", "--disconnect-after", "1", "--disconnect-s", "1", "--seed", "2"],
+        max_descents=3,
     )  # fmt: skip
-    cfg = write_config(tmp_path, port)
-    session = tmp_path / "session"
-    try:
-        r = record(cfg, session, "--max-descents", "3")
-    finally:
-        sim.wait(timeout=30)
-    assert r.returncode == 0, r.stderr
     assert "timer disconnected" in r.stdout
     events = [json.loads(x).get("event") for x in (session / "raw.jsonl").read_text().splitlines()]
     assert events.count("disconnected") >= 1 and events.count("connected") >= 2

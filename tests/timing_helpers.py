@@ -45,3 +45,25 @@ def write_config(
         "air: {density: 1.079}\n" + extra
     )
     return path
+
+
+def record_with_sim(
+    tmp_path: Path, sim_args: list[str], max_descents: int, config_extra: str = ""
+) -> tuple[subprocess.CompletedProcess, Path, Path]:
+    """Run ``station record`` against a fresh simulated timer until ``max_descents`` descents;
+    returns the finished record process, the session directory and the simulator's truth."""
+    from tests.conftest import station_cmd
+
+    sim, port, truth = start_sim(tmp_path, *sim_args)
+    cfg = write_config(tmp_path, port, extra=config_extra)
+    session = tmp_path / "session"
+    try:
+        r = subprocess.run(
+            [*station_cmd(), "record", "--config", str(cfg), "--session-dir", str(session),
+             "--max-descents", str(max_descents)],
+            capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+    finally:
+        sim.wait(timeout=30)
+    assert r.returncode == 0, r.stderr
+    return r, session, truth
