@@ -482,24 +482,30 @@ def cmd_record(args: argparse.Namespace) -> int:
     return 0
 
 
-def _replay_run(args: argparse.Namespace, quiet: bool = False):
+def _replay_config(args: argparse.Namespace):
+    """The config of a replay: ``--config``, else a session's own snapshot."""
     from station import session as sessions
     from station.config import load_config
+
+    if not os.path.exists(args.source):
+        raise InputError("no such session or capture", path=args.source)
+    if getattr(args, "config", None):
+        return load_config(args.config)
+    if sessions.is_session(args.source):
+        return sessions.load_session_config(args.source)
+    raise InputError(
+        "a plain capture needs --config (protocol, channels, survey)", path=args.source
+    )
+
+
+def _replay_run(args: argparse.Namespace, quiet: bool = False):
     from station.recorder import replay
 
-    source = args.source
-    if not os.path.exists(source):
-        raise InputError("no such session or capture", path=source)
-    if getattr(args, "config", None):
-        cfg = load_config(args.config)
-    elif sessions.is_session(source):
-        cfg = sessions.load_session_config(source)
-    else:
-        raise InputError("a plain capture needs --config (protocol, channels, survey)", path=source)
+    cfg = _replay_config(args)
     warnings: list[str] = []
     speed = None if getattr(args, "fast", True) else getattr(args, "speed", None)
     out = (lambda _m: None) if quiet else print
-    run = replay(source, cfg, out=out, speed=speed, date=_date(getattr(args, "date", None)),
+    run = replay(args.source, cfg, out=out, speed=speed, date=_date(getattr(args, "date", None)),
                  warnings=warnings)  # fmt: skip
     for w in warnings:
         _warn(w)
@@ -521,25 +527,11 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 def _replay_ui(args: argparse.Namespace) -> int:
-    from station import session as sessions
-    from station.config import load_config
+    from station.recorder import source_date
     from station.ui.app import StationApp
 
-    if not os.path.exists(args.source):
-        raise InputError("no such session or capture", path=args.source)
-    if args.config:
-        cfg = load_config(args.config)
-    elif sessions.is_session(args.source):
-        cfg = sessions.load_session_config(args.source)
-    else:
-        raise InputError(
-            "a plain capture needs --config (protocol, channels, survey)", path=args.source
-        )
-    date = _date(args.date)
-    if date is None and not sessions.is_session(args.source):
-        import datetime as dt
-
-        date = dt.date.fromtimestamp(os.path.getmtime(args.source))
+    cfg = _replay_config(args)
+    date = source_date(args.source, _date(args.date))
     speed = None if args.fast else args.speed
     return _run_ui(StationApp(cfg, mode="replay", source=args.source, speed=speed, date=date))
 

@@ -203,6 +203,44 @@ def capture_chunks(path: str) -> Iterator[Chunk]:
             yield Chunk(float("nan"), data)
 
 
+def source_date(source: str, date: dt.date | None) -> dt.date | None:
+    """The date of a replay: given, else a plain capture's file date (a session's raw log has
+    host times of its own)."""
+    if date is None and not sessions.is_session(source):
+        return dt.date.fromtimestamp(os.path.getmtime(source))
+    return date
+
+
+def replay_chunks(
+    source: str,
+    speed: float | None = None,
+    stop: threading.Event | None = None,
+    warnings: list[str] | None = None,
+) -> Iterator[Chunk]:
+    """The chunks of a session's raw log or of a plain capture, paced at ``speed`` times the
+    recorded host time (as fast as possible without), until ``stop`` is set. A plain capture
+    has no host times: its chunks come with ``t = None``."""
+    if sessions.is_session(source):
+        chunks: Iterator[Chunk] = read_rawlog(os.path.join(source, sessions.RAW), warnings)
+    else:
+        chunks = capture_chunks(source)
+    first_t = None
+    m0 = time.monotonic()
+    for chunk in chunks:
+        if stop is not None and stop.is_set():
+            return
+        has_time = chunk.t == chunk.t  # not NaN
+        if speed and has_time:
+            first_t = chunk.t if first_t is None else first_t
+            delay = (chunk.t - first_t) / speed - (time.monotonic() - m0)
+            if delay > 0:
+                if stop is None:
+                    time.sleep(delay)
+                elif stop.wait(delay):
+                    return
+        yield chunk if has_time else Chunk(None, chunk.data)  # type: ignore[arg-type]
+
+
 def replay(
     source: str,
     config: StationConfig,
@@ -211,28 +249,12 @@ def replay(
     date: dt.date | None = None,
     warnings: list[str] | None = None,
 ) -> Run:
-    """Feed a session or a plain capture through the processor."""
-    if sessions.is_session(source):
-        chunks: Iterator[Chunk] = read_rawlog(os.path.join(source, sessions.RAW), warnings)
-    else:
-        if date is None:
-            date = dt.date.fromtimestamp(os.path.getmtime(source))
-        chunks = capture_chunks(source)
-    run = Run.start(config, date)
+    """Feed a session (with its annotations) or a plain capture through the processor."""
+    run = Run.start(config, source_date(source, date))
     if sessions.is_session(source):
         for record in sessions.read_annotations(source):
             run.day.annotate(record)
-    first_t = None
-    m0 = time.monotonic()
-    for chunk in chunks:
-        has_time = chunk.t == chunk.t  # not NaN
-        if speed and has_time:
-            first_t = chunk.t if first_t is None else first_t
-            delay = (chunk.t - first_t) / speed - (time.monotonic() - m0)
-            if delay > 0:
-                time.sleep(delay)
-        if not has_time:
-            chunk = Chunk(None, chunk.data)  # type: ignore[arg-type]
+    for chunk in replay_chunks(source, speed, warnings=warnings):
         for res in run.finish_descents(run.processor.feed(chunk)):
             out(describe(res))
     for res in run.finish_descents(run.processor.finish()):

@@ -28,8 +28,8 @@ from station.config import StationConfig
 from station.day import Day
 from station.impulse import format_tod
 from station.pipeline import DescentResult
-from station.rawlog import Chunk, RawLogWriter, read_rawlog
-from station.recorder import capture_chunks
+from station.rawlog import Chunk, RawLogWriter
+from station.recorder import replay_chunks
 from station.results import write_results
 from station.survey import load_survey
 from station.track import build_track
@@ -259,24 +259,13 @@ class StationApp(App):
             for record in sessions.read_annotations(self.source):
                 with self.lock:
                     self.day.annotate(record)
-            chunks = read_rawlog(os.path.join(self.source, sessions.RAW))
-        else:
-            chunks = capture_chunks(self.source)
         self.post_message(
             ConnectionChanged("replay", os.path.basename(os.path.normpath(self.source)))
         )
-        first_t = None
-        m0 = time.monotonic()
-        for chunk in chunks:
-            if self.stop_event.is_set():
-                return
-            has_time = chunk.t == chunk.t
-            if self.speed and has_time:
-                first_t = chunk.t if first_t is None else first_t
-                delay = (chunk.t - first_t) / self.speed - (time.monotonic() - m0)
-                if delay > 0 and self.stop_event.wait(delay):
-                    return
-            self._feed(chunk if has_time else Chunk(None, chunk.data))  # type: ignore[arg-type]
+        for chunk in replay_chunks(self.source, self.speed, self.stop_event):
+            self._feed(chunk)
+        if self.stop_event.is_set():
+            return
         with self.lock:
             self._after_feed(len(self.day.processor.events), self.day.processor.finish())
         self.jobs.put(("ended", None))
