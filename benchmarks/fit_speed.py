@@ -26,12 +26,14 @@ from scipy.optimize import least_squares
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))  # the independent DAE reference lives with the tests
 
-from station.dae import simulate_dae  # noqa: E402
-from station.fit import fit_descent, initial_guess  # noqa: E402
-from station.physics import Conditions, Params, StraightRun  # noqa: E402
-from station.survey import load_survey  # noqa: E402
-from station.track import build_track  # noqa: E402
+from reference_dae import simulate_dae  # noqa: E402
+
+from station.model.fit import fit_descent, initial_guess  # noqa: E402
+from station.model.physics import Conditions, Params, StraightRun  # noqa: E402
+from station.survey.load import load_survey  # noqa: E402
+from station.survey.track import build_track  # noqa: E402
 
 #: the straightforward way at scipy's defaults, and at the tolerance where it can converge
 VARIANTS = {

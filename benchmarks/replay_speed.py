@@ -22,15 +22,15 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from station.config import load_config  # noqa: E402
-from station.impulse import format_tod  # noqa: E402
-from station.physics import Conditions, Params, StraightRun  # noqa: E402
-from station.pipeline import Processor  # noqa: E402
-from station.protocols import format_alge  # noqa: E402
-from station.rawlog import Chunk  # noqa: E402
-from station.recorder import replay  # noqa: E402
-from station.survey import load_survey  # noqa: E402
-from station.track import build_track  # noqa: E402
+from station.model.physics import Conditions, Params, StraightRun  # noqa: E402
+from station.session.config import load_config  # noqa: E402
+from station.session.processor import Processor  # noqa: E402
+from station.session.rawlog import Chunk  # noqa: E402
+from station.session.recorder import replay  # noqa: E402
+from station.survey.load import load_survey  # noqa: E402
+from station.survey.track import build_track  # noqa: E402
+from station.timing.impulses import format_tod  # noqa: E402
+from station.timing.wireformats import format_alge  # noqa: E402
 
 CONFIG = """\
 serial: {{port: loop://, protocol: alge}}

@@ -2,7 +2,7 @@
 
 It opens a pty (``os.openpty``), prints ``PORT <path>`` as its first line, and speaks the chosen
 protocol (ALGE, TAG Heuer THCOM08, Microgate Racetime2) on it byte for byte like the hardware.
-The descents come from the physics of :mod:`station.physics` on a survey's track: skier
+The descents come from the physics of :mod:`station.model.physics` on a survey's track: skier
 parameters fixed or drawn per descent (seeded), timing noise, and field quirks (double
 triggers, missed photocells, walk-throughs, running-time lines, garbage bytes, a disconnect).
 
@@ -27,11 +27,11 @@ import tty
 
 import numpy as np
 
-from station.impulse import format_tod
-from station.physics import Conditions, Params, StraightRun
-from station.protocols import format_alge, format_racetime, format_tag
-from station.survey import load_survey
-from station.track import build_track
+from station.model.physics import Conditions, Params, StraightRun
+from station.survey.load import load_survey
+from station.survey.track import build_track
+from station.timing.impulses import format_tod
+from station.timing.wireformats import format_alge, format_racetime, format_tag
 
 DEFAULT_SURVEY = os.path.join(
     os.path.dirname(os.path.dirname(__file__)), "surveys", "demo_run.yaml"

@@ -1,5 +1,5 @@
 """``python -m station`` is the ``station`` command."""
 
-from station.cli import main
+from station.cli.main import main
 
 raise SystemExit(main())

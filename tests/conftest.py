@@ -39,8 +39,8 @@ def real() -> Path:
 
 @pytest.fixture(scope="session")
 def demo_track():
-    from station.survey import load_survey
-    from station.track import build_track
+    from station.survey.load import load_survey
+    from station.survey.track import build_track
 
     return build_track(load_survey(str(DEMO_SURVEY)))
 

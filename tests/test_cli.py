@@ -76,7 +76,7 @@ def test_fit_accepts_time_of_day(run_station, tmp_path):
 def test_fit_traverse(run_station, tmp_path):
     import numpy as np
 
-    from station.traverse import simulate_traverse
+    from station.model.traverse import simulate_traverse
 
     t = np.linspace(0, 6, 120)
     s, _, _ = simulate_traverse(t, 0.5, 0.1, 1.0, 25, 30, 88, 1.0)

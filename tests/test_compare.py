@@ -7,12 +7,12 @@ import math
 
 import numpy as np
 import pytest
+from reference_dae import simulate_dae
 
-from station.compare import DescentData, joint_fit
-from station.dae import simulate_dae
-from station.day import along_track_wind
-from station.fit import fit_descent
-from station.physics import Conditions, Params, StraightRun
+from station.model.compare import DescentData, joint_fit
+from station.model.fit import fit_descent
+from station.model.physics import Conditions, Params, StraightRun
+from station.session.day import along_track_wind
 from tests.timing_helpers import record_with_sim
 
 RHO = 1.079
@@ -190,7 +190,7 @@ def test_an_item_with_too_few_data_is_a_clear_error(tmp_path, run_station, demo_
     data = synthetic(demo_track, "A", {"A": 0.009})[:1]
     short = [DescentData(1, "A", "s", data[0].photocells[:3], data[0].times_s[:3], 10, 88, RHO,
                          0.0, (0.25, 0.02, 3.0))]  # fmt: skip
-    from station.compare import CompareError
+    from station.model.compare import CompareError
 
     with pytest.raises(CompareError, match="too few photocells or descents"):
         joint_fit(demo_track, short)

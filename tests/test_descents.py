@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from station.descents import DescentAssembler
-from station.impulse import DAY_US, Impulse
+from station.timing.assembly import DescentAssembler
+from station.timing.impulses import DAY_US, Impulse
 
 PCS = ["PC1", "PC2", "PC3", "PC4", "PC5"]
 CH = {"C0": "PC1", "C1": "PC2", "C2": "PC3", "C3": "PC4", "C4": "PC5"}

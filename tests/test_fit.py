@@ -6,11 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from reference_dae import simulate_dae
 
-from station import fit as fitmod
-from station.dae import simulate_dae
-from station.fit import fit_descent
-from station.physics import Conditions, Params, StraightRun
+from station.model import fit as fitmod
+from station.model.fit import fit_descent
+from station.model.physics import Conditions, Params, StraightRun
 from tests.test_physics import plane, wave
 
 COND = Conditions(88.0, 1.04)

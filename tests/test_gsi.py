@@ -7,8 +7,14 @@ import math
 import pytest
 
 from station.errors import InputError
-from station.gsi import decode_word, parse_gsi, read_gsi
-from station.polar import Setup, curvature_refraction, interpret_gsi, reduce_all, reduce_observation
+from station.survey.gsi import decode_word, parse_gsi, read_gsi
+from station.survey.polar import (
+    Setup,
+    curvature_refraction,
+    interpret_gsi,
+    reduce_all,
+    reduce_observation,
+)
 
 
 def test_gsi16_dms_first_point_matches_published(real):

@@ -6,11 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from reference_dae import simulate_dae
 
-from station.air import air_density, isa_pressure_hpa
-from station.dae import simulate_dae
-from station.physics import Conditions, Params, StraightRun
-from station.track import Profile
+from station.model.air import air_density, isa_pressure_hpa
+from station.model.physics import Conditions, Params, StraightRun
+from station.survey.track import Profile
 
 
 def plane(deg: float) -> Profile:

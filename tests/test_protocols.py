@@ -7,9 +7,9 @@ from collections import Counter
 import numpy as np
 import pytest
 
-from station.framing import LineFramer
-from station.impulse import Edit, Impulse, Skip, Unparsed
-from station.protocols import (
+from station.timing.framing import LineFramer
+from station.timing.impulses import Edit, Impulse, Skip, Unparsed
+from station.timing.wireformats import (
     AlgeParser,
     RacetimeParser,
     TagParser,

@@ -7,8 +7,8 @@ import json
 import pytest
 
 from station.errors import InputError
-from station.framing import MAX_LINE, LineFramer
-from station.rawlog import RawLogWriter, read_rawlog
+from station.session.rawlog import RawLogWriter, read_rawlog
+from station.timing.framing import MAX_LINE, LineFramer
 
 
 def test_lines_split_across_reads_and_every_line_end():

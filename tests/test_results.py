@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from station.results import COLUMNS, write_results
+from station.session.results import COLUMNS, write_results
 
 
 def test_results_csv_round_trip_and_spreadsheet_safety(tmp_path):

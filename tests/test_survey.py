@@ -9,8 +9,8 @@ import pytest
 
 from simulators.survey_sim import TrueRun
 from station.errors import InputError
-from station.survey import load_survey
-from station.track import build_track
+from station.survey.load import load_survey
+from station.survey.track import build_track
 
 
 def _true_offset(track, run: TrueRun) -> float:
@@ -213,7 +213,7 @@ def test_photocell_outside_surveyed_span(tmp_path):
 
 
 def test_bare_gsi_survey_reduces_without_photocells(real):
-    from station.survey import load_survey
+    from station.survey.load import load_survey
 
     s = load_survey(str(real / "leica_gsi" / "leica_gsi16_gurob.gsi"))
     assert s.photocells == [] and len(s.points) > 300

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from station.traverse import fit_traverse, simulate_traverse
+from station.model.traverse import fit_traverse, simulate_traverse
 
 G = 9.80665
 

@@ -16,9 +16,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from station.config import load_config
-from station.physics import Conditions, Params, StraightRun
-from station.protocols import format_alge
+from station.model.physics import Conditions, Params, StraightRun
+from station.session.config import load_config
+from station.timing.wireformats import format_alge
 from station.ui.app import StationApp
 from tests.conftest import station_cmd
 from tests.timing_helpers import start_sim, write_config

@@ -23,16 +23,16 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, RichLog, Static
 
-from station import session as sessions
-from station.config import StationConfig
-from station.day import Day
-from station.impulse import format_tod
-from station.pipeline import DescentResult
-from station.rawlog import Chunk, RawLogWriter
-from station.recorder import replay_chunks
-from station.results import write_results
-from station.survey import load_survey
-from station.track import build_track
+from station.session import store as sessions
+from station.session.analysis import DescentResult
+from station.session.config import StationConfig
+from station.session.day import Day
+from station.session.rawlog import Chunk, RawLogWriter
+from station.session.recorder import replay_chunks
+from station.session.results import write_results
+from station.survey.load import load_survey
+from station.survey.track import build_track
+from station.timing.impulses import format_tod
 from station.ui.messages import (
     ComparisonUpdated,
     ConnectionChanged,
@@ -200,7 +200,7 @@ class StationApp(App):
             self._after_feed(n, done)
 
     def _live_loop(self) -> None:
-        from station.serialport import SerialReader
+        from station.session.serialport import SerialReader
 
         cfg = self.config
         if self.mode == "demo":
@@ -277,12 +277,12 @@ class StationApp(App):
                 return
             if kind == "ended":
                 with self.lock:
-                    from station.recorder import Run
+                    from station.session.recorder import Run
 
                     summary = Run(self.day).summary()
                 self.post_message(SourceEnded(summary))
                 continue
-            from station.compare import collect
+            from station.model.compare import collect
 
             with self.lock:
                 res = self.day.analyse(payload) if kind == "descent" else self.day.annotate(payload)
@@ -295,7 +295,7 @@ class StationApp(App):
 
     def _comparison(self, data: list, excluded: list, windy: list) -> str:
         """The joint fit of the session's valid descents, as text."""
-        from station.compare import CompareError, format_comparison, joint_fit
+        from station.model.compare import CompareError, format_comparison, joint_fit
 
         if len(data) < 2:
             return "no comparison yet: it needs at least two fitted descents"

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from textual.message import Message
 
-from station.descents import ImpulseEvent
-from station.pipeline import DescentResult
+from station.session.analysis import DescentResult
+from station.timing.assembly import ImpulseEvent
 
 
 class ConnectionChanged(Message):

@@ -10,7 +10,7 @@ from textual.containers import Grid, Vertical, VerticalScroll
 from textual.screen import ModalScreen
 from textual.widgets import Button, Input, Label, Static
 
-from station.day import METADATA_FIELDS
+from station.session.day import METADATA_FIELDS
 
 HELP = """\
 [b]station[/b] — trackside measurement of ski friction

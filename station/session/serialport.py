@@ -16,7 +16,7 @@ from collections.abc import Callable
 
 import serial
 
-from station.config import SerialConfig
+from station.session.config import SerialConfig
 
 PARITY = {
     "N": serial.PARITY_NONE,

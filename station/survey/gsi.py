@@ -4,7 +4,7 @@ A GSI file is one block per line (CR, LF or CRLF; bare CR in old files). A block
 separated by blanks. Each word is ``WI(2) info(3) unit(1) sign(1) data(8|16)``; GSI-16 blocks
 start with ``*`` and carry 16-digit data. The unit digit (6th character) says how to read the
 data: see :data:`UNITS`. This module only decodes words; what a block *means* (station setup,
-measurement, known point) is decided in :mod:`station.polar`.
+measurement, known point) is decided in :mod:`station.survey.polar`.
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ uses them, and the tests use them for round trips.
 
 from __future__ import annotations
 
-from station.impulse import Edit, Impulse, Parsed, Skip, Unparsed, format_tod
+from station.timing.impulses import Edit, Impulse, Parsed, Skip, Unparsed, format_tod
 
 # ----------------------------------------------------------------------------- helpers
 

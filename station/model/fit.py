@@ -7,7 +7,7 @@ with the times relative to the first photocell used. What makes it reliable (num
   stationary point that attracts Gauss-Newton; a dogbox trust-region search (rectangular
   regions, made for simple bounds; 6 model evaluations on the demo descent where trust-region
   reflective needs 16) with CdA, μ, v0 (and μ1) ≥ 0 has no such point;
-- exact sensitivities from the variational equations (:mod:`station.physics`) on a fixed grid,
+- exact sensitivities from the variational equations (:mod:`station.model.physics`) on a fixed grid,
   so the Jacobian is smooth, not finite-difference noise of an adaptive solver;
 - a start computed from the data, not from the user: speeds at the photocells from local
   quadratics of s(t), then the energy balance of each interval, which is linear in μ and CdA,
@@ -31,8 +31,8 @@ import numpy as np
 from scipy.optimize import least_squares, nnls
 from scipy.stats import t as student_t
 
-from station.physics import PARAM_NAMES, Conditions, Params, StraightRun
-from station.track import Profile
+from station.model.physics import PARAM_NAMES, Conditions, Params, StraightRun
+from station.survey.track import Profile
 
 #: typical magnitudes of (CdA, μ, v0, μ1), used to scale the search
 SCALE = np.array([0.1, 0.01, 1.0, 1e-4])

@@ -5,10 +5,12 @@ and N = −λ / cos α. Differentiating the constraint twice (index reduction) g
 form; the photocell times are the roots of x(t) = x_i, found by the integrator's event location
 ("a root finding algorithm is necessary", §6.1).
 
-This is deliberately a *different* formulation from :mod:`station.physics` (time instead of arc
-length, Cartesian position and velocity instead of energy, an adaptive Runge-Kutta integrator
-instead of a fixed grid). The tests check that both agree to 1e-6 s; the benchmark uses it,
-at scipy's default tolerances, as "the straightforward way".
+This is deliberately a *different* formulation from :mod:`station.model.physics` (time
+instead of arc length, Cartesian position and velocity instead of energy, an adaptive
+Runge-Kutta integrator instead of a fixed grid). It lives with the tests because it is their
+independent reference, not part of the station: the tests check that both agree to 1e-6 s;
+``benchmarks/fit_speed.py`` uses it, at scipy's default tolerances, as "the straightforward
+way".
 """
 
 from __future__ import annotations
@@ -19,8 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from station.physics import Conditions, Params
-from station.track import Profile
+from station.model.physics import Conditions, Params
+from station.survey.track import Profile
 
 
 @dataclass

@@ -20,7 +20,7 @@ import math
 from dataclasses import dataclass, field
 
 from station.errors import InputError
-from station.gsi import GsiBlock
+from station.survey.gsi import GsiBlock
 
 EARTH_RADIUS_M = 6_371_000.0
 ARCSEC = math.pi / (180.0 * 3600.0)

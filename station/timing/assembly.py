@@ -21,13 +21,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
-from station.impulse import DAY_US, Impulse
+from station.timing.impulses import DAY_US, Impulse
 
 HALF_DAY_US = DAY_US // 2
 
 
 @dataclass
-class Descent:
+class TimedDescent:
     """One skier's pass: the kept time at each photocell (µs, unwrapped across midnight)."""
 
     number: int
@@ -83,7 +83,7 @@ class DescentAssembler:
             ]
         else:
             self.timeout_us = [60_000_000] * n
-        self.current: Descent | None = None
+        self.current: TimedDescent | None = None
         self.count = 0
         self.events: list[ImpulseEvent] = []
         self._day_offset = 0
@@ -108,9 +108,9 @@ class DescentAssembler:
             ImpulseEvent(line, imp.channel, pc, imp.tod_us, imp.flag, kept, reason, descent)
         )
 
-    def feed(self, imp: Impulse, line: int = 0) -> list[Descent]:
+    def feed(self, imp: Impulse, line: int = 0) -> list[TimedDescent]:
         """One impulse in; the descents it finished out."""
-        done: list[Descent] = []
+        done: list[TimedDescent] = []
         pc = self.channels.get(imp.channel)
         if pc is None:
             self._event(imp, line, None, False, f"channel {imp.channel} is not a photocell")
@@ -151,7 +151,7 @@ class DescentAssembler:
                 self._event(imp, line, pc, False, f"{pc} without a start at {self.photocells[0]}")
                 return done
             self.count += 1
-            self.current = Descent(self.count, [pc], [t], first_line=line)
+            self.current = TimedDescent(self.count, [pc], [t], first_line=line)
             self._event(imp, line, pc, True, "", self.count)
             return done
         if k < j:
@@ -178,7 +178,7 @@ class DescentAssembler:
             self.current = None
         return done
 
-    def tick(self, now_us: int) -> list[Descent]:
+    def tick(self, now_us: int) -> list[TimedDescent]:
         """Device time now (estimated from the host clock): end a descent that timed out."""
         cur = self.current
         if cur is None:
@@ -189,13 +189,13 @@ class DescentAssembler:
             return self._finish(f"no impulse for {waited:.1f} s after {cur.photocells[-1]}")
         return []
 
-    def close(self) -> list[Descent]:
+    def close(self) -> list[TimedDescent]:
         """End of the capture: an open descent ends here."""
         if self.current is None:
             return []
         return self._finish("the recording ended")
 
-    def _finish(self, why: str) -> list[Descent]:
+    def _finish(self, why: str) -> list[TimedDescent]:
         cur = self.current
         assert cur is not None
         self.current = None

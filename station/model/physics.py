@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from station.track import Profile
+from station.survey.track import Profile
 
 Array = np.ndarray
 
@@ -209,7 +209,7 @@ def solve_grid(
 
 
 @dataclass
-class Descent:
+class Trajectory:
     """The computed descent: times and speeds at the photocells and what happened on the way."""
 
     t: Array  # time at each photocell, t[0] = 0
@@ -253,7 +253,7 @@ class StraightRun:
 
     def solve(
         self, p: Params, c: Conditions, n_params: int = 3, sensitivities: bool = True
-    ) -> Descent:
+    ) -> Trajectory:
         sc = solve_grid(self.coarse, p, c, n_params, sensitivities)
         sf = solve_grid(self.fine, p, c, n_params, sensitivities)
         ic, jf = self.coarse.cell_index, self.fine.cell_index
@@ -267,7 +267,7 @@ class StraightRun:
         x = self.coarse.x
         speed = np.sqrt(2.0 * np.maximum(energy, 0.0))
         normal = c.g * self.coarse.cos_a + 2.0 * self.coarse.kappa * energy
-        return Descent(
+        return Trajectory(
             t=t,
             v=speed[ic],
             dt_dp=dt,

@@ -29,10 +29,10 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 
-from station.air import air_density
 from station.errors import InputError
-from station.protocols import PARSERS
-from station.yamlio import Section, load_yaml
+from station.model.air import air_density
+from station.timing.wireformats import PARSERS
+from station.yamlfile import Section, load_yaml
 
 PARITIES = {"N", "E", "O", "M", "S"}
 

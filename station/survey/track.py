@@ -18,7 +18,7 @@ import numpy as np
 from scipy.interpolate import make_splrep
 
 from station.errors import InputError
-from station.survey import Survey
+from station.survey.load import Survey
 
 Array = np.ndarray
 

@@ -16,17 +16,18 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
-from station import session as sessions
-from station.config import StationConfig
-from station.day import Day
-from station.descents import Descent
 from station.errors import InputError
-from station.impulse import format_tod
-from station.pipeline import DescentResult, Processor
-from station.rawlog import Chunk, RawLogWriter, read_rawlog
-from station.results import write_results
-from station.survey import load_survey
-from station.track import build_track
+from station.session import store as sessions
+from station.session.analysis import DescentResult
+from station.session.config import StationConfig
+from station.session.day import Day
+from station.session.processor import Processor
+from station.session.rawlog import Chunk, RawLogWriter, read_rawlog
+from station.session.results import write_results
+from station.survey.load import load_survey
+from station.survey.track import build_track
+from station.timing.assembly import TimedDescent
+from station.timing.impulses import format_tod
 
 CAPTURE_CHUNK = 4096
 
@@ -85,7 +86,7 @@ class Run:
     def results(self) -> list[DescentResult]:
         return [self.day.results[k] for k in sorted(self.day.results)]
 
-    def finish_descents(self, done: list[Descent]) -> list[DescentResult]:
+    def finish_descents(self, done: list[TimedDescent]) -> list[DescentResult]:
         return self.day.finish(done)
 
     def header(self) -> dict[str, str]:
@@ -118,7 +119,7 @@ def record(
     duration_s: float | None = None,
 ) -> Run:
     """Record until SIGINT/SIGTERM, ``max_descents`` or ``duration_s``."""
-    from station.serialport import SerialReader
+    from station.session.serialport import SerialReader
 
     sessions.create(config, session_dir)
     config = sessions.load_session_config(session_dir)  # run from the snapshot, as replay will
@@ -132,7 +133,7 @@ def record(
     lock = threading.Lock()
     stop = threading.Event()
 
-    def finished(done: list[Descent]) -> None:
+    def finished(done: list[TimedDescent]) -> None:
         for res in run.finish_descents(done):
             out(describe(res))
         if done:

@@ -14,11 +14,12 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from station.air import air_density
-from station.config import StationConfig
-from station.descents import Descent
-from station.pipeline import Analyser, DescentResult, Processor
-from station.track import Track
+from station.model.air import air_density
+from station.session.analysis import Analyser, DescentResult
+from station.session.config import StationConfig
+from station.session.processor import Processor
+from station.survey.track import Track
+from station.timing.assembly import TimedDescent
 
 #: metadata keys the UI edits, with their types
 METADATA_FIELDS: dict[str, type] = {
@@ -116,7 +117,7 @@ class Day:
 
     # -- descents
 
-    def analyse(self, d: Descent) -> DescentResult:
+    def analyse(self, d: TimedDescent) -> DescentResult:
         meta = self.metadata_for(d.number)
         res = self.analyser.analyse(
             d,
@@ -132,7 +133,7 @@ class Day:
         self.results[d.number] = res
         return res
 
-    def finish(self, done: list[Descent]) -> list[DescentResult]:
+    def finish(self, done: list[TimedDescent]) -> list[DescentResult]:
         return [self.analyse(d) for d in done]
 
     def rows(self) -> list[dict[str, Any]]:

@@ -24,8 +24,8 @@ import re
 from dataclasses import dataclass, field, replace
 
 from station.errors import InputError
-from station.gsi import read_gsi
-from station.polar import (
+from station.survey.gsi import read_gsi
+from station.survey.polar import (
     KnownPoint,
     Observation,
     ObservationSet,
@@ -35,7 +35,7 @@ from station.polar import (
     interpret_gsi,
     reduce_all,
 )
-from station.yamlio import LineList, Section, load_yaml
+from station.yamlfile import LineList, Section, load_yaml
 
 ANGLE_UNITS = {
     "gon": math.pi / 200.0,

@@ -1,7 +1,7 @@
 """A session directory: everything a test day needs to be replayed later.
 
     SESSION/
-      raw.jsonl        every byte from the timer, with host timestamps (station.rawlog)
+      raw.jsonl        every byte from the timer, with host timestamps (station.session.rawlog)
       config.yaml      the station config as it was, verbatim
       <survey files>   the survey YAML and its observation file, at the same relative paths
       results.csv      one row per descent, rewritten after each descent
@@ -20,9 +20,9 @@ import os
 import re
 import shutil
 
-from station.config import StationConfig, load_config
 from station.errors import InputError
-from station.yamlio import load_yaml
+from station.session.config import StationConfig, load_config
+from station.yamlfile import load_yaml
 
 RAW = "raw.jsonl"
 CONFIG = "config.yaml"

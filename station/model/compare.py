@@ -10,7 +10,7 @@ One joint least-squares fit over the valid descents of a session:
   μ(descent) = μ_item + drift·(t − t̄). It is estimated when an item recurs through the day,
   and the comparison is corrected for it.
 
-The exact sensitivities of each descent (:mod:`station.physics`) fill one Jacobian; the fit
+The exact sensitivities of each descent (:mod:`station.model.physics`) fill one Jacobian; the fit
 is the same bounded trust-region search as for one descent. Differences between items come
 with linearised 90 % intervals (Student t on the residual degrees of freedom), the probability
 that one is faster, and the time they make over the surveyed run. Sharing CdA removes most of
@@ -28,9 +28,9 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.stats import t as student_t
 
-from station.fit import TOLERANCES
-from station.physics import Conditions, Params, StraightRun
-from station.track import Track
+from station.model.fit import TOLERANCES
+from station.model.physics import Conditions, Params, StraightRun
+from station.survey.track import Track
 
 US_PER_HOUR = 3.6e9
 
@@ -403,7 +403,7 @@ def item_of(row: dict[str, Any]) -> str:
 def collect(
     day, wind_limit_ms: float = 1.0
 ) -> tuple[list[DescentData], list[tuple[int, str]], list[int]]:
-    """The descents of a :class:`station.day.Day` that enter the comparison, those left out
+    """The descents of a :class:`station.session.day.Day` that enter the comparison, those left out
     (with why) and those flagged for wind."""
     data: list[DescentData] = []
     excluded: list[tuple[int, str]] = []

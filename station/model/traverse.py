@@ -23,8 +23,8 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import least_squares
 
 from station.errors import InputError
-from station.fit import CI_METHOD, TOLERANCES, uncertainty
-from station.physics import G_STANDARD
+from station.model.fit import CI_METHOD, TOLERANCES, uncertainty
+from station.model.physics import G_STANDARD
 
 NAMES = ["cda", "mu", "v0", "s0"]
 SCALE = np.array([0.1, 0.01, 1.0, 0.1])

@@ -1,0 +1,1 @@
+"""The ``station`` command: argument parsing and one module per group of subcommands."""

@@ -1,0 +1,118 @@
+"""``station record``, ``replay`` and ``export``: a test day recorded from the timer, replayed
+from its raw log or a plain capture, and its results written."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from typing import Any
+
+from station.cli.common import (
+    _date,
+    _positive,
+    _warn,
+)
+from station.errors import InputError
+
+
+def cmd_record(args: argparse.Namespace) -> int:
+    from station.session import store as sessions
+    from station.session.config import load_config
+    from station.session.recorder import record
+
+    cfg = load_config(args.config)
+    folder = args.session_dir or sessions.default_dir()
+    print(f"recording to {folder} from {cfg.serial.port} ({cfg.serial.protocol}); Ctrl-C ends",
+          file=sys.stderr)  # fmt: skip
+    run = record(cfg, folder, max_descents=args.max_descents, duration_s=args.duration)
+    print(run.summary(), file=sys.stderr)
+    print(f"results: {os.path.join(folder, sessions.RESULTS)}", file=sys.stderr)
+    return 0
+
+
+def _replay_config(args: argparse.Namespace):
+    """The config of a replay: ``--config``, else a session's own snapshot."""
+    from station.session import store as sessions
+    from station.session.config import load_config
+
+    if not os.path.exists(args.source):
+        raise InputError("no such session or capture", path=args.source)
+    if getattr(args, "config", None):
+        return load_config(args.config)
+    if sessions.is_session(args.source):
+        return sessions.load_session_config(args.source)
+    raise InputError(
+        "a plain capture needs --config (protocol, channels, survey)", path=args.source
+    )
+
+
+def _replay_run(args: argparse.Namespace, quiet: bool = False):
+    from station.session.recorder import replay
+
+    cfg = _replay_config(args)
+    warnings: list[str] = []
+    speed = None if getattr(args, "fast", True) else getattr(args, "speed", None)
+    out = (lambda _m: None) if quiet else print
+    run = replay(args.source, cfg, out=out, speed=speed, date=_date(getattr(args, "date", None)),
+                 warnings=warnings)  # fmt: skip
+    for w in warnings:
+        _warn(w)
+    return run
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    from station.cli.terminal import _replay_ui
+    from station.session.recorder import write_events
+
+    if args.ui:
+        return _replay_ui(args)
+    run = _replay_run(args)
+    print(run.summary(), file=sys.stderr)
+    if args.csv:
+        run.write_csv(args.csv)
+    if args.events:
+        write_events(run, args.events)
+    return 0
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from station.session import store as sessions
+
+    if not sessions.is_session(args.source):
+        raise InputError("not a session directory (no raw.jsonl)", path=args.source)
+    run = _replay_run(args, quiet=True)
+    run.write_csv(args.csv)
+    print(f"{len(run.results)} descents -> {args.csv}", file=sys.stderr)
+    return 0
+
+
+def add_parsers(sub: Any) -> None:
+    p = sub.add_parser("record", help="record a timer headless: raw log, descents, fits, CSV")
+    p.add_argument("--config", required=True, help="station config YAML")
+    p.add_argument("--session-dir", metavar="DIR", help="default: sessions/DATE_TIME")
+    p.add_argument(
+        "--max-descents",
+        type=int,
+        metavar="N",
+        help="stop after N descents (aborted ones not counted)",
+    )
+    p.add_argument("--duration", type=_positive, metavar="S", help="stop after S seconds")
+    p.set_defaults(func=cmd_record)
+
+    p = sub.add_parser("replay", help="replay a session or a plain capture of a timer's output")
+    p.add_argument("source", metavar="CAPTURE_OR_SESSION")
+    p.add_argument("--config", help="station config (default: the session's own)")
+    p.add_argument("--csv", metavar="OUT", help="write the results CSV")
+    p.add_argument("--events", metavar="OUT", help="write every parsed impulse and its fate")
+    p.add_argument("--date", help="date of a plain capture, YYYY-MM-DD (default: file date)")
+    pace = p.add_mutually_exclusive_group()
+    pace.add_argument("--speed", type=_positive, metavar="X", help="replay at X times real time")
+    pace.add_argument("--fast", action="store_true", help="as fast as possible (the default)")
+    p.add_argument("--ui", action="store_true", help="show the replay in the terminal UI")
+    p.set_defaults(func=cmd_replay)
+
+    p = sub.add_parser("export", help="write a session's results CSV")
+    p.add_argument("source", metavar="SESSION")
+    p.add_argument("--csv", required=True, metavar="OUT")
+    p.set_defaults(func=cmd_export)

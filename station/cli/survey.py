@@ -1,0 +1,374 @@
+"""``station survey``, ``simulate``, ``fit`` and ``fit-traverse``: the track and single fits."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+from typing import Any
+
+import numpy as np
+
+from station.cli.common import (
+    _add_air,
+    _density,
+    _fmt,
+    _load_track,
+    _nonnegative,
+    _number,
+    _positive,
+    _print_json,
+    _warn,
+)
+from station.errors import InputError
+
+
+def cmd_survey_points(args: argparse.Namespace) -> int:
+    """A bare observation file has no photocells: list the reduced points for checking."""
+    from station.survey.load import load_survey
+
+    survey = load_survey(args.survey)
+    pts = list(survey.points.values())
+    if args.csv:
+        with open(args.csv, "w", newline="", encoding="utf-8") as fh:
+            w = csv.writer(fh)
+            w.writerow(["point", "e", "n", "h", "sigma_h_m", "setup", "line"])
+            for p in pts:
+                w.writerow([p.point, f"{p.e:.4f}", f"{p.n:.4f}", f"{p.h:.4f}", f"{p.sigma_h:.4f}",
+                            p.setup, p.line])  # fmt: skip
+    if args.json:
+        _print_json(
+            {
+                "points": [
+                    {
+                        "id": p.point,
+                        "e": p.e,
+                        "n": p.n,
+                        "h": p.h,
+                        "sigma_h_m": p.sigma_h,
+                        "setup": p.setup,
+                        "line": p.line,
+                    }  # fmt: skip
+                    for p in pts
+                ],
+                "setups": [
+                    {
+                        "station": s.station,
+                        "e": s.e,
+                        "n": s.n,
+                        "h": s.h,
+                        "instrument_height": s.instrument_height,
+                        "line": s.line,
+                    }  # fmt: skip
+                    for s in survey.setups
+                ],
+                "warnings": survey.warnings,
+            }
+        )
+        return 0
+    print(f"observations  {args.survey}: {len(pts)} points from {len(survey.setups)} setup(s)")
+    print(f"{'setup':<12}{'E':>12}{'N':>12}{'H':>10}{'hi':>7}  line")
+    for s in survey.setups:
+        line = "" if s.line is None else str(s.line)
+        print(
+            f"{s.station:<12}{s.e:>12.3f}{s.n:>12.3f}{s.h:>10.3f}"
+            f"{s.instrument_height:>7.3f}  {line}"
+        )
+    print()
+    print(f"{'point':<12}{'E':>12}{'N':>12}{'H':>10}{'σH [mm]':>9}  setup")
+    for p in pts:
+        print(
+            f"{p.point:<12}{p.e:>12.3f}{p.n:>12.3f}{p.h:>10.3f}{p.sigma_h * 1000:>9.1f}  {p.setup}"
+        )
+    for w in survey.warnings:
+        _warn(w)
+    _warn(
+        "a bare observation file has no photocells; blocks before the first station block "
+        "were reduced from station 0, 0, 0 with instrument height 0. Write a survey YAML "
+        "(surveys/README.md) to name the photocells and the first setup and get the track"
+    )
+    return 0
+
+
+def cmd_survey(args: argparse.Namespace) -> int:
+    if args.survey.lower().endswith(".gsi"):
+        return cmd_survey_points(args)
+    track = _load_track(args.survey)
+    prof = track.profile
+    xg = np.arange(math.ceil(prof.x_min), math.floor(prof.x_max) + 1e-9, 1.0)
+    yg, sg, kg = prof.h(xg), prof.slope_deg(xg), prof.curvature(xg)
+    used = [p for p in track.points if p.used]
+    sig = float(np.sqrt(np.mean([p.sigma**2 for p in used])))
+    if args.csv:
+        with open(args.csv, "w", newline="", encoding="utf-8") as fh:
+            w = csv.writer(fh)
+            w.writerow(["x_m", "y_m", "slope_deg", "curvature_1_per_m"])
+            for row in zip(xg, yg, sg, kg, strict=True):
+                w.writerow([f"{row[0]:.3f}", f"{row[1]:.4f}", f"{row[2]:.4f}", f"{row[3]:.6f}"])
+    if args.json:
+        _print_json(
+            {
+                "name": track.name,
+                "length_m": track.length_m,
+                "drop_m": track.drop_m,
+                "residual_rms_m": track.residual_rms_m,
+                "expected_sigma_m": sig,
+                "azimuth_deg": track.azimuth_deg,
+                "photocells": [
+                    {
+                        "id": pc.id,
+                        "x": pc.x,
+                        "y": pc.y,
+                        "slope_deg": pc.slope_deg,
+                        "lateral_m": pc.lateral_m,
+                    }
+                    for pc in track.photocells
+                ],
+                "profile": {
+                    "x": xg.tolist(),
+                    "y": yg.tolist(),
+                    "slope_deg": sg.tolist(),
+                    "curvature": kg.tolist(),
+                },
+                "points": [
+                    {
+                        "id": p.id,
+                        "x": p.x,
+                        "y": p.y,
+                        "sigma_m": p.sigma,
+                        "lateral_m": p.lateral_m,
+                        "residual_m": p.residual_m,
+                        "used": p.used,
+                    }
+                    for p in track.points
+                ],
+                "warnings": track.warnings,
+            }
+        )
+    else:
+        lat = [abs(p.lateral_m) for p in used]
+        print(f"survey   {track.name}  ({args.survey})")
+        if track.photocells:
+            print(
+                f"timed    {track.length_m:.2f} m along the track, {track.drop_m:.2f} m drop, "
+                f"{len(track.photocells)} photocells"
+            )
+        print(
+            f"profile  {len(used)} points over x = {prof.x_min:.1f} .. {prof.x_max:.1f} m, "
+            f"axis azimuth {track.azimuth_deg:.2f}°, largest lateral offset {max(lat):.2f} m"
+        )
+        print(
+            f"spline   residual RMS {track.residual_rms_m * 1000:.1f} mm "
+            f"(point σ {sig * 1000:.1f} mm), "
+            f"curvature {kg.min():+.5f} .. {kg.max():+.5f} 1/m"
+        )
+        if track.photocells:
+            print()
+            print(
+                f"{'photocell':<10}{'x [m]':>10}{'y [m]':>11}{'slope [°]':>11}{'lateral [m]':>13}"
+            )
+            for pc in track.photocells:
+                print(
+                    f"{pc.id:<10}{pc.x:>10.2f}{pc.y:>11.2f}{pc.slope_deg:>11.2f}{pc.lateral_m:>+13.2f}"
+                )
+        for w in track.warnings:
+            _warn(w)
+    return 0
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from station.model.physics import Conditions, Params, StraightRun
+
+    track = _load_track(args.survey)
+    if len(track.photocells) < 2:
+        raise InputError("the survey needs at least two photocells", path=args.survey)
+    rho = _density(args)
+    xs = np.array([pc.x for pc in track.photocells])
+    run = StraightRun(track.profile, xs)
+    cond = Conditions(mass_kg=args.mass, air_density=rho, wind_ms=args.wind_ms)
+    d = run.solve(Params(args.cda, args.mu, args.v0, args.mu1), cond, sensitivities=False)
+    t = d.t.copy()
+    if args.noise_ms:
+        rng = np.random.default_rng(args.seed)
+        t[1:] += rng.normal(0.0, args.noise_ms * 1e-3, len(t) - 1)
+    reached = np.isfinite(t)
+    if d.stopped_x is not None:
+        reached = xs < d.stopped_x
+    if args.csv:
+        with open(args.csv, "w", newline="", encoding="utf-8") as fh:
+            w = csv.writer(fh)
+            w.writerow(["photocell", "time"])
+            for pc, ti, ok in zip(track.photocells, t, reached, strict=True):
+                if ok:
+                    w.writerow([pc.id, f"{args.start_s + ti:.4f}"])
+    status = "ok"
+    if d.liftoff_x is not None:
+        status = "lift-off"
+    elif d.stopped_x is not None:
+        status = "stopped"
+    if args.json:
+        _print_json(
+            {
+                "photocells": [
+                    {
+                        "id": pc.id,
+                        "x": pc.x,
+                        "t": float(ti) if ok else None,
+                        "v": float(vi) if ok else None,
+                    }
+                    for pc, ti, vi, ok in zip(track.photocells, t, d.v, reached, strict=True)
+                ],
+                "min_normal_force_n": d.min_normal_force_n,
+                "air_density": rho,
+                "status": status,
+                "liftoff_x": d.liftoff_x,
+                "stopped_x": d.stopped_x,
+            }
+        )
+    else:
+        print(
+            f"simulate  {track.name}: m {args.mass:g} kg, CdA {args.cda:g} m², μ {args.mu:g}"
+            + (f", μ1 {args.mu1:g} s/m" if args.mu1 else "")
+            + f", v0 {args.v0:g} m/s, ρ {rho:.3f} kg/m³"
+            + (f", wind {args.wind_ms:+g} m/s" if args.wind_ms else "")
+            + (f", timing noise {args.noise_ms:g} ms (seed {args.seed})" if args.noise_ms else "")
+        )
+        print(f"{'photocell':<10}{'x [m]':>9}{'t [s]':>11}{'v [m/s]':>10}{'v [km/h]':>10}")
+        for pc, ti, vi, ok in zip(track.photocells, t, d.v, reached, strict=True):
+            if ok:
+                print(f"{pc.id:<10}{pc.x:>9.2f}{ti:>11.4f}{vi:>10.2f}{vi * 3.6:>10.1f}")
+            else:
+                print(f"{pc.id:<10}{pc.x:>9.2f}{'not reached':>21}")
+        print(f"minimum normal force {d.min_normal_force_n:.0f} N")
+        if d.liftoff_x is not None:
+            _warn(f"lift-off: the normal force reaches 0 at x = {d.liftoff_x:.1f} m")
+        if d.stopped_x is not None:
+            _warn(f"the skier stops at x = {d.stopped_x:.1f} m, before the last photocell")
+    return 0
+
+
+def cmd_fit(args: argparse.Namespace) -> int:
+    from station.model.fit import CI_METHOD, fit_descent
+    from station.model.physics import Conditions
+    from station.timing.timesfile import read_times
+
+    track = _load_track(args.survey)
+    times = read_times(args.times, track.photocell_ids)
+    rho = _density(args)
+    xs = np.array([track.photocell(p).x for p in times.photocells])
+    cond = Conditions(mass_kg=args.mass, air_density=rho, wind_ms=args.wind_ms)
+    res = fit_descent(track.profile, xs, np.array(times.times), cond, times.photocells, args.model)
+    missing = [p for p in track.photocell_ids if p not in times.photocells]
+    if args.json:
+        out = res.to_dict()
+        out.update({"missing": missing, "air_density": rho, "mass_kg": args.mass})
+        out["warnings"] = track.warnings
+        _print_json(out)
+        return 0
+    e, ci = res.estimates, res.ci90
+    print(
+        f"fit     {track.name}, {args.times}: {len(times.photocells)} photocells"
+        + (f" (missing {', '.join(missing)})" if missing else "")
+        + f", {args.model} model, m {args.mass:g} kg, ρ {rho:.3f} kg/m³"
+        + (f", wind {args.wind_ms:+g} m/s" if args.wind_ms else "")
+    )
+    print(f"status  {res.status}" + (f": {res.message}" if res.message else ""))
+
+    def line(label: str, key: str, unit: str, spec: str) -> None:
+        if key not in e:
+            return
+        c = ci.get(key)
+        rng = f"[{format(c[0], spec)}, {format(c[1], spec)}]" if c else "—"
+        print(f"  {label:<5}{_fmt(e[key], spec):>10} {unit:<5} 90 % CI {rng}")
+
+    line("μ", "mu", "", ".5f")
+    line("μ1", "mu1", "s/m", ".2e")
+    line("CdA", "cda", "m²", ".4f")
+    line("v0", "v0", "m/s", ".3f")
+    if res.sigma_s2 is not None:
+        corr = _fmt(res.corr_mu_cda, "+.3f")
+        print(
+            f"  corr(μ, CdA) {corr}   Σ {res.sigma_s2:.3e} s²   gᵀg {res.grad_norm2:.2e}   "
+            f"dof {res.dof}   v0 at {res.photocells[0]}"
+        )
+        print(f"  intervals: {CI_METHOD}")
+        print(f"{'photocell':<10}{'residual [ms]':>15}{'v [m/s]':>10}")
+        for pid, r in res.residuals_s.items():
+            print(f"{pid:<10}{r * 1000:>15.3f}{res.speeds_ms.get(pid, float('nan')):>10.2f}")
+    for w in track.warnings:
+        _warn(w)
+    return 0
+
+
+def cmd_fit_traverse(args: argparse.Namespace) -> int:
+    from station.model.traverse import fit_traverse, read_traverse_data
+
+    t, s = read_traverse_data(args.data)
+    rho = _density(args)
+    res = fit_traverse(t, s, args.slope_deg, args.traverse_deg, args.mass, rho)
+    if args.json:
+        out = res.to_dict()
+        out.update({"air_density": rho, "mass_kg": args.mass})
+        _print_json(out)
+        return 0
+    e, ci = res.estimates, res.ci90
+    print(
+        f"traverse  {args.data}: {len(t)} positions, plane {args.slope_deg:g}°, "
+        f"traverse {args.traverse_deg:g}° to the fall line, m {args.mass:g} kg, ρ {rho:.3f} kg/m³"
+    )
+    print(f"status  {res.status}" + (f": {res.message}" if res.message else ""))
+    for label, key, unit, spec in (
+        ("μ", "mu", "", ".4f"),
+        ("CdA", "cda", "m²", ".3f"),
+        ("v0", "v0", "m/s", ".2f"),
+        ("s0", "s0", "m", ".3f"),
+    ):
+        c = ci.get(key)
+        rng = f"[{format(c[0], spec)}, {format(c[1], spec)}]" if c else "—"
+        print(f"  {label:<5}{_fmt(e[key], spec):>9} {unit:<4} 90 % CI {rng}")
+    rms = math.sqrt(res.sigma_m2 / len(t))
+    print(f"  final speed {res.v_final:.2f} m/s   residual RMS {rms * 100:.1f} cm   dof {res.dof}")
+    return 0
+
+
+def add_parsers(sub: Any) -> None:
+    p = sub.add_parser("survey", help="reduce a survey to the track profile and photocells")
+    p.add_argument("survey", help="survey YAML (or a bare .gsi file)")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.add_argument("--csv", metavar="OUT", help="write the profile (every metre) as CSV")
+    p.set_defaults(func=cmd_survey)
+
+    p = sub.add_parser("simulate", help="times and speeds of a skier with given μ and CdA")
+    p.add_argument("--survey", required=True)
+    p.add_argument("--mass", type=_positive, required=True, metavar="KG")
+    p.add_argument("--cda", type=_nonnegative, required=True, metavar="M2")
+    p.add_argument("--mu", type=_nonnegative, required=True)
+    p.add_argument("--v0", type=_nonnegative, required=True, metavar="M_S")
+    p.add_argument("--mu1", type=_nonnegative, default=0.0, help="velocity-dependent part, s/m")
+    p.add_argument("--wind-ms", type=_number, default=0.0, help="along-track wind, + = tailwind")
+    p.add_argument("--noise-ms", type=_nonnegative, default=0.0, help="add timing noise (sd)")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--start-s", type=_number, default=0.0, help="time at the first photocell")
+    p.add_argument("--csv", metavar="OUT", help="write the times as a fit input (photocell,time)")
+    p.add_argument("--json", action="store_true")
+    _add_air(p)
+    p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("fit", help="fit μ, CdA and v0 to the photocell times of one descent")
+    p.add_argument("--survey", required=True)
+    p.add_argument("--times", required=True, help="CSV with columns photocell,time")
+    p.add_argument("--mass", type=_positive, required=True, metavar="KG")
+    p.add_argument("--model", choices=["constant", "velocity"], default="constant")
+    p.add_argument("--wind-ms", type=_number, default=0.0, help="along-track wind, + = tailwind")
+    p.add_argument("--json", action="store_true")
+    _add_air(p)
+    p.set_defaults(func=cmd_fit)
+
+    p = sub.add_parser("fit-traverse", help="fit μ and CdA to (t, s) data of a traverse")
+    p.add_argument("--data", required=True, help="CSV with columns t,s")
+    p.add_argument("--slope-deg", type=_positive, required=True, metavar="A")
+    p.add_argument("--traverse-deg", type=_nonnegative, required=True, metavar="B")
+    p.add_argument("--mass", type=_positive, required=True, metavar="KG")
+    p.add_argument("--json", action="store_true")
+    _add_air(p)
+    p.set_defaults(func=cmd_fit_traverse)

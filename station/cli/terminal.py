@@ -1,0 +1,95 @@
+"""``station live`` and ``demo`` (and ``replay --ui``): the trackside terminal UI."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from typing import Any
+
+from station.cli.common import (
+    _date,
+    _positive,
+)
+
+
+def _replay_ui(args: argparse.Namespace) -> int:
+    from station.cli.recording import _replay_config
+    from station.session.recorder import source_date
+    from station.ui.app import StationApp
+
+    cfg = _replay_config(args)
+    date = source_date(args.source, _date(args.date))
+    speed = None if args.fast else args.speed
+    return _run_ui(StationApp(cfg, mode="replay", source=args.source, speed=speed, date=date))
+
+
+def _run_ui(app) -> int:
+    app.run()
+    return 0
+
+
+def cmd_live(args: argparse.Namespace) -> int:
+    from station.session import store as sessions
+    from station.session.config import load_config
+    from station.ui.app import StationApp
+
+    cfg = load_config(args.config)
+    folder = args.session_dir or sessions.default_dir()
+    return _run_ui(StationApp(cfg, mode="live", session_dir=folder))
+
+
+DEMO_SKIS = [("demo pair A", 0.0080), ("demo pair B", 0.0095), ("demo pair C", 0.0110)]
+
+
+def demo_config_path() -> str:
+    """The bundled demo station config (package data, so it works without a checkout)."""
+    from importlib.resources import files
+
+    return str(files("surveys") / "demo_station.yaml")
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    import random
+    import tempfile
+
+    from station.session import store as sessions
+    from station.session.config import load_config
+    from station.ui.app import StationApp
+
+    cfg = load_config(demo_config_path())
+    folder = args.session_dir or sessions.default_dir("sessions").replace(
+        os.sep + "20", os.sep + "demo-20", 1
+    )
+    link = os.path.join(tempfile.mkdtemp(prefix="station-demo-"), "timer")
+    # the simulated timer runs as a process of its own, as a real timer would
+    sim = [
+        sys.executable, "-m", "simulators.timer", "--survey", cfg.survey_path, "--link", link,
+        "--descents", "100000", "--interval", str(args.interval), "--first-after", "3",
+        "--speed", str(args.speed), "--skis", ",".join(f"{mu}" for _n, mu in DEMO_SKIS),
+        "--seed", str(args.seed if args.seed is not None else random.randrange(1 << 30)),
+        "--noise-ms", "0.3", "--double-trigger", "0.05", "--hold", "0",
+        "--air-density", f"{cfg.air_density}", "--mass", f"{cfg.mass_kg}",
+    ]  # fmt: skip
+    app = StationApp(
+        cfg,
+        mode="demo",
+        session_dir=folder,
+        sim_command=sim,
+        demo_skis=[n for n, _mu in DEMO_SKIS],
+    )
+    return _run_ui(app)
+
+
+def add_parsers(sub: Any) -> None:
+    p = sub.add_parser("live", help="the trackside terminal UI on a timer")
+    p.add_argument("--config", required=True, help="station config YAML")
+    p.add_argument("--session-dir", metavar="DIR", help="default: sessions/DATE_TIME")
+    p.set_defaults(func=cmd_live)
+
+    p = sub.add_parser("demo", help="the terminal UI on a simulated timer and the demo run")
+    p.add_argument("--session-dir", metavar="DIR", help="default: sessions/demo-DATE_TIME")
+    p.add_argument("--interval", type=_positive, default=20.0, help="seconds between descents")
+    p.add_argument("--speed", type=_positive, default=1.0, help="run the timer's clock faster")
+    p.add_argument("--seed", type=int, help="seed of the simulated descents")
+    p.set_defaults(func=cmd_demo)

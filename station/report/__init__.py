@@ -1,0 +1,1 @@
+"""Text for people: one-line descent summaries and tables shared by the CLI and the UI."""

@@ -1,0 +1,117 @@
+"""Raw chunks -> lines -> impulses -> descents -> fits -> result rows, with no I/O.
+
+The same :class:`Processor` runs live (fed by the serial reader after each chunk is logged)
+and in replay (fed from the raw log or a plain capture), so a replay reproduces the live
+results exactly. Time-outs are the one thing that depends on the clock rather than on the
+bytes. A live time-out is written to the raw log as a ``timeout`` event, and replay applies
+it from there. Impulse-driven endings (the next start, the last photocell, an impulse after
+the time-out) need no clock at all.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+
+from station.errors import InputError
+from station.session.config import StationConfig
+from station.session.rawlog import Chunk
+from station.survey.track import Track
+from station.timing.assembly import DescentAssembler, ImpulseEvent, TimedDescent
+from station.timing.framing import LineFramer
+from station.timing.impulses import Edit, Impulse, Skip, Unparsed
+from station.timing.wireformats import make_parser
+
+
+class Processor:
+    """Bytes in, finished descents out; counts every kind of line on the way."""
+
+    def __init__(self, config: StationConfig, track: Track) -> None:
+        known = set(track.photocell_ids)
+        for ch, pc in config.channels.items():
+            if pc not in known:
+                raise InputError(
+                    f"photocell {pc!r} is not in the survey ({', '.join(track.photocell_ids)})",
+                    path=config.path,
+                    field=f"photocells.{ch}",
+                )
+        self.parser = make_parser(config.serial.protocol)
+        self.framer = LineFramer()
+        positions = [
+            track.profile.arc_length(track.photocells[0].x, pc.x) for pc in track.photocells
+        ]
+        self.assembler = DescentAssembler(
+            track.photocell_ids,
+            config.channels,
+            debounce_s=config.descent.debounce_s,
+            timeout_s=config.descent.timeout_s,
+            positions_m=positions,
+            min_speed_ms=config.descent.min_speed_ms,
+        )
+        self.lines = 0
+        self.counts: Counter[str] = Counter()
+        self.unparsed: list[tuple[int, str, str]] = []  # line number, reason, text (first 100)
+        self.connection: list[tuple[float, str, str]] = []
+        self.offset_us: int | None = None  # device clock − host clock
+        self.start_host: dict[int, float | None] = {}
+
+    @property
+    def events(self) -> list[ImpulseEvent]:
+        return self.assembler.events
+
+    def feed(self, chunk: Chunk) -> list[TimedDescent]:
+        if chunk.event:
+            if chunk.event == "timeout":
+                return self.tick(chunk.t)
+            if chunk.event != "session":
+                self.connection.append((chunk.t, chunk.event, chunk.detail))
+            return []
+        done: list[TimedDescent] = []
+        for line in self.framer.feed(chunk.data):
+            done += self._line(line, chunk.t)
+        return done
+
+    def _line(self, line: str, t: float | None) -> list[TimedDescent]:
+        self.lines += 1
+        parsed = self.parser.parse(line)
+        if isinstance(parsed, Impulse):
+            self.counts["impulse"] += 1
+            before = self.assembler.count
+            done = self.assembler.feed(parsed, self.lines)
+            if t is not None and self.assembler._clock is not None:
+                self.offset_us = self.assembler._clock - round(t * 1e6)
+            if self.assembler.count > before:
+                self.start_host[self.assembler.count] = t
+            return done
+        if isinstance(parsed, Edit):
+            self.counts["edit"] += 1
+            self.assembler.events.append(
+                ImpulseEvent(
+                    self.lines,
+                    parsed.channel,
+                    self.assembler.channels.get(parsed.channel),
+                    parsed.tod_us,
+                    parsed.flag,
+                    False,
+                    f"{parsed.kind}: repeats an earlier impulse, not a new one",
+                )
+            )
+        elif isinstance(parsed, Skip):
+            self.counts["skipped"] += 1
+        elif isinstance(parsed, Unparsed):
+            self.counts["unparsed"] += 1
+            if len(self.unparsed) < 1000:
+                self.unparsed.append((self.lines, parsed.reason, line[:100]))
+        return []
+
+    def tick(self, host_t: float) -> list[TimedDescent]:
+        """Host time now: end a descent whose time-out passed on the device clock."""
+        if self.offset_us is None:
+            return []
+        return self.assembler.tick(round(host_t * 1e6) + self.offset_us)
+
+    def finish(self) -> list[TimedDescent]:
+        """End of the input: the unfinished last line, then the open descent."""
+        done: list[TimedDescent] = []
+        for line in self.framer.flush():
+            done += self._line(line, None)
+        return done + self.assembler.close()
