@@ -18,15 +18,15 @@ from station.errors import InputError
 
 def cmd_record(args: argparse.Namespace) -> int:
     from station.session import store as sessions
+    from station.session.acquisition import record
     from station.session.config import load_config
-    from station.session.recorder import record
 
     cfg = load_config(args.config)
     folder = args.session_dir or sessions.default_dir()
     print(f"recording to {folder} from {cfg.serial.port} ({cfg.serial.protocol}); Ctrl-C ends",
           file=sys.stderr)  # fmt: skip
-    run = record(cfg, folder, max_descents=args.max_descents, duration_s=args.duration)
-    print(run.summary(), file=sys.stderr)
+    acq = record(cfg, folder, max_descents=args.max_descents, duration_s=args.duration)
+    print(acq.summary(), file=sys.stderr)
     print(f"results: {os.path.join(folder, sessions.RESULTS)}", file=sys.stderr)
     return 0
 
@@ -48,31 +48,32 @@ def _replay_config(args: argparse.Namespace):
 
 
 def _replay_run(args: argparse.Namespace, quiet: bool = False):
-    from station.session.recorder import replay
+    """The replay of ``args.source`` through the acquisition loop (an ``Acquisition``)."""
+    from station.session.acquisition import replay
 
     cfg = _replay_config(args)
     warnings: list[str] = []
     speed = None if getattr(args, "fast", True) else getattr(args, "speed", None)
     out = (lambda _m: None) if quiet else print
-    run = replay(args.source, cfg, out=out, speed=speed, date=_date(getattr(args, "date", None)),
+    acq = replay(args.source, cfg, out=out, speed=speed, date=_date(getattr(args, "date", None)),
                  warnings=warnings)  # fmt: skip
     for w in warnings:
         _warn(w)
-    return run
+    return acq
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
     from station.cli.terminal import _replay_ui
-    from station.session.recorder import write_events
+    from station.session.replay import write_events
 
     if args.ui:
         return _replay_ui(args)
-    run = _replay_run(args)
-    print(run.summary(), file=sys.stderr)
+    acq = _replay_run(args)
+    print(acq.summary(), file=sys.stderr)
     if args.csv:
-        run.write_csv(args.csv)
+        acq.write_csv(args.csv)
     if args.events:
-        write_events(run, args.events)
+        write_events(acq.day.processor, args.events)
     return 0
 
 
@@ -81,9 +82,9 @@ def cmd_export(args: argparse.Namespace) -> int:
 
     if not sessions.is_session(args.source):
         raise InputError("not a session directory (no raw.jsonl)", path=args.source)
-    run = _replay_run(args, quiet=True)
-    run.write_csv(args.csv)
-    print(f"{len(run.results)} descents -> {args.csv}", file=sys.stderr)
+    acq = _replay_run(args, quiet=True)
+    acq.write_csv(args.csv)
+    print(f"{len(acq.results())} descents -> {args.csv}", file=sys.stderr)
     return 0
 
 

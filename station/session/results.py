@@ -11,11 +11,13 @@ from __future__ import annotations
 import csv
 import os
 import tempfile
+from collections.abc import Sequence
 from typing import Any
 
 import pandas as pd
 
 from station import __version__
+from station.session.records import ResultRow, csv_record
 
 COLUMNS = [
     "descent", "start_time", "photocells_used", "missing", "v0", "cda", "cda_lo", "cda_hi",
@@ -82,3 +84,8 @@ def write_results(rows: list[dict[str, Any]], path: str, header: dict[str, str])
 
 def read_results(path: str) -> pd.DataFrame:
     return pd.read_csv(path, comment="#")
+
+
+def write_result_rows(rows: Sequence[ResultRow], path: str, header: dict[str, str]) -> None:
+    """The results CSV of typed rows: each row's one CSV view (:func:`csv_record`)."""
+    write_results([csv_record(r) for r in rows], path, header)
