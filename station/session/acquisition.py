@@ -51,7 +51,7 @@ from station.session.records import (
 )
 from station.session.replay import replay_chunks, source_date
 from station.survey.load import load_survey
-from station.survey.track import build_track
+from station.survey.track import Track, build_track
 from station.timing.assembly import ImpulseEvent, TimedDescent
 
 
@@ -125,8 +125,14 @@ class _End:
     """The source ended: tell the listener once every descent before it is fitted."""
 
 
+@dataclass(frozen=True)
+class _WriteResults:
+    """Write the session's results CSV (the empty one at the start: on the worker, so the
+    reader opens the port without waiting for the CSV writer to load)."""
+
+
 _STOP = object()
-_Job = _Fit | _Annotate | _End
+_Job = _Fit | _Annotate | _End | _WriteResults
 
 
 class Acquisition:
@@ -199,7 +205,7 @@ class Acquisition:
             ski_rotation=ski_rotation,
         )
         if session_dir is not None:
-            acq._write_session_csv(())
+            acq._submit(_WriteResults())
         if ski_rotation:
             acq.add_metadata({"ski": ski_rotation[0]}, from_descent=1)
         return acq
@@ -207,6 +213,10 @@ class Acquisition:
     @property
     def config(self) -> StationConfig:
         return self.day.config
+
+    @property
+    def track(self) -> Track:
+        return self.day.track
 
     # ------------------------------------------------------------------ sources
 
@@ -393,6 +403,11 @@ class Acquisition:
 
     def _handle(self, job: _Job) -> None:
         day = self.day
+        if isinstance(job, _WriteResults):
+            with self.lock:
+                snapshot = day.snapshot()
+            self._write_session_csv(snapshot)
+            return
         if isinstance(job, _End):
             with self.lock:
                 from station.report.text import summary

@@ -141,7 +141,7 @@ class StationApp(App):
             compare=True,
             ski_rotation=self.demo_skis if self.mode == "demo" else (),
         )
-        self.photocell_ids = tuple(self.acq.day.track.photocell_ids)
+        self.photocell_ids = tuple(self.acq.track.photocell_ids)
         if self.session_dir is not None:
             self.sub_title = f"{self.mode} · {self.session_dir}"
         if self.mode == "replay":
