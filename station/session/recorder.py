@@ -119,8 +119,9 @@ def record(
     duration_s: float | None = None,
 ) -> Run:
     """Record until SIGINT/SIGTERM, ``max_descents`` or ``duration_s``."""
-    from station.session.serialport import SerialReader
+    from station.session.serialport import SerialReader, ensure_port_free
 
+    ensure_port_free(config.serial)  # a second recorder on the port: one line, no session made
     sessions.create(config, session_dir)
     config = sessions.load_session_config(session_dir)  # run from the snapshot, as replay will
     run = Run.start(config)
