@@ -521,6 +521,9 @@ def record(
 ) -> Acquisition:
     """Record headless until SIGINT/SIGTERM, ``max_descents`` or ``duration_s``; any of them
     ends the open descent the same way (:meth:`Acquisition.close`)."""
+    from station.session.serialport import ensure_port_free
+
+    ensure_port_free(config.serial)  # a second recorder on the port: one line, no session made
     acq = Acquisition.open(config, PrintListener(out, config.serial.port), session_dir=session_dir)
     stop = threading.Event()
     previous = {}
