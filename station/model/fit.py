@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares, nnls
-from scipy.stats import t as student_t
+from scipy.special import stdtrit  # Student-t quantile, without loading scipy.stats
 
 from station.model.physics import PARAM_NAMES, Conditions, Params, StraightRun
 from station.survey.track import Profile
@@ -138,7 +138,7 @@ def uncertainty(
     sigma2 = float(r @ r) / dof
     cov = np.linalg.inv(jac.T @ jac) * sigma2
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    q = float(student_t.ppf(0.95, dof))
+    q = float(stdtrit(dof, 0.95))
     out.covariance = cov.tolist()
     for i, k in enumerate(names):
         out.stderr[k] = float(sd[i])
