@@ -17,6 +17,8 @@ from station.cli.common import (
     _positive,
     _print_json,
     _warn,
+    open_output,
+    output_path,
 )
 from station.errors import InputError
 
@@ -63,10 +65,30 @@ def cmd_annotate(args: argparse.Namespace) -> int:
             records.append({"t": t, "type": "model", "descent": n, "model": args.model})
     if not records:
         raise InputError("nothing to annotate: give metadata, --invalid, --valid or --model")
+    _check_descents(args.session, targets)
     for rec in records:
         sessions.append_annotation(args.session, rec)
     print(f"{len(records)} annotation(s) added to {args.session}", file=sys.stderr)
     return 0
+
+
+def _check_descents(session: str, numbers: list[int]) -> None:
+    """Refuse descents the session does not have: an annotation for descent 99 of an
+    8-descent day would be stored, replayed and do nothing, while the engineer believes it
+    took effect. (``--from N`` may name descents still to come.)"""
+    from station.cli.sessions import session_descents
+
+    if not numbers:
+        return
+    have = set(session_descents(session))
+    missing = sorted(set(numbers) - have)
+    if missing:
+        span = f"descents {min(have)}–{max(have)}" if have else "no descents yet"
+        raise InputError(
+            f"no descent {', '.join(map(str, missing))} in this session (it has {span})",
+            path=session,
+            field="--descents",
+        )
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
@@ -76,6 +98,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     if not sessions.is_session(args.session):
         raise InputError("not a session directory (no raw.jsonl)", path=args.session)
+    output_path(args.csv, "--csv")
     args.source, args.config, args.fast, args.date = args.session, None, True, None
     run = _replay_run(args, quiet=True)
     data, excluded, windy = collect(run.day, args.wind_limit)
@@ -106,7 +129,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def _write_compare_csv(res, path: str, run) -> None:
     import csv as _csv
 
-    with open(path, "w", newline="", encoding="utf-8") as fh:
+    with open_output(path, "--csv") as fh:
         fh.write(f"# station {__version__} comparison; reference {res.reference}; "
                  f"drift {'on' if res.drift_per_hour else 'off'}\n")  # fmt: skip
         w = _csv.writer(fh, quoting=_csv.QUOTE_NONNUMERIC, lineterminator="\n")

@@ -12,6 +12,8 @@ from station.cli.common import (
     _date,
     _positive,
     _warn,
+    open_output,
+    output_path,
 )
 from station.errors import InputError
 
@@ -63,17 +65,27 @@ def _replay_run(args: argparse.Namespace, quiet: bool = False):
 
 def cmd_replay(args: argparse.Namespace) -> int:
     from station.cli.terminal import _replay_ui
-    from station.session.recorder import write_events
+    from station.session.recorder import write_events_to
 
+    output_path(args.csv, "--csv")
+    output_path(args.events, "--events")
     if args.ui:
         return _replay_ui(args)
     run = _replay_run(args)
     print(run.summary(), file=sys.stderr)
     if args.csv:
-        run.write_csv(args.csv)
+        _write_results(run, args.csv)
     if args.events:
-        write_events(run, args.events)
+        with open_output(args.events, "--events") as fh:
+            write_events_to(run, fh)
     return 0
+
+
+def _write_results(run, path: str) -> None:
+    from station.session.results import write_results_to
+
+    with open_output(path, "--csv") as fh:
+        write_results_to(fh, run.day.rows(), run.header())
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -81,9 +93,11 @@ def cmd_export(args: argparse.Namespace) -> int:
 
     if not sessions.is_session(args.source):
         raise InputError("not a session directory (no raw.jsonl)", path=args.source)
+    output_path(args.csv, "--csv")
     run = _replay_run(args, quiet=True)
-    run.write_csv(args.csv)
-    print(f"{len(run.results)} descents -> {args.csv}", file=sys.stderr)
+    _write_results(run, args.csv)
+    where = "standard output" if args.csv == "-" else args.csv
+    print(f"{len(run.results)} descents -> {where}", file=sys.stderr)
     return 0
 
 

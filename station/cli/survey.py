@@ -19,6 +19,8 @@ from station.cli.common import (
     _positive,
     _print_json,
     _warn,
+    open_output,
+    output_path,
 )
 from station.errors import InputError
 
@@ -30,7 +32,7 @@ def cmd_survey_points(args: argparse.Namespace) -> int:
     survey = load_survey(args.survey)
     pts = list(survey.points.values())
     if args.csv:
-        with open(args.csv, "w", newline="", encoding="utf-8") as fh:
+        with open_output(args.csv, "--csv") as fh:
             w = csv.writer(fh)
             w.writerow(["point", "e", "n", "h", "sigma_h_m", "setup", "line"])
             for p in pts:
@@ -91,6 +93,7 @@ def cmd_survey_points(args: argparse.Namespace) -> int:
 
 
 def cmd_survey(args: argparse.Namespace) -> int:
+    output_path(args.csv, "--csv")
     if args.survey.lower().endswith(".gsi"):
         return cmd_survey_points(args)
     track = _load_track(args.survey)
@@ -100,7 +103,7 @@ def cmd_survey(args: argparse.Namespace) -> int:
     used = [p for p in track.points if p.used]
     sig = float(np.sqrt(np.mean([p.sigma**2 for p in used])))
     if args.csv:
-        with open(args.csv, "w", newline="", encoding="utf-8") as fh:
+        with open_output(args.csv, "--csv") as fh:
             w = csv.writer(fh)
             w.writerow(["x_m", "y_m", "slope_deg", "curvature_1_per_m"])
             for row in zip(xg, yg, sg, kg, strict=True):
@@ -179,6 +182,7 @@ def cmd_survey(args: argparse.Namespace) -> int:
 def cmd_simulate(args: argparse.Namespace) -> int:
     from station.model.physics import Conditions, Params, StraightRun
 
+    output_path(args.csv, "--csv")
     track = _load_track(args.survey)
     if len(track.photocells) < 2:
         raise InputError("the survey needs at least two photocells", path=args.survey)
@@ -195,7 +199,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if d.stopped_x is not None:
         reached = xs < d.stopped_x
     if args.csv:
-        with open(args.csv, "w", newline="", encoding="utf-8") as fh:
+        with open_output(args.csv, "--csv") as fh:
             w = csv.writer(fh)
             w.writerow(["photocell", "time"])
             for pc, ti, ok in zip(track.photocells, t, reached, strict=True):
