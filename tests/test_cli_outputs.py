@@ -163,3 +163,11 @@ def test_sessions_lists_date_descents_items_and_status(run_station, session, tmp
     _one_line(run_station("sessions", tmp_path / "nope"), "no such folder")
     r = run_station("sessions", tmp_path / "not-a-session")
     assert r.returncode == 0 and "no sessions" in r.stdout
+
+
+def test_reference_item_by_an_unambiguous_beginning(run_station, session):
+    r = run_station("compare", session, "--reference", "PAIR b", "--json")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["reference"] == "pair B / blue"
+    _one_line(run_station("compare", session, "--reference", "pair"), "could be", "pair A / blue")
+    _one_line(run_station("compare", session, "--reference", "C"), "no item 'C'")

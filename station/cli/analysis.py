@@ -19,6 +19,7 @@ from station.cli.common import (
     _warn,
     open_output,
     output_path,
+    unique_prefix,
 )
 from station.errors import InputError
 
@@ -102,6 +103,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
     args.source, args.config, args.fast, args.date = args.session, None, True, None
     run = _replay_run(args, quiet=True)
     data, excluded, windy = collect(run.day, args.wind_limit)
+    if args.reference is not None:
+        items = sorted({d.item for d in data})
+        args.reference = unique_prefix(args.reference, items, "item", "--reference")
     try:
         res = joint_fit(
             run.day.track, data, cda_fixed=args.cda, model=args.model, drift=args.drift,
@@ -147,35 +151,49 @@ def _write_compare_csv(res, path: str, run) -> None:
 
 def add_parsers(sub: Any) -> None:
     p = sub.add_parser("annotate", help="enter metadata, invalid marks or a model for descents")
-    p.add_argument("session", metavar="SESSION")
+    p.add_argument("session", metavar="SESSION", help="session folder")
     who = p.add_mutually_exclusive_group()
     who.add_argument("--descents", metavar="LIST", help="e.g. 1,4,5-8")
     who.add_argument("--from", dest="from_descent", type=int, metavar="N",
                      help="this and all later descents")  # fmt: skip
-    p.add_argument("--skier")
-    p.add_argument("--mass", type=_positive, metavar="KG")
+    p.add_argument("--skier", help="skier's name (one CdA per skier in compare)")
+    p.add_argument("--mass", type=_positive, metavar="KG", help="skier with equipment, kg")
     p.add_argument("--ski", help="ski or pair id")
-    p.add_argument("--wax")
-    p.add_argument("--air-temperature-c", type=_celsius)
-    p.add_argument("--snow-temperature-c", type=_celsius)
-    p.add_argument("--pressure-hpa", type=_positive)
-    p.add_argument("--humidity-pct", type=_percent)
-    p.add_argument("--wind-ms", type=_nonnegative, help="wind speed")
-    p.add_argument("--wind-from-deg", type=_number, help="direction the wind comes from")
-    p.add_argument("--notes")
+    p.add_argument("--wax", help="wax or grind")
+    p.add_argument("--air-temperature-c", type=_celsius, metavar="T", help="°C")
+    p.add_argument("--snow-temperature-c", type=_celsius, metavar="T", help="°C")
+    p.add_argument("--pressure-hpa", type=_positive, metavar="P", help="station pressure, hPa")
+    p.add_argument("--humidity-pct", type=_percent, metavar="H", help="relative humidity, %%")
+    p.add_argument("--wind-ms", type=_nonnegative, metavar="MS", help="wind speed, m/s")
+    p.add_argument("--wind-from-deg", type=_number, metavar="DEG",
+                   help="direction the wind comes from, degrees from north")  # fmt: skip
+    p.add_argument("--notes", help="free text")
     p.add_argument("--invalid", metavar="REASON", help="mark the descents invalid")
     p.add_argument("--valid", action="store_true", help="mark them valid again")
-    p.add_argument("--model", choices=["constant", "velocity"], help="refit with this model")
+    p.add_argument(
+        "--model", choices=["constant", "velocity"], help="refit: μ constant, or μ + μ1·v"
+    )
     p.set_defaults(func=cmd_annotate)
 
     p = sub.add_parser("compare", help="which ski or wax glides better, by how much, how sure")
-    p.add_argument("session", metavar="SESSION")
-    p.add_argument("--reference", metavar="ITEM", help="compare every item with this one")
-    p.add_argument("--cda", type=_positive, metavar="M2", help="fix CdA instead of fitting it")
-    p.add_argument("--model", choices=["constant", "velocity"], default="constant")
-    p.add_argument("--drift", choices=["auto", "on", "off"], default="auto")
+    p.add_argument("session", metavar="SESSION", help="session folder")
+    p.add_argument(
+        "--reference",
+        metavar="ITEM",
+        help="compare every item with this one (ski / wax as listed; its beginning is enough "
+        "when no other item begins so)",
+    )
+    p.add_argument("--cda", type=_positive, metavar="M2", help="fix CdA (m²) instead of fitting it")
+    p.add_argument("--model", choices=["constant", "velocity"], default="constant",
+                   help="friction μ per item constant, or μ + μ1·v (μ1 in s/m)")  # fmt: skip
+    p.add_argument(
+        "--drift",
+        choices=["auto", "on", "off"],
+        default="auto",
+        help="fit a linear drift of μ per hour of the day (auto: when an item recurs)",
+    )
     p.add_argument("--wind-limit", type=_positive, default=1.0, metavar="MS",
                    help="flag descents with more along-track wind (m/s)")  # fmt: skip
-    p.add_argument("--csv", metavar="OUT")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--csv", metavar="OUT", help="write the ranking as CSV; - = stdout")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
     p.set_defaults(func=cmd_compare)

@@ -118,9 +118,9 @@ def _warn(message: str) -> None:
 
 def _add_air(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("air (station pressure, not sea-level QNH)")
-    g.add_argument("--pressure-hpa", type=_positive, metavar="P")
-    g.add_argument("--temperature-c", type=_celsius, metavar="T")
-    g.add_argument("--humidity-pct", type=_percent, metavar="H")
+    g.add_argument("--pressure-hpa", type=_positive, metavar="P", help="station pressure, hPa")
+    g.add_argument("--temperature-c", type=_celsius, metavar="T", help="air temperature, °C")
+    g.add_argument("--humidity-pct", type=_percent, metavar="H", help="relative humidity, %%")
     g.add_argument("--air-density", type=_positive, metavar="RHO", help="kg/m³, instead of P, T, H")
 
 
@@ -199,6 +199,25 @@ def _numbers(text: str) -> list[int]:
         else:
             raise InputError(f"--descents {text!r}: {part!r} is not a descent number")
     return out
+
+
+def unique_prefix(text: str, choices: list[str], what: str, option: str) -> str:
+    """The one choice ``text`` names: itself, or the only one it begins (case and surrounding
+    blanks ignored), so "pair A" names "pair A / LF blue" when no other item begins so."""
+    if text in choices:
+        return text
+    key = text.strip().casefold()
+    exact = [c for c in choices if c.casefold() == key]
+    if len(exact) == 1:
+        return exact[0]
+    hits = [c for c in choices if c.casefold().startswith(key)]
+    if len(hits) == 1:
+        return hits[0]
+    if hits:
+        raise InputError(f"{text!r} could be {', '.join(map(repr, hits))}: say which",
+                         field=option)  # fmt: skip
+    raise InputError(f"no {what} {text!r}; there are {', '.join(map(repr, choices))}",
+                     field=option)  # fmt: skip
 
 
 # ----------------------------------------------------------------------------- output paths

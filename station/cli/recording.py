@@ -115,10 +115,13 @@ def add_parsers(sub: Any) -> None:
     p.set_defaults(func=cmd_record)
 
     p = sub.add_parser("replay", help="replay a session or a plain capture of a timer's output")
-    p.add_argument("source", metavar="CAPTURE_OR_SESSION")
+    p.add_argument("source", metavar="CAPTURE_OR_SESSION",
+                   help="a session folder, or a file of the timer's output")  # fmt: skip
     p.add_argument("--config", help="station config (default: the session's own)")
-    p.add_argument("--csv", metavar="OUT", help="write the results CSV")
-    p.add_argument("--events", metavar="OUT", help="write every parsed impulse and its fate")
+    p.add_argument("--csv", metavar="OUT", help="write the results CSV; - = stdout")
+    p.add_argument(
+        "--events", metavar="OUT", help="write every parsed impulse and its fate (CSV); - = stdout"
+    )
     p.add_argument("--date", help="date of a plain capture, YYYY-MM-DD (default: file date)")
     pace = p.add_mutually_exclusive_group()
     pace.add_argument("--speed", type=_positive, metavar="X", help="replay at X times real time")
@@ -127,6 +130,6 @@ def add_parsers(sub: Any) -> None:
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("export", help="write a session's results CSV")
-    p.add_argument("source", metavar="SESSION")
-    p.add_argument("--csv", required=True, metavar="OUT")
+    p.add_argument("source", metavar="SESSION", help="session folder")
+    p.add_argument("--csv", required=True, metavar="OUT", help="results CSV to write; - = stdout")
     p.set_defaults(func=cmd_export)

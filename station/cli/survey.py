@@ -343,36 +343,60 @@ def add_parsers(sub: Any) -> None:
     p.set_defaults(func=cmd_survey)
 
     p = sub.add_parser("simulate", help="times and speeds of a skier with given μ and CdA")
-    p.add_argument("--survey", required=True)
-    p.add_argument("--mass", type=_positive, required=True, metavar="KG")
-    p.add_argument("--cda", type=_nonnegative, required=True, metavar="M2")
-    p.add_argument("--mu", type=_nonnegative, required=True)
-    p.add_argument("--v0", type=_nonnegative, required=True, metavar="M_S")
+    p.add_argument(
+        "--survey", required=True, help="survey YAML with the photocells (surveys/README.md)"
+    )
+    p.add_argument("--mass", type=_positive, required=True, metavar="KG",
+                   help="skier with equipment, kg")  # fmt: skip
+    p.add_argument("--cda", type=_nonnegative, required=True, metavar="M2",
+                   help="drag area CdA, m²")  # fmt: skip
+    p.add_argument("--mu", type=_nonnegative, required=True,
+                   help="kinetic friction coefficient μ (no unit), e.g. 0.0085")  # fmt: skip
+    p.add_argument("--v0", type=_nonnegative, required=True, metavar="M_S",
+                   help="speed at the first photocell, m/s")  # fmt: skip
     p.add_argument("--mu1", type=_nonnegative, default=0.0, help="velocity-dependent part, s/m")
-    p.add_argument("--wind-ms", type=_number, default=0.0, help="along-track wind, + = tailwind")
-    p.add_argument("--noise-ms", type=_nonnegative, default=0.0, help="add timing noise (sd)")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--start-s", type=_number, default=0.0, help="time at the first photocell")
+    p.add_argument(
+        "--wind-ms", type=_number, default=0.0, help="along-track wind, m/s, + = tailwind"
+    )
+    p.add_argument(
+        "--noise-ms",
+        type=_nonnegative,
+        default=0.0,
+        help="add timing noise, standard deviation in ms",
+    )
+    p.add_argument("--seed", type=int, default=1, help="seed of the timing noise")
+    p.add_argument("--start-s", type=_number, default=0.0, help="time at the first photocell, s")
     p.add_argument("--csv", metavar="OUT", help="write the times as a fit input (photocell,time)")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
     _add_air(p)
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("fit", help="fit μ, CdA and v0 to the photocell times of one descent")
-    p.add_argument("--survey", required=True)
-    p.add_argument("--times", required=True, help="CSV with columns photocell,time")
-    p.add_argument("--mass", type=_positive, required=True, metavar="KG")
-    p.add_argument("--model", choices=["constant", "velocity"], default="constant")
-    p.add_argument("--wind-ms", type=_number, default=0.0, help="along-track wind, + = tailwind")
-    p.add_argument("--json", action="store_true")
+    p.add_argument(
+        "--survey", required=True, help="survey YAML with the photocells (surveys/README.md)"
+    )
+    p.add_argument(
+        "--times", required=True, help="CSV with columns photocell,time (s or hh:mm:ss.ssss)"
+    )
+    p.add_argument("--mass", type=_positive, required=True, metavar="KG",
+                   help="skier with equipment, kg")  # fmt: skip
+    p.add_argument("--model", choices=["constant", "velocity"], default="constant",
+                   help="friction μ constant, or μ + μ1·v (μ1 in s/m)")  # fmt: skip
+    p.add_argument(
+        "--wind-ms", type=_number, default=0.0, help="along-track wind, m/s, + = tailwind"
+    )
+    p.add_argument("--json", action="store_true", help="machine-readable output")
     _add_air(p)
     p.set_defaults(func=cmd_fit)
 
     p = sub.add_parser("fit-traverse", help="fit μ and CdA to (t, s) data of a traverse")
-    p.add_argument("--data", required=True, help="CSV with columns t,s")
-    p.add_argument("--slope-deg", type=_positive, required=True, metavar="A")
-    p.add_argument("--traverse-deg", type=_nonnegative, required=True, metavar="B")
-    p.add_argument("--mass", type=_positive, required=True, metavar="KG")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--data", required=True, help="CSV with columns t,s (s, m)")
+    p.add_argument("--slope-deg", type=_positive, required=True, metavar="A",
+                   help="slope of the plane, degrees")  # fmt: skip
+    p.add_argument("--traverse-deg", type=_nonnegative, required=True, metavar="B",
+                   help="angle of the traverse to the fall line, degrees")  # fmt: skip
+    p.add_argument("--mass", type=_positive, required=True, metavar="KG",
+                   help="skier with equipment, kg")  # fmt: skip
+    p.add_argument("--json", action="store_true", help="machine-readable output")
     _add_air(p)
     p.set_defaults(func=cmd_fit_traverse)
