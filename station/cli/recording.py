@@ -21,9 +21,11 @@ from station.errors import InputError
 def cmd_record(args: argparse.Namespace) -> int:
     from station.session import store as sessions
     from station.session.config import load_config
+    from station.session.ports import check_port
     from station.session.recorder import record
 
     cfg = load_config(args.config)
+    check_port(cfg.serial.port, args.config)  # a wrong port: say so and list them, at once
     folder = args.session_dir or sessions.default_dir()
     print(f"recording to {folder} from {cfg.serial.port} ({cfg.serial.protocol}); Ctrl-C ends",
           file=sys.stderr)  # fmt: skip
