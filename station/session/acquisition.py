@@ -33,7 +33,7 @@ import threading
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import IO, Any
 
 from station.session import store as sessions
 from station.session.analysis import DescentResult
@@ -492,6 +492,13 @@ class Acquisition:
     def write_csv(self, path: str) -> None:
         """The results CSV at ``path`` (export, ``replay --csv``, the UI's ``e``)."""
         self._write(self.results(), path)
+
+    def write_csv_to(self, fh: IO[str]) -> None:
+        """The results CSV into an open text file: ``--csv -`` writes to standard output."""
+        from station.session.results import write_result_rows_to
+
+        header = sessions.results_header(self.config, self.day.track.name)
+        write_result_rows_to(fh, [r.row for r in self.results()], header)
 
 
 def comparison_text(track: Any, results: Sequence[DescentResult]) -> str:

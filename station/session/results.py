@@ -14,7 +14,7 @@ import operator
 import os
 import tempfile
 from collections.abc import Sequence
-from typing import Any
+from typing import IO, Any
 
 from station import __version__
 from station.session.records import ResultRow, csv_record
@@ -75,21 +75,26 @@ def results_frame(rows: list[dict[str, Any]]) -> list[list[Any]]:
     return out
 
 
-def write_results(rows: list[dict[str, Any]], path: str, header: dict[str, str]) -> None:
-    """Write atomically (temp file + rename), so a reader never sees half a file."""
+def write_results_to(fh: IO[str], rows: list[dict[str, Any]], header: dict[str, str]) -> None:
+    """The results CSV into an open text file (``newline=""``), e.g. standard output."""
     cells = results_frame(rows)
     lines = [f"# station {__version__} results"]
     lines += [f"# {k}: {str(v).replace(chr(10), ' ')}" for k, v in header.items()]
+    fh.write("\n".join(lines) + "\n")
+    # the csv module, not DataFrame.to_csv: numbers must stay numbers (unquoted, full
+    # precision) while every text field is quoted, so a "#" in the notes is safe
+    w = csv.writer(fh, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
+    w.writerow(COLUMNS)
+    w.writerows(cells)
+
+
+def write_results(rows: list[dict[str, Any]], path: str, header: dict[str, str]) -> None:
+    """Write atomically (temp file + rename), so a reader never sees half a file."""
     folder = os.path.dirname(os.path.abspath(path))
     fd, tmp = tempfile.mkstemp(prefix=".results-", suffix=".csv", dir=folder)
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write("\n".join(lines) + "\n")
-            # the csv module, not DataFrame.to_csv: numbers must stay numbers (unquoted, full
-            # precision) while every text field is quoted, so a "#" in the notes is safe
-            w = csv.writer(fh, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
-            w.writerow(COLUMNS)
-            w.writerows(cells)
+            write_results_to(fh, rows, header)
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
@@ -123,3 +128,8 @@ def read_results(path: str) -> list[dict[str, Any]]:
 def write_result_rows(rows: Sequence[ResultRow], path: str, header: dict[str, str]) -> None:
     """The results CSV of typed rows: each row's one CSV view (:func:`csv_record`)."""
     write_results([csv_record(r) for r in rows], path, header)
+
+
+def write_result_rows_to(fh: IO[str], rows: Sequence[ResultRow], header: dict[str, str]) -> None:
+    """:func:`write_result_rows` into an open text file, e.g. standard output."""
+    write_results_to(fh, [csv_record(r) for r in rows], header)
