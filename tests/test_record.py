@@ -154,8 +154,12 @@ def test_replay_of_the_real_tdc_capture(tmp_path, real, run_station):
     assert (ev["reason"].str.contains("not a photocell", na=False)).sum() == 2  # the keypad
 
 
-def test_record_against_a_missing_port_keeps_retrying(tmp_path):
+def test_record_against_a_port_that_does_not_exist_says_so_and_lists_the_ports(tmp_path):
+    # a typo in the config is said at once, with the ports there are, before a session is made;
+    # a port that goes away after the start is reconnected (test_serialport, the unplug tests)
     cfg = write_config(tmp_path, str(tmp_path / "no-such-tty"))
     r = record(cfg, tmp_path / "s", "--duration", "1.5", timeout=30)
-    assert r.returncode == 0
-    assert "cannot open" in r.stdout and "retrying" in r.stdout
+    assert r.returncode == 2
+    assert "no-such-tty does not exist" in r.stderr and "station ports" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "s").exists()

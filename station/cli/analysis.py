@@ -17,6 +17,9 @@ from station.cli.common import (
     _positive,
     _print_json,
     _warn,
+    open_output,
+    output_path,
+    unique_prefix,
 )
 from station.errors import InputError
 
@@ -61,10 +64,30 @@ def cmd_annotate(args: argparse.Namespace) -> int:
             records.append(ModelChange(n, FitModel(args.model), t))
     if not records:
         raise InputError("nothing to annotate: give metadata, --invalid, --valid or --model")
+    _check_descents(args.session, targets)
     for rec in records:
         sessions.append_annotation(args.session, rec)
     print(f"{len(records)} annotation(s) added to {args.session}", file=sys.stderr)
     return 0
+
+
+def _check_descents(session: str, numbers: list[int]) -> None:
+    """Refuse descents the session does not have: an annotation for descent 99 of an
+    8-descent day would be stored, replayed and do nothing, while the engineer believes it
+    took effect. (``--from N`` may name descents still to come.)"""
+    from station.cli.sessions import session_descents
+
+    if not numbers:
+        return
+    have = set(session_descents(session))
+    missing = sorted(set(numbers) - have)
+    if missing:
+        span = f"descents {min(have)}–{max(have)}" if have else "no descents yet"
+        raise InputError(
+            f"no descent {', '.join(map(str, missing))} in this session (it has {span})",
+            path=session,
+            field="--descents",
+        )
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
@@ -74,9 +97,13 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     if not sessions.is_session(args.session):
         raise InputError("not a session directory (no raw.jsonl)", path=args.session)
+    output_path(args.csv, "--csv")
     args.source, args.config, args.fast, args.date = args.session, None, True, None
     acq = _replay_run(args, quiet=True)
     data, excluded, windy = collect(acq.results(), args.wind_limit)
+    if args.reference is not None:
+        items = sorted({d.item for d in data})
+        args.reference = unique_prefix(args.reference, items, "item", "--reference")
     try:
         res = joint_fit(
             acq.day.track, data, cda_fixed=args.cda, model=args.model, drift=args.drift,
@@ -104,7 +131,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def _write_compare_csv(res, path: str, run) -> None:
     import csv as _csv
 
-    with open(path, "w", newline="", encoding="utf-8") as fh:
+    with open_output(path, "--csv") as fh:
         fh.write(f"# station {__version__} comparison; reference {res.reference}; "
                  f"drift {'on' if res.drift_per_hour else 'off'}\n")  # fmt: skip
         w = _csv.writer(fh, quoting=_csv.QUOTE_NONNUMERIC, lineterminator="\n")
@@ -133,7 +160,7 @@ _CHECKS = {
 
 def add_parsers(sub: Any) -> None:
     p = sub.add_parser("annotate", help="enter metadata, invalid marks or a model for descents")
-    p.add_argument("session", metavar="SESSION")
+    p.add_argument("session", metavar="SESSION", help="session folder")
     who = p.add_mutually_exclusive_group()
     who.add_argument("--descents", metavar="LIST", help="e.g. 1,4,5-8")
     who.add_argument("--from", dest="from_descent", type=int, metavar="N",
@@ -145,17 +172,30 @@ def add_parsers(sub: Any) -> None:
         p.add_argument(f.option, dest=f.key, type=_CHECKS[f.check], help=text)
     p.add_argument("--invalid", metavar="REASON", help="mark the descents invalid")
     p.add_argument("--valid", action="store_true", help="mark them valid again")
-    p.add_argument("--model", choices=["constant", "velocity"], help="refit with this model")
+    p.add_argument(
+        "--model", choices=["constant", "velocity"], help="refit: μ constant, or μ + μ1·v"
+    )
     p.set_defaults(func=cmd_annotate)
 
     p = sub.add_parser("compare", help="which ski or wax glides better, by how much, how sure")
-    p.add_argument("session", metavar="SESSION")
-    p.add_argument("--reference", metavar="ITEM", help="compare every item with this one")
-    p.add_argument("--cda", type=_positive, metavar="M2", help="fix CdA instead of fitting it")
-    p.add_argument("--model", choices=["constant", "velocity"], default="constant")
-    p.add_argument("--drift", choices=["auto", "on", "off"], default="auto")
+    p.add_argument("session", metavar="SESSION", help="session folder")
+    p.add_argument(
+        "--reference",
+        metavar="ITEM",
+        help="compare every item with this one (ski / wax as listed; its beginning is enough "
+        "when no other item begins so)",
+    )
+    p.add_argument("--cda", type=_positive, metavar="M2", help="fix CdA (m²) instead of fitting it")
+    p.add_argument("--model", choices=["constant", "velocity"], default="constant",
+                   help="friction μ per item constant, or μ + μ1·v (μ1 in s/m)")  # fmt: skip
+    p.add_argument(
+        "--drift",
+        choices=["auto", "on", "off"],
+        default="auto",
+        help="fit a linear drift of μ per hour of the day (auto: when an item recurs)",
+    )
     p.add_argument("--wind-limit", type=_positive, default=1.0, metavar="MS",
                    help="flag descents with more along-track wind (m/s)")  # fmt: skip
-    p.add_argument("--csv", metavar="OUT")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--csv", metavar="OUT", help="write the ranking as CSV; - = stdout")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
     p.set_defaults(func=cmd_compare)

@@ -12,6 +12,8 @@ from station.cli.common import (
     _date,
     _positive,
     _warn,
+    open_output,
+    output_path,
 )
 from station.errors import InputError
 
@@ -20,8 +22,10 @@ def cmd_record(args: argparse.Namespace) -> int:
     from station.session import store as sessions
     from station.session.acquisition import record
     from station.session.config import load_config
+    from station.session.ports import check_port
 
     cfg = load_config(args.config)
+    check_port(cfg.serial.port, args.config)  # a wrong port: say so and list them, at once
     folder = args.session_dir or sessions.default_dir()
     print(f"recording to {folder} from {cfg.serial.port} ({cfg.serial.protocol}); Ctrl-C ends",
           file=sys.stderr)  # fmt: skip
@@ -66,14 +70,18 @@ def cmd_replay(args: argparse.Namespace) -> int:
     from station.cli.terminal import _replay_ui
     from station.session.replay import write_events
 
+    output_path(args.csv, "--csv")
+    output_path(args.events, "--events")
     if args.ui:
         return _replay_ui(args)
     acq = _replay_run(args)
     print(acq.summary(), file=sys.stderr)
     if args.csv:
-        acq.write_csv(args.csv)
+        with open_output(args.csv, "--csv") as fh:
+            acq.write_csv_to(fh)
     if args.events:
-        write_events(acq.day.processor, args.events)
+        with open_output(args.events, "--events") as fh:
+            write_events(acq.day.processor, fh)
     return 0
 
 
@@ -82,9 +90,12 @@ def cmd_export(args: argparse.Namespace) -> int:
 
     if not sessions.is_session(args.source):
         raise InputError("not a session directory (no raw.jsonl)", path=args.source)
+    output_path(args.csv, "--csv")
     acq = _replay_run(args, quiet=True)
-    acq.write_csv(args.csv)
-    print(f"{len(acq.results())} descents -> {args.csv}", file=sys.stderr)
+    with open_output(args.csv, "--csv") as fh:
+        acq.write_csv_to(fh)
+    where = "standard output" if args.csv == "-" else args.csv
+    print(f"{len(acq.results())} descents -> {where}", file=sys.stderr)
     return 0
 
 
@@ -102,10 +113,13 @@ def add_parsers(sub: Any) -> None:
     p.set_defaults(func=cmd_record)
 
     p = sub.add_parser("replay", help="replay a session or a plain capture of a timer's output")
-    p.add_argument("source", metavar="CAPTURE_OR_SESSION")
+    p.add_argument("source", metavar="CAPTURE_OR_SESSION",
+                   help="a session folder, or a file of the timer's output")  # fmt: skip
     p.add_argument("--config", help="station config (default: the session's own)")
-    p.add_argument("--csv", metavar="OUT", help="write the results CSV")
-    p.add_argument("--events", metavar="OUT", help="write every parsed impulse and its fate")
+    p.add_argument("--csv", metavar="OUT", help="write the results CSV; - = stdout")
+    p.add_argument(
+        "--events", metavar="OUT", help="write every parsed impulse and its fate (CSV); - = stdout"
+    )
     p.add_argument("--date", help="date of a plain capture, YYYY-MM-DD (default: file date)")
     pace = p.add_mutually_exclusive_group()
     pace.add_argument("--speed", type=_positive, metavar="X", help="replay at X times real time")
@@ -114,6 +128,6 @@ def add_parsers(sub: Any) -> None:
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("export", help="write a session's results CSV")
-    p.add_argument("source", metavar="SESSION")
-    p.add_argument("--csv", required=True, metavar="OUT")
+    p.add_argument("source", metavar="SESSION", help="session folder")
+    p.add_argument("--csv", required=True, metavar="OUT", help="results CSV to write; - = stdout")
     p.set_defaults(func=cmd_export)

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.stats import t as student_t
+from scipy.special import stdtr, stdtrit  # Student-t cdf and quantile, without scipy.stats
 
 from station.model.fit import TOLERANCES
 from station.model.physics import Conditions, Params, StraightRun
@@ -263,7 +263,7 @@ def joint_fit(
     sigma2 = float(r @ r) / dof
     cov = np.linalg.pinv(jac.T @ jac) * sigma2
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    q = float(student_t.ppf(0.95, dof))
+    q = float(stdtrit(dof, 0.95))
 
     out_items = []
     for ii, it in enumerate(items):
@@ -341,7 +341,7 @@ def joint_fit(
         delta = float(p[ja] - p[jb])
         var = cov[ja, ja] + cov[jb, jb] - 2 * cov[ja, jb]
         s = math.sqrt(max(var, 0.0))
-        prob = float(student_t.cdf(-delta / s, dof)) if s > 0 else (1.0 if delta < 0 else 0.0)
+        prob = float(stdtr(dof, -delta / s)) if s > 0 else (1.0 if delta < 0 else 0.0)
         comparisons.append(
             Comparison(a, b, delta, (delta - q * s, delta + q * s), prob, times[a] - times[b])
         )

@@ -33,7 +33,7 @@ import threading
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import IO, Any
 
 from station.session import store as sessions
 from station.session.analysis import DescentResult
@@ -508,6 +508,13 @@ class Acquisition:
         """The results CSV at ``path`` (export, ``replay --csv``, the UI's ``e``)."""
         self._write(self.results(), path)
 
+    def write_csv_to(self, fh: IO[str]) -> None:
+        """The results CSV into an open text file: ``--csv -`` writes to standard output."""
+        from station.session.results import write_result_rows_to
+
+        header = sessions.results_header(self.config, self.day.track.name)
+        write_result_rows_to(fh, [r.row for r in self.results()], header)
+
 
 def comparison_text(track: Any, results: Sequence[DescentResult]) -> str:
     """The joint fit of the day's valid descents, as the UI shows it."""
@@ -536,6 +543,9 @@ def record(
 ) -> Acquisition:
     """Record headless until SIGINT/SIGTERM, ``max_descents`` or ``duration_s``; any of them
     ends the open descent the same way (:meth:`Acquisition.close`)."""
+    from station.session.serialport import ensure_port_free
+
+    ensure_port_free(config.serial)  # a second recorder on the port: one line, no session made
     acq = Acquisition.open(config, PrintListener(out, config.serial.port), session_dir=session_dir)
     stop = threading.Event()
     previous = {}

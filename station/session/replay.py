@@ -13,6 +13,7 @@ import os
 import threading
 import time
 from collections.abc import Iterator
+from typing import IO
 
 from station.errors import InputError
 from station.session import store as sessions
@@ -72,15 +73,15 @@ def replay_chunks(
         yield chunk if has_time else Chunk(None, chunk.data)  # type: ignore[arg-type]
 
 
-def write_events(processor: Processor, path: str) -> None:
-    """The parsed impulses: line, channel, photocell, time, flag, kept or why not."""
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(["line", "channel", "photocell", "time", "flag", "kept", "reason", "descent"])
-        for e in processor.events:
-            w.writerow(
-                [e.line, e.channel, e.photocell or "", format_tod(e.tod_us, 4), e.flag,
-                 "yes" if e.kept else "no", e.reason, e.descent or ""]
-            )  # fmt: skip
-        for line, reason, text in processor.unparsed:
-            w.writerow([line, "", "", "", "", "no", f"unparsed: {reason}: {text!r}", ""])
+def write_events(processor: Processor, fh: IO[str]) -> None:
+    """The parsed impulses into an open text file (``newline=""``): line, channel, photocell,
+    time, flag, kept or why not."""
+    w = csv.writer(fh)
+    w.writerow(["line", "channel", "photocell", "time", "flag", "kept", "reason", "descent"])
+    for e in processor.events:
+        w.writerow(
+            [e.line, e.channel, e.photocell or "", format_tod(e.tod_us, 4), e.flag,
+             "yes" if e.kept else "no", e.reason, e.descent or ""]
+        )  # fmt: skip
+    for line, reason, text in processor.unparsed:
+        w.writerow([line, "", "", "", "", "no", f"unparsed: {reason}: {text!r}", ""])
