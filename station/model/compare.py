@@ -395,8 +395,13 @@ def format_comparison(res: JointResult, n_desc: int) -> str:
 def item_of(row: Any) -> str:
     """The test item of a descent: ski (or pair id) and wax, as the engineer entered them
     (``row`` is a :class:`station.session.records.ResultRow`)."""
-    ski = str(row.ski or "").strip()
-    wax = str(row.wax or "").strip()
+    return item_name(row.ski, row.wax)
+
+
+def item_name(ski: str | None, wax: str | None) -> str:
+    """A test item's name from its ski (or pair id) and wax."""
+    ski = str(ski or "").strip()
+    wax = str(wax or "").strip()
     if ski and wax:
         return f"{ski} / {wax}"
     return ski or wax or "(no item)"

@@ -84,10 +84,14 @@ class Listener:
         """A replay reached its end and every descent is fitted."""
 
 
+def _print(text: str) -> None:
+    print(text, flush=True)  # a line per descent as it happens, also through a pipe (tee)
+
+
 class PrintListener(Listener):
     """``station record`` and ``replay``: one line per descent and per connection change."""
 
-    def __init__(self, out: Callable[[str], None] = print, port: str = "") -> None:
+    def __init__(self, out: Callable[[str], None] = _print, port: str = "") -> None:
         self.out = out
         self.port = port
 
@@ -537,7 +541,7 @@ def comparison_text(track: Any, results: Sequence[DescentResult]) -> str:
 def record(
     config: StationConfig,
     session_dir: str,
-    out: Callable[[str], None] = print,
+    out: Callable[[str], None] = _print,
     max_descents: int | None = None,
     duration_s: float | None = None,
 ) -> Acquisition:

@@ -33,7 +33,8 @@ HELP = """\
 
 Every byte from the timer is recorded before it is parsed; a session replays with
 [i]station replay SESSION --ui[/i]. Statuses: ok, ill-conditioned (a parameter not
-identifiable: shown as —), lift-off, stopped, too-few-photocells, not-converged, aborted.
+identifiable: shown as —), lift-off, stopped, too-few-photocells, not-converged, aborted,
+error (the fit failed: the reason is in the notes; the recording goes on).
 """
 
 #: the form's labels, from the one table of metadata keys
