@@ -16,6 +16,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
+from station.errors import InputError
 from station.session import store as sessions
 from station.session.analysis import DescentResult
 from station.session.config import StationConfig
@@ -125,7 +126,17 @@ def record(
     config = sessions.load_session_config(session_dir)  # run from the snapshot, as replay will
     run = Run.start(config)
     results_path = os.path.join(session_dir, sessions.RESULTS)
-    run.write_csv(results_path)
+    csv_problem: list[str | None] = [None]
+
+    def save_csv() -> None:
+        # a CSV that cannot be written is said once, and recording goes on (the raw log is
+        # the day; `station export` writes the CSV later)
+        problem = sessions.save_results(results_path, run.day.rows(), run.header())
+        if problem is not None and problem != csv_problem[0]:
+            out(problem)
+        csv_problem[0] = problem
+
+    save_csv()
     log = RawLogWriter(
         os.path.join(session_dir, sessions.RAW),
         header={"port": config.serial.port, "protocol": config.serial.protocol},
@@ -137,7 +148,7 @@ def record(
         for res in run.finish_descents(done):
             out(describe(res))
         if done:
-            run.write_csv(results_path)
+            save_csv()
             real = sum(r.descent.status != "aborted" for r in run.results)
             if max_descents is not None and real >= max_descents:
                 stop.set()
@@ -181,10 +192,16 @@ def record(
         reader.join(timeout=5)
         with lock:
             finished(run.processor.finish())
-            run.write_csv(results_path)
+            save_csv()
         log.close()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+    if isinstance(reader.error, OSError):  # the raw log could not be written: disk full
+        why = reader.error.strerror or str(reader.error)
+        raise InputError(
+            f"cannot write the raw log: {why}; recording stopped",
+            path=os.path.join(session_dir, sessions.RAW),
+        )
     if reader.error is not None:
         raise reader.error
     return run
