@@ -70,19 +70,19 @@ class DescentResult:
 
 
 def start_time(d: DescentTimes, host_t: float | None, date: dt.date | None) -> str:
-    """ISO start time: the date from the host clock live, else the replay's date."""
-    day = None
-    if host_t is not None:
-        day = dt.datetime.fromtimestamp(host_t).date()
-    elif date is not None:
-        day = date
+    """The device's time of day of the start, dated. Live, the date is the one that puts the
+    start nearest the host's clock: a descent started at 23:59:58 and finished after midnight
+    keeps its day, so start times never go backwards at midnight. In replay, the replay's
+    date plus the days the device clock counted."""
     days, tod = divmod(d.start_us, DAY_US)
     t = (dt.datetime.min + dt.timedelta(microseconds=tod)).time()
-    if day is None:
+    if host_t is not None:
+        host = dt.datetime.fromtimestamp(host_t)
+        near = [dt.datetime.combine(host.date() + dt.timedelta(days=k), t) for k in (-1, 0, 1)]
+        return min(near, key=lambda c: abs(c - host)).isoformat()
+    if date is None:
         return t.isoformat()
-    if host_t is None:
-        day = day + dt.timedelta(days=days)
-    return dt.datetime.combine(day, t).isoformat()
+    return dt.datetime.combine(date + dt.timedelta(days=days), t).isoformat()
 
 
 class Analyser:
