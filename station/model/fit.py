@@ -276,7 +276,7 @@ def fit_descent(
         key = p.tobytes()
         if key not in cache:
             cache.clear()
-            par = Params(*p[:3], mu1=p[3] if n_params == 4 else 0.0)
+            par = Params(p[0], p[1], p[2], mu1=p[3] if n_params == 4 else 0.0)
             cache[key] = run.solve(par, conditions, n_params)
         return cache[key]
 

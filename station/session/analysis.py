@@ -92,6 +92,7 @@ class Analyser:
         if fit is not None and all(fit.estimates.get(k) is not None for k in ("cda", "mu", "v0")):
             e = fit.estimates
             p = Params(e["cda"], e["mu"], e["v0"], e.get("mu1") or 0.0)  # type: ignore[arg-type]
+            assert run is not None  # a fit was made, so its run was built above
             sol = run.solve(p, Conditions(mass, rho, wind_ms), sensitivities=False)
             res.speed_x, res.speed_v = sol.x, sol.speed
         return res

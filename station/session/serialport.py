@@ -27,7 +27,7 @@ PARITY = {
 }
 
 
-def open_port(cfg: SerialConfig, timeout: float = 0.2) -> serial.SerialBase:
+def open_port(cfg: SerialConfig, timeout: float = 0.2) -> serial.Serial:
     return serial.serial_for_url(
         cfg.port,
         baudrate=cfg.baudrate,

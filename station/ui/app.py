@@ -119,7 +119,7 @@ class StationApp(App):
         self.lock = threading.Lock()
         self.jobs: queue.Queue = queue.Queue()
         self.rawlog: RawLogWriter | None = None
-        self.reader = None
+        self.reader: Any = None  # a SerialReader while live; serial is imported lazily
         self.stop_event = threading.Event()
         self.latest: int | None = None
         self._announced: int | None = None
@@ -175,7 +175,7 @@ class StationApp(App):
         if new or done:
             cur = proc.assembler.current
             if cur is not None and cur.number != self._announced:
-                self._announced: int | None = cur.number
+                self._announced = cur.number
                 self._new_descent(cur.number)
             self.post_message(
                 DescentProgress(
