@@ -214,6 +214,7 @@ def joint_fit(
             )
             m = len(d.times_s) - 1
             r[row : row + m] = sol.t[1:] - d.times_s[1:]
+            assert sol.dt_dp is not None  # sensitivities are on: the Jacobian needs them
             dt = sol.dt_dp[1:, :]
             if cda_fixed is None:
                 jac[row : row + m, groups.index(d.group)] = dt[:, 0]

@@ -346,7 +346,7 @@ def _solver(run: StraightRun, conditions: Conditions, n_params: int):
         if key not in cache:
             if len(cache) >= 4:
                 cache.pop(next(iter(cache)))
-            par = Params(*p[:3], mu1=p[3] if n_params == 4 else 0.0)
+            par = Params(p[0], p[1], p[2], mu1=p[3] if n_params == 4 else 0.0)
             cache[key] = run.solve(par, conditions, n_params)
         return cache[key]
 
