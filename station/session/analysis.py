@@ -39,6 +39,9 @@ class Analyser:
         self._runs: dict[tuple[str, ...], StraightRun] = {}
 
     def start_time(self, d: TimedDescent, host_t: float | None, date: dt.date | None) -> str:
+        if d.day is not None:  # the device dates it (TAG: days since 2000-01-01)
+            tod = dt.timedelta(microseconds=d.start_us % DAY_US)
+            return (dt.datetime(2000, 1, 1) + dt.timedelta(days=d.day) + tod).isoformat()
         day = None
         if host_t is not None:
             day = dt.datetime.fromtimestamp(host_t).date()
@@ -64,7 +67,7 @@ class Analyser:
         wind_ms: float = 0.0,
     ) -> DescentResult:
         cfg = self.config
-        meta = {**cfg.metadata, **(metadata or {})}
+        meta = {**cfg.metadata, **(metadata or {}), **cfg.items.get(d.bib, {})}  # bib: the item
         model = model or cfg.model
         mass = mass_kg if mass_kg is not None else cfg.mass_kg
         rho = air_density if air_density is not None else cfg.air_density
