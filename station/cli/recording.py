@@ -73,7 +73,17 @@ def cmd_replay(args: argparse.Namespace) -> int:
         run.write_csv(args.csv)
     if args.events:
         write_events(run, args.events)
+    _write_times(run, args)
     return 0
+
+
+def _write_times(run, args: argparse.Namespace) -> None:
+    """``--times OUT``: one row per impulse kept in a descent (station.session.crossings)."""
+    if getattr(args, "times", None):
+        from station.session.crossings import write_times
+
+        n = write_times(run.results, args.times)
+        print(f"{n} crossing times -> {args.times}", file=sys.stderr)
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -81,9 +91,13 @@ def cmd_export(args: argparse.Namespace) -> int:
 
     if not sessions.is_session(args.source):
         raise InputError("not a session directory (no raw.jsonl)", path=args.source)
+    if not args.csv and not args.times:
+        raise InputError("give --csv OUT and/or --times OUT", path=args.source)
     run = _replay_run(args, quiet=True)
-    run.write_csv(args.csv)
-    print(f"{len(run.results)} descents -> {args.csv}", file=sys.stderr)
+    if args.csv:
+        run.write_csv(args.csv)
+        print(f"{len(run.results)} descents -> {args.csv}", file=sys.stderr)
+    _write_times(run, args)
     return 0
 
 
@@ -105,6 +119,7 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--config", help="station config (default: the session's own)")
     p.add_argument("--csv", metavar="OUT", help="write the results CSV")
     p.add_argument("--events", metavar="OUT", help="write every parsed impulse and its fate")
+    p.add_argument("--times", metavar="OUT", help="write the crossing times of every descent")
     p.add_argument("--date", help="date of a plain capture, YYYY-MM-DD (default: file date)")
     pace = p.add_mutually_exclusive_group()
     pace.add_argument("--speed", type=_positive, metavar="X", help="replay at X times real time")
@@ -114,5 +129,6 @@ def add_parsers(sub: Any) -> None:
 
     p = sub.add_parser("export", help="write a session's results CSV")
     p.add_argument("source", metavar="SESSION")
-    p.add_argument("--csv", required=True, metavar="OUT")
+    p.add_argument("--csv", metavar="OUT", help="the results CSV")
+    p.add_argument("--times", metavar="OUT", help="the crossing times of every descent")
     p.set_defaults(func=cmd_export)
