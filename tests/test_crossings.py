@@ -36,7 +36,8 @@ def test_replay_times_of_the_real_race_equal_the_timers_run_times(tmp_path, real
 
 def test_times_carry_the_fit_residuals(tmp_path, demo_track, run_station):
     xs = np.array([pc.x for pc in demo_track.photocells])
-    t = StraightRun(demo_track.profile, xs).solve(Params(0.22, 0.0085, 3.4), Conditions(88, 1.079)).t
+    run = StraightRun(demo_track.profile, xs)
+    t = run.solve(Params(0.22, 0.0085, 3.4), Conditions(88, 1.079)).t
     rng = np.random.default_rng(2)
     t = t + np.concatenate([[0], rng.normal(0, 3e-4, len(t) - 1)])
     lines = [format_alge(f"C{i}", int((36_000 + ti) * 1e6), i + 1) + "\r" for i, ti in enumerate(t)]

@@ -152,6 +152,7 @@ class DescentAssembler:
         self._prev_number: int | None = None
         self._typical: dict[int, list[int]] = {}  # photocell index -> recent t_k - t_0
         self._last_done: TimedDescent | None = None
+        self._seen: set[tuple[str, int, int | None]] = set()  # kept: channel, time, day
 
     @property
     def current(self) -> TimedDescent | None:
@@ -193,6 +194,10 @@ class DescentAssembler:
         prev_number, self._prev_number = self._prev_number, number
         if pc is None:
             self._event(imp, line, None, False, f"channel {imp.channel} is not a photocell")
+            return done
+        if (imp.channel, imp.tod_us, imp.day) in self._seen:
+            self._event(imp, line, pc, False, "repeats an impulse already kept (from the "
+                        "timer's memory?); not doubled")  # fmt: skip
             return done
         t = self.unwrap(imp)
         if self._pending is not None:
@@ -258,6 +263,7 @@ class DescentAssembler:
                              bib=bib if self.mode != "order" else "", day=imp.day)  # fmt: skip
             self.open.append(d)
             self._move_clock(t)
+            self._seen.add((imp.channel, imp.tod_us, imp.day))
             self._event(imp, line, pc, True, "", d.number)
             return done
         chosen, reason = self._choose(pc, k, t, bib)
@@ -279,6 +285,7 @@ class DescentAssembler:
         d.times_us.append(t)
         d.channels.append(imp.channel)
         self._move_clock(t)
+        self._seen.add((imp.channel, imp.tod_us, imp.day))
         self._event(imp, line, pc, True, "", d.number)
         if k == len(self.photocells) - 1:
             self.open.remove(d)
@@ -325,7 +332,14 @@ class DescentAssembler:
         return None
 
     def _expected(self, d: TimedDescent, k: int) -> tuple[int, int] | None:
-        """(expected time at photocell k, from when) for the order pairing's choice."""
+        """(expected time at photocell k, from when) for the order pairing's choice: from the
+        earlier descents' typical times where there are some, else at the last speed."""
+        j = self.order[d.photocells[-1]]
+        typical_k, typical_j = self._typical.get(k), self._typical.get(j)
+        if typical_k and (j == 0 or typical_j):
+            ahead = statistics.median(typical_k) - (statistics.median(typical_j) if j else 0)
+            if ahead > 0:
+                return d.times_us[-1] + round(ahead), d.times_us[-1]
         pos = self.positions
         if pos is not None and len(d.photocells) >= 2:
             i, j = self.order[d.photocells[-2]], self.order[d.photocells[-1]]
@@ -333,9 +347,6 @@ class DescentAssembler:
             if dt > 0 and pos[j] > pos[i]:
                 v = (pos[j] - pos[i]) / dt
                 return d.times_us[-1] + round((pos[k] - pos[j]) / v), d.times_us[-1]
-        typical = self._typical.get(k)
-        if typical:
-            return d.times_us[0] + round(statistics.median(typical)), d.times_us[0]
         return None
 
     def _choose(self, pc: str, k: int, t: int, bib: str) -> tuple[TimedDescent | None, str]:
@@ -359,12 +370,16 @@ class DescentAssembler:
                 reasons.append(why)
                 continue
             exp = self._expected(d, k)
+            # a photocell skipped is rare: a descent that would miss one to take this is less
+            # likely than one that reaches it next
+            skipped = 0.5 * (k - self.order[d.photocells[-1]] - 1)
             if exp is not None:
-                scored.append((abs(t - exp[0]) / max(exp[0] - exp[1], 1), d.number, d))
+                score = abs(t - exp[0]) / max(exp[0] - exp[1], 1)
+                scored.append((score + skipped, d.number, d))
             else:
                 # no speed yet and no earlier descent to compare with: of two lone starts the
                 # later one (a walk through the start beam comes before the real start)
-                scored.append((0.75, -d.number, d))
+                scored.append((0.75 + skipped, -d.number, d))
         if scored:
             return min(scored, key=lambda s: (s[0], s[1]))[2], ""
         if len(reasons) == 1:
