@@ -61,3 +61,41 @@ def test_export_needs_an_output(tmp_path, run_station):
     (tmp_path / "s" / "raw.jsonl").write_text("")
     r = run_station("export", tmp_path / "s")
     assert r.returncode == 2 and "--times" in r.stderr
+
+
+def test_the_bib_names_the_item_in_the_results(tmp_path, demo_track, run_station):
+    """items: {12: {ski: A, wax: blue}}: the skier's bib says which ski was tested."""
+    from station.timing.wireformats import format_tag
+
+    xs = np.array([pc.x for pc in demo_track.photocells])
+    run = StraightRun(demo_track.profile, xs)
+    t = run.solve(Params(0.22, 0.0085, 3.4), Conditions(88, 1.079)).t
+    lines = []
+    for k, bib in enumerate(["12", "7"]):
+        for i, ti in enumerate(t):
+            tod = int((36_000 + 60 * k + ti) * 1e6)
+            lines.append(format_tag(str(i + 1), tod, 9 * k + i + 1, bib, 9500) + "\r\n")
+    cap = tmp_path / "cap.txt"
+    cap.write_text("".join(lines), newline="")
+    channels = {str(i + 1): f"PC{i + 1}" for i in range(9)}
+    cfg = write_config(tmp_path, "/dev/null", "tag", channels,
+                       extra="ski: default\nitems: {12: {ski: A, wax: blue}}\n")  # fmt: skip
+    out = tmp_path / "r.csv"
+    r = run_station("replay", cap, "--config", cfg, "--csv", out)
+    assert r.returncode == 0, r.stderr
+    df = pd.read_csv(out, comment="#")
+    assert list(df["ski"]) == ["A", "default"] and df.loc[0, "wax"] == "blue"
+    assert list(df["status"]) == ["ok", "ok"]
+
+
+def test_a_disconnect_is_on_the_open_descents_flags(tmp_path, demo_track):
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null")))
+    proc = Processor(cfg, demo_track)
+    proc.feed(Chunk(1.0, (format_alge("C0", 36_000_000_000, 1) + "\r").encode()))
+    proc.feed(Chunk(2.0, b"", "disconnected", "read failed"))
+    done = proc.finish()
+    assert any("timer disconnected (read failed)" in f for f in done[0].flags)
