@@ -12,9 +12,11 @@ an impulse that is in a descent on the clean capture and in none on the flipped 
 impulse is counted as
 
 - *own line*: its own bytes were damaged;
-- *with its descent*: intact, but another line of its descent was (above all the start: an
-  impulse that no open descent can take starts nothing, issue 11, so a descent whose start
-  impulse was destroyed is lost, its other impulses rejected with "without a start");
+- *start lost*: intact, but its descent's start impulse was damaged: an impulse that no open
+  descent can take starts nothing (issue 11), so the descent's other impulses are rejected
+  with "without a start" (or, with bibs, "no open descent of bib N");
+- *other line*: intact, its start intact, but another line of its descent was damaged (an
+  operator's edit line, or a damaged impulse that took its place);
 - *unexplained*: nothing of its descent was damaged. Must be 0; each one is listed.
 
     python benchmarks/fuzz_timing.py [--seed N] [--flipped-runs N]
@@ -186,9 +188,10 @@ def main() -> int:
 
     t_start = time.perf_counter()
     total_lines = total_crashes = total_unexplained = total_lost_damaged = total_with = 0
+    total_start = 0
     total_valid = 0
     print(f"{'capture':46s} {'lines':>7s} {'crashes':>7s} {'kept':>6s} {'lost: own line':>14s} "
-          f"{'with descent':>12s} {'unexplained':>11s}")  # fmt: skip
+          f"{'start lost':>10s} {'other line':>10s} {'unexplained':>11s}")  # fmt: skip
     for name, protocol, chans, data in cases:
         end = END[protocol]
         lines = split_lines(data, end)
@@ -197,9 +200,14 @@ def main() -> int:
         total_lines += clean_proc.lines
         total_crashes += crashes
         member = membership(clean_proc)
-        print(f"{name + ' (clean)':46s} {clean_proc.lines:7d} {crashes:7d} "
-              f"{sum(baseline.values()):6d} {'-':>14s} {'-':>12s} {'-':>11s}")  # fmt: skip
-        lost_own = lost_with = lost_other = lines_run = crash_run = 0
+        asm = clean_proc.assembler
+        starts = {d.number: (d.channels[0], d.first_us % DAY_US) for d in asm.finished + asm.open
+                  if d.channels}  # fmt: skip
+        print(
+            f"{name + ' (clean)':46s} {clean_proc.lines:7d} {crashes:7d} "
+            f"{sum(baseline.values()):6d} {'-':>14s} {'-':>10s} {'-':>10s} {'-':>11s}"
+        )
+        lost_own = lost_start = lost_with = lost_other = lines_run = crash_run = 0
         runs = args.flipped_runs if name.startswith("real") else max(2, args.flipped_runs // 4)
         for _ in range(runs):
             flipped, damaged = flip(lines, rng, 0.01)
@@ -217,8 +225,11 @@ def main() -> int:
             other = lost - own
             lost_own += sum((lost & own).values())
             hit = set().union(*(member.get(ident, set()) for ident in own))
+            start_hit = {n for n in hit if starts.get(n) in own}
             for ident, c in other.items():
-                if member.get(ident, set()) & hit:
+                if member.get(ident, set()) & start_hit:
+                    lost_start += c
+                elif member.get(ident, set()) & hit:
                     lost_with += c
                 else:
                     lost_other += c
@@ -230,16 +241,21 @@ def main() -> int:
         total_crashes += crash_run
         total_lost_damaged += lost_own
         total_with += lost_with
+        total_start += lost_start
         total_unexplained += lost_other
-        print(f"{name + f' ({runs} x 1% flips)':46s} {lines_run:7d} {crash_run:7d} "
-              f"{'':6s} {lost_own:14d} {lost_with:12d} {lost_other:11d}")  # fmt: skip
+        print(
+            f"{name + f' ({runs} x 1% flips)':46s} {lines_run:7d} {crash_run:7d} "
+            f"{'':6s} {lost_own:14d} {lost_start:10d} {lost_with:10d} {lost_other:11d}"
+        )
     elapsed = time.perf_counter() - t_start
     print()
     print(f"lines replayed: {total_lines}  in {elapsed:.1f} s")
     print(f"crashes: {total_crashes}")
     print(f"valid impulses in the flipped runs' clean baselines: {total_valid}")
     print(f"lost, own line damaged: {total_lost_damaged}")
-    print(f"lost with their descent (own line intact, another line of the descent damaged): "
+    print(f"lost with their descent's start (own line intact, the start's line damaged): "
+          f"{total_start}")  # fmt: skip
+    print(f"lost with another line of their descent damaged (own line and start intact): "
           f"{total_with}")  # fmt: skip
     print(f"lost, unexplained (nothing of their descent damaged): {total_unexplained}")
     return 1 if total_crashes or total_unexplained else 0
