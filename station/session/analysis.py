@@ -73,7 +73,11 @@ def start_time(d: DescentTimes, host_t: float | None, date: dt.date | None) -> s
     """The device's time of day of the start, dated. Live, the date is the one that puts the
     start nearest the host's clock: a descent started at 23:59:58 and finished after midnight
     keeps its day, so start times never go backwards at midnight. In replay, the replay's
-    date plus the days the device clock counted."""
+    date plus the days the device clock counted. A timer that dates its impulses (TAG: days
+    since 2000-01-01) is believed over both."""
+    if d.day is not None:
+        tod_of_day = dt.timedelta(microseconds=d.start_us % DAY_US)
+        return (dt.datetime(2000, 1, 1) + dt.timedelta(days=d.day) + tod_of_day).isoformat()
     days, tod = divmod(d.start_us, DAY_US)
     t = (dt.datetime.min + dt.timedelta(microseconds=tod)).time()
     if host_t is not None:

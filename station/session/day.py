@@ -137,8 +137,12 @@ class Day:
     # -- descents
 
     def fit_job(self, d: DescentTimes) -> FitJob:
-        """What the fit of a descent needs, as things stand now."""
+        """What the fit of a descent needs, as things stand now. The item a bib names in the
+        config (``items: {12: {ski: A}}``) is what that descent tested."""
         meta = self.metadata_for(d.number)
+        item = self.config.items.get(d.bib) if d.bib else None
+        if item:
+            meta = meta.overlay(Metadata.from_values(item, f"items.{d.bib}."))
         return FitJob(
             descent=d,
             start_time=start_time(d, self.processor.start_host.get(d.number), self.date),
