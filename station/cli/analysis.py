@@ -42,6 +42,8 @@ def cmd_annotate(args: argparse.Namespace) -> int:
     }  # fmt: skip
     if (args.descents is None) == (args.from_descent is None):
         raise InputError("give --descents N[,M,A-B] or --from N")
+    if args.wind_ms and args.wind_from_deg is None:
+        raise InputError("--wind-ms needs --wind-from-deg (the direction the wind comes from)")
     records = []
     t = _time.time()
     if values:
@@ -115,7 +117,7 @@ def _write_compare_csv(res, path: str, run) -> None:
         for k, name in enumerate(res.ranking, start=1):
             it = next(i for i in res.items if i.item == name)
             c = next((c for c in res.comparisons if c.b == name and c.a == res.reference), None)
-            if c is None:
+            if c is None or c.ci90 is None or c.p_a_faster is None:  # no comparison possible
                 row = [None] * 5
             else:  # item minus reference: the comparison stores reference minus item
                 row = [-c.delta_mu, -c.ci90[1], -c.ci90[0], 1 - c.p_a_faster, -c.delta_t_s]

@@ -480,7 +480,7 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
     posture_ci = None
     if vcov is not None and posture > 0 and lg > LOG_GAMMA[0] + 2.0:
         se = math.sqrt(max(float(np.ones(2) @ vcov @ np.ones(2)), 0.0))
-        if math.isfinite(se):
+        if se < 10.0:  # else the day says next to nothing about it
             posture_ci = (posture * math.exp(-1.645 * se / 2), posture * math.exp(1.645 * se / 2))
 
     def interval(j: int) -> tuple[float, float]:

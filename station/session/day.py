@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from station.errors import InputError
 from station.model.air import air_density
 from station.session.analysis import Analyser, DescentResult
 from station.session.config import StationConfig
@@ -41,11 +42,11 @@ def along_track_wind(speed_ms: float, from_deg: float | None, track_azimuth_deg:
     """The wind component along the run, + tailwind (blowing downhill), − headwind.
 
     ``from_deg`` is where the wind comes from (meteorological convention, degrees from grid
-    north); it blows toward ``from_deg + 180``. Without a direction the speed is taken as
-    already along the track.
+    north); it blows toward ``from_deg + 180``. A speed without a direction is refused: taken as
+    full tailwind, a 2 m/s cross wind moved μ by 0.006–0.008 (issue 12).
     """
     if from_deg is None:
-        return speed_ms
+        raise ValueError("a wind speed needs the direction it comes from (wind_from_deg)")
     toward = math.radians(from_deg + 180.0 - track_azimuth_deg)
     return speed_ms * math.cos(toward)
 
@@ -94,6 +95,14 @@ class Day:
 
     def wind_for(self, meta: dict[str, Any]) -> float:
         if "wind_ms" not in meta:
+            return 0.0
+        if meta.get("wind_from_deg") is None and float(meta["wind_ms"]) != 0.0:
+            raise InputError(
+                f"wind {meta['wind_ms']:g} m/s without a direction: give the direction it comes "
+                "from (wind_from_deg), or no wind",
+                field="wind_from_deg",
+            )
+        if meta.get("wind_from_deg") is None:
             return 0.0
         return along_track_wind(
             float(meta["wind_ms"]), meta.get("wind_from_deg"), self.track.azimuth_deg
