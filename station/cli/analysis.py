@@ -84,7 +84,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     try:
         res = joint_fit(
             run.day.track, data, cda_fixed=args.cda, model=args.model, drift=args.drift,
-            reference=args.reference,
+            reference=args.reference, timer_sd_s=args.timer_ms / 1000.0,
         )  # fmt: skip
     except CompareError as exc:
         raise InputError(str(exc), path=args.session) from None
@@ -153,6 +153,9 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--cda", type=_positive, metavar="M2", help="fix CdA instead of fitting it")
     p.add_argument("--model", choices=["constant", "velocity"], default="constant")
     p.add_argument("--drift", choices=["auto", "on", "off"], default="auto")
+    p.add_argument("--timer-ms", type=_positive, default=0.5, metavar="MS",
+                   help="the timer's precision (SD of one time), against which the residuals "
+                        "are judged (default 0.5)")  # fmt: skip
     p.add_argument("--wind-limit", type=_positive, default=1.0, metavar="MS",
                    help="flag descents with more along-track wind (m/s)")  # fmt: skip
     p.add_argument("--csv", metavar="OUT")

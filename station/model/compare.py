@@ -672,6 +672,8 @@ def format_comparison(res: JointResult, n_desc: int) -> str:
         if res.posture_ci90
         else ""
     )
+    if not res.posture_ci90 and res.posture_sd < 1e-3:
+        pci = " (none seen beyond the timing noise)"
     lines.append(
         f"  posture scatter (CdA between descents of a skier): {res.posture_sd * 100:.2f} %{pci}"
     )
