@@ -37,8 +37,10 @@ saves (50 descents took 3.7 s instead of 0.19 s with the default pool).
 Uncertainty. The covariance of the global parameters is σ̂²·S⁻¹ (S the Schur complement: the
 fixed-effect block of the mixed-model equations' inverse). A comparison's interval uses
 Student's t with Satterthwaite's degrees of freedom, computed from how its variance moves with
-(log σ², log γ) and their covariance from the REML curvature: with 8 descents and posture scatter
-dominating, the variance of Δμ rests on some 5 degrees of freedom, not on the 50 time residuals.
+(log σ², log γ) and their covariance from the REML curvature, so the uncertainty of the
+estimated scatter widens the interval as much as it should (on the simulated ABBA days of
+benchmarks/compare_calibration.py they come out at 45–52 of 52: each descent's nine times pin
+its own posture well, so the scatter's estimate costs little).
 
 Goodness of fit. The residual standard deviation is compared with the timer's precision
 (χ² test of PRSS/σ_timer² on n − p degrees of freedom): a day whose residuals the timer cannot
