@@ -41,6 +41,7 @@ class FitJob:
     mass_kg: float
     air_density: float
     wind_ms: float = 0.0
+    problem: str = ""  # what makes the fit impossible (e.g. wind without a direction)
 
 
 @dataclass(frozen=True)
@@ -100,6 +101,8 @@ class Analyser:
 
     def run(self, job: FitJob) -> DescentResult:
         """Fit one descent; an exception of the fit is the descent's ``error`` status."""
+        if job.problem:
+            return error_result(job, job.problem)
         try:
             return self._fit(job)
         except Exception as exc:  # noqa: BLE001 - one failed fit must not end the day
