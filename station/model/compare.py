@@ -50,6 +50,7 @@ explain is flagged ``poor-fit``, not "ok".
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from itertools import combinations
 from typing import Any
@@ -278,7 +279,7 @@ def joint_fit(
 ) -> JointResult:
     """Fit all descents at once; ``drift`` is ``auto`` (when an item recurs), ``on`` or ``off``.
     ``timer_sd_s``: the timer's precision, against which the residuals are judged."""
-    from threadpoolctl import threadpool_limits
+    from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
 
     with threadpool_limits(limits=1, user_api="blas"):
         return _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s)
@@ -286,8 +287,7 @@ def joint_fit(
 
 def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> JointResult:
     from scipy.optimize import minimize_scalar
-    from scipy.stats import chi2
-    from scipy.stats import t as student_t
+    from scipy.special import chdtrc, stdtr, stdtrit  # χ² survival, Student t (no scipy.stats)
 
     if not data:
         raise CompareError("no valid descent to compare")
@@ -488,7 +488,7 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
     def interval(j: int) -> tuple[float, float]:
         c = np.zeros(n_glob)
         c[j] = 1.0
-        q = float(student_t.ppf(0.95, satterthwaite(c)))
+        q = float(stdtrit(satterthwaite(c), 0.95))
         return float(glob[j] - q * sd[j]), float(glob[j] + q * sd[j])
 
     out_items = []
@@ -585,8 +585,8 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
         s = math.sqrt(max(float(c @ cov @ c), 0.0))
         nu = satterthwaite(c)
         dofs.append(nu)
-        q = float(student_t.ppf(0.95, nu))
-        prob = float(student_t.cdf(-delta / s, nu)) if s > 0 else (1.0 if delta < 0 else 0.0)
+        q = float(stdtrit(nu, 0.95))
+        prob = float(stdtr(nu, -delta / s)) if s > 0 else (1.0 if delta < 0 else 0.0)
         comparisons.append(Comparison(ia, ib, delta, (delta - q * s, delta + q * s), prob, dts, nu))
     comparable = [ii for ii, it in enumerate(items) if counts[it] >= 2]
     if len(comparable) >= 2:
@@ -604,7 +604,7 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
     ranking = [it.item for it in sorted(out_items, key=lambda i: i.mu)]
 
     chi2_stat = prss / timer_sd_s**2
-    chi2_p = float(chi2.sf(chi2_stat, dof))
+    chi2_p = float(chdtrc(dof, chi2_stat))
     status, message = "ok", ""
     if not converged_outer or not converged or stopped.any():
         status = "not-converged"
@@ -709,39 +709,46 @@ def format_comparison(res: JointResult, n_desc: int) -> str:
     return "\n".join(lines)
 
 
-def item_of(row: dict[str, Any]) -> str:
-    """The test item of a descent: ski (or pair id) and wax, as the engineer entered them."""
-    ski = str(row.get("ski") or "").strip()
-    wax = str(row.get("wax") or "").strip()
+def item_of(row: Any) -> str:
+    """The test item of a descent: ski (or pair id) and wax, as the engineer entered them
+    (``row`` is a :class:`station.session.records.ResultRow`)."""
+    return item_name(row.ski, row.wax)
+
+
+def item_name(ski: str | None, wax: str | None) -> str:
+    """A test item's name from its ski (or pair id) and wax."""
+    ski = str(ski or "").strip()
+    wax = str(wax or "").strip()
     if ski and wax:
         return f"{ski} / {wax}"
     return ski or wax or "(no item)"
 
 
 def collect(
-    day, wind_limit_ms: float = 1.0
+    results: Iterable[Any], wind_limit_ms: float = 1.0
 ) -> tuple[list[DescentData], list[tuple[int, str]], list[int]]:
-    """The descents of a :class:`station.session.day.Day` that enter the comparison, those left out
-    (with why) and those flagged for wind."""
+    """The descents that enter the comparison, those left out (with why) and those flagged for
+    wind, from a day's results (:class:`station.session.analysis.DescentResult`, in order)."""
     data: list[DescentData] = []
     excluded: list[tuple[int, str]] = []
     windy: list[int] = []
-    for n in sorted(day.results):
-        res = day.results[n]
+    for res in results:
         row, d, f = res.row, res.descent, res.fit
-        if row.get("invalid_reason"):
-            excluded.append((n, f"marked invalid: {row['invalid_reason']}"))
+        n = row.descent
+        if row.invalid_reason:
+            excluded.append((n, f"marked invalid: {row.invalid_reason}"))
             continue
-        if f is None or d.status == "aborted":
-            excluded.append((n, d.status))
+        if f is None:
+            why = "; ".join(row.flags[-1:]) if row.status == "error" else ""
+            excluded.append((n, f"{row.status}: {why}" if why else str(row.status)))
             continue
-        if f.status not in ("ok", "ill-conditioned"):
-            excluded.append((n, f.status))
+        if row.status not in ("ok", "ill-conditioned"):
+            excluded.append((n, str(row.status)))
             continue
         if len(d.photocells) < 3:
             excluded.append((n, "fewer than 3 photocells"))
             continue
-        wind = float(row.get("wind_ms") or 0.0)
+        wind = float(row.wind_ms or 0.0)
         if abs(wind) > wind_limit_ms:
             windy.append(n)
         e = f.estimates
@@ -750,12 +757,12 @@ def collect(
             DescentData(
                 number=n,
                 item=item_of(row),
-                group=str(row.get("skier") or "skier"),
+                group=str(row.skier or "skier"),
                 photocells=tuple(d.photocells),
                 times_s=(np.array(d.times_us) - d.times_us[0]) / 1e6,
                 start_hours=d.times_us[0] / US_PER_HOUR,
-                mass_kg=float(row["mass_kg"]),
-                air_density=float(row["air_density"]),
+                mass_kg=float(row.mass_kg),
+                air_density=float(row.air_density),
                 wind_ms=wind,
                 start_guess=(float(guess[0]), float(guess[1]), float(guess[2])),
             )

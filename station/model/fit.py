@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares, nnls
-from scipy.stats import t as student_t
+from scipy.special import stdtrit  # Student-t quantile, without loading scipy.stats
 
 from station.model.physics import PARAM_NAMES, Conditions, Params, StraightRun
 from station.survey.track import Profile
@@ -130,8 +130,8 @@ class Uncertainty:
 
 @lru_cache(maxsize=256)
 def t95(dof: int) -> float:
-    """Student's t 0.95 quantile (cached: scipy.stats costs some 0.1 ms a call)."""
-    return float(student_t.ppf(0.95, dof))
+    """Student's t 0.95 quantile (cached; scipy.special, not scipy.stats, which costs start-up)."""
+    return float(stdtrit(dof, 0.95))
 
 
 #: parameters that are always reported with their interval, flagged when it includes 0
@@ -349,7 +349,7 @@ def _solver(run: StraightRun, conditions: Conditions, n_params: int):
         if key not in cache:
             if len(cache) >= 4:
                 cache.pop(next(iter(cache)))
-            par = Params(*p[:3], mu1=p[3] if n_params == 4 else 0.0)
+            par = Params(p[0], p[1], p[2], mu1=p[3] if n_params == 4 else 0.0)
             cache[key] = run.solve(par, conditions, n_params)
         return cache[key]
 
