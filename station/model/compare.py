@@ -279,7 +279,7 @@ def joint_fit(
 ) -> JointResult:
     """Fit all descents at once; ``drift`` is ``auto`` (when an item recurs), ``on`` or ``off``.
     ``timer_sd_s``: the timer's precision, against which the residuals are judged."""
-    from threadpoolctl import threadpool_limits
+    from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
 
     with threadpool_limits(limits=1, user_api="blas"):
         return _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s)
@@ -287,8 +287,7 @@ def joint_fit(
 
 def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> JointResult:
     from scipy.optimize import minimize_scalar
-    from scipy.stats import chi2
-    from scipy.stats import t as student_t
+    from scipy.special import chdtrc, stdtr, stdtrit  # χ² survival, Student t (no scipy.stats)
 
     if not data:
         raise CompareError("no valid descent to compare")
@@ -489,7 +488,7 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
     def interval(j: int) -> tuple[float, float]:
         c = np.zeros(n_glob)
         c[j] = 1.0
-        q = float(student_t.ppf(0.95, satterthwaite(c)))
+        q = float(stdtrit(satterthwaite(c), 0.95))
         return float(glob[j] - q * sd[j]), float(glob[j] + q * sd[j])
 
     out_items = []
@@ -586,8 +585,8 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
         s = math.sqrt(max(float(c @ cov @ c), 0.0))
         nu = satterthwaite(c)
         dofs.append(nu)
-        q = float(student_t.ppf(0.95, nu))
-        prob = float(student_t.cdf(-delta / s, nu)) if s > 0 else (1.0 if delta < 0 else 0.0)
+        q = float(stdtrit(nu, 0.95))
+        prob = float(stdtr(nu, -delta / s)) if s > 0 else (1.0 if delta < 0 else 0.0)
         comparisons.append(Comparison(ia, ib, delta, (delta - q * s, delta + q * s), prob, dts, nu))
     comparable = [ii for ii, it in enumerate(items) if counts[it] >= 2]
     if len(comparable) >= 2:
@@ -605,7 +604,7 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
     ranking = [it.item for it in sorted(out_items, key=lambda i: i.mu)]
 
     chi2_stat = prss / timer_sd_s**2
-    chi2_p = float(chi2.sf(chi2_stat, dof))
+    chi2_p = float(chdtrc(dof, chi2_stat))
     status, message = "ok", ""
     if not converged_outer or not converged or stopped.any():
         status = "not-converged"
