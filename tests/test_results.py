@@ -33,3 +33,50 @@ def test_results_csv_round_trip_and_spreadsheet_safety(tmp_path):
     assert df.loc[0, "ski"] == "'+A" and df.loc[0, "skier"] == "'@me"
     assert df.loc[1, "flags"] == "'-lone start impulse"
     assert pd.isna(df.loc[1, "mu"]) and df["mu"].dtype == float
+
+
+def test_header_lines_have_no_commas_and_name_the_units(tmp_path):
+    from station.session.results import UNITS
+
+    rows = [{c: None for c in COLUMNS} | {"descent": 1, "start_time": "2026-02-02T10:41:07+01:00",
+                                           "photocells_used": 9, "mass_kg": 88.0}]  # fmt: skip
+    path = tmp_path / "results.csv"
+    header = {"survey": "Run, lower part (run.yaml, sha256 0e94)", "notes": "a\nb, c"}
+    write_results(rows, str(path), header)
+    heads = [ln for ln in path.read_text().splitlines() if ln.startswith("#")]
+    assert heads[1] == "# survey: Run; lower part (run.yaml; sha256 0e94)"
+    assert heads[2] == "# notes: a b; c"
+    assert all("," not in ln for ln in heads), heads
+    units = dict(part.split(" ", 1) for part in heads[-1].removeprefix("# units: ").split("; "))
+    numeric = [c for c in COLUMNS if c not in ("missing", "status", "descent_status", "flags",
+               "model", "skier", "ski", "wax", "notes", "invalid_reason")]  # fmt: skip
+    assert set(numeric) <= set(units) and units["cda"] == "m2" and units["v0"] == "m/s"
+    assert set(UNITS) <= set(COLUMNS)
+    df = pd.read_csv(path, comment="#")
+    assert list(df.columns) == COLUMNS and df.loc[0, "start_time"] == "2026-02-02T10:41:07+01:00"
+
+
+def test_start_time_carries_the_local_offset_of_its_date(monkeypatch):
+    """The timer sends local time of day: the offset is the host's for that date (winter and
+    summer time differ), so the instant is known wherever the file is read."""
+    import datetime as dt
+    import time
+    from types import SimpleNamespace
+
+    from station.session.analysis import Analyser
+
+    monkeypatch.setenv("TZ", "Europe/Zurich")
+    time.tzset()
+    try:
+        a = Analyser.__new__(Analyser)
+        d = SimpleNamespace(start_us=(10 * 3600 + 41 * 60 + 7) * 10**6 + 234500)
+        winter = a.start_time(d, None, dt.date(2026, 2, 2))
+        summer = a.start_time(d, None, dt.date(2026, 7, 2))
+        host = a.start_time(d, dt.datetime(2026, 2, 2, 10, 41, 9).timestamp(), None)
+    finally:
+        monkeypatch.delenv("TZ")
+        time.tzset()
+    assert winter == "2026-02-02T10:41:07.234500+01:00"
+    assert summer == "2026-07-02T10:41:07.234500+02:00"
+    assert host == winter
+    assert dt.datetime.fromisoformat(winter).utcoffset() == dt.timedelta(hours=1)

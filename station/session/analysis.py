@@ -50,7 +50,9 @@ class Analyser:
             return t.isoformat()
         if host_t is None:
             day = day + dt.timedelta(days=days)
-        return dt.datetime.combine(day, t).isoformat()
+        # ISO 8601 with the local UTC offset of that date, so a reader elsewhere (or after the
+        # clocks changed) knows the instant: the timer sends local time of day
+        return dt.datetime.combine(day, t).astimezone().isoformat()
 
     def analyse(
         self,

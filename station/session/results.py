@@ -1,4 +1,6 @@
-"""The results CSV: one row per descent, a ``#`` header saying what it was computed from.
+"""The results CSV: one row per descent, a ``#`` header saying what it was computed from and
+the unit of each number column (``# units:``; the column names stay as they are, because other
+code reads them).
 
 Read it back with ``pandas.read_csv(path, comment="#")``; text fields are quoted, so a ``#`` in
 the notes stays part of them. Text fields are also safe to open in a
@@ -57,11 +59,29 @@ def _plain(value: Any) -> Any:
     return value
 
 
+#: the unit of each number column ("1" for a pure number), written in the ``# units:`` line
+UNITS = {
+    "descent": "1", "start_time": "ISO 8601 local time with UTC offset", "photocells_used": "1",
+    "v0": "m/s", "cda": "m2", "cda_lo": "m2", "cda_hi": "m2", "mu": "1", "mu_lo": "1",
+    "mu_hi": "1", "mu1": "s/m", "sigma_s2": "s2", "rms_residual_ms": "ms", "mass_kg": "kg",
+    "air_density": "kg/m3", "wind_ms": "m/s (+ tailwind)", "air_temperature_c": "degC",
+    "snow_temperature_c": "degC", "pressure_hpa": "hPa", "humidity_pct": "%",
+}  # fmt: skip
+
+
+def header_line(key: str, value: Any) -> str:
+    """``# key: value`` on one line without commas (";" instead), so a spreadsheet that splits
+    on commas keeps each header line in one cell, and pandas' ``comment="#"`` skips it."""
+    text = " ".join(str(value).split()).replace(",", ";")
+    return f"# {key}: {text}"
+
+
 def write_results_to(fh: IO[str], rows: list[dict[str, Any]], header: dict[str, str]) -> None:
     """The results CSV into an open text file (``newline=""``), e.g. standard output."""
     df = results_frame(rows)
     lines = [f"# station {__version__} results"]
-    lines += [f"# {k}: {str(v).replace(chr(10), ' ')}" for k, v in header.items()]
+    lines += [header_line(k, v) for k, v in header.items()]
+    lines.append(header_line("units", "; ".join(f"{k} {u}" for k, u in UNITS.items())))
     fh.write("\n".join(lines) + "\n")
     # the csv module, not DataFrame.to_csv: numbers must stay numbers (unquoted, full
     # precision) while every text field is quoted, so a "#" in the notes is safe
