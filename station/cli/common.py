@@ -10,10 +10,11 @@ import datetime as dt
 import json
 import math
 import os
+import shutil
 import stat
 import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import IO, Any, NoReturn
 
 from station.errors import InputError
@@ -289,24 +290,18 @@ def output_dir(arg: str, option: str) -> str:
 
 
 @contextlib.contextmanager
-def open_output(arg: str, option: str) -> Iterator[IO[str]]:
-    """The checked output as a text file: ``-`` is standard output (left open); a path is
-    written to a temporary file beside it and renamed over it only when the writing succeeded,
+def _staged(arg: str, option: str) -> Iterator[str]:
+    """A temporary file beside the output, renamed over it only when the writing succeeded,
     so a failed command leaves the previous file intact and never half a file."""
-    if arg == STDOUT:
-        out = _data_stdout or sys.stdout
-        yield out
-        out.flush()
-        return
     output_path(arg, option)
     folder = os.path.dirname(os.path.abspath(arg))
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(arg)}-", dir=folder)
+        os.close(fd)
     except OSError as exc:
         raise InputError(f"cannot write: {exc.strerror}", path=arg, field=option) from None
     try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            yield fh
+        yield tmp
         if os.path.abspath(arg) == os.devnull:
             os.unlink(tmp)
             return
@@ -318,6 +313,34 @@ def open_output(arg: str, option: str) -> Iterator[IO[str]]:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+@contextlib.contextmanager
+def open_output(arg: str, option: str) -> Iterator[IO[str]]:
+    """The checked output as a text file: ``-`` is standard output (left open); a path is
+    written to a temporary file beside it and renamed over it when done (:func:`_staged`)."""
+    if arg == STDOUT:
+        out = _data_stdout or sys.stdout
+        yield out
+        out.flush()
+        return
+    with _staged(arg, option) as tmp, open(tmp, "w", encoding="utf-8", newline="") as fh:
+        yield fh
+
+
+def write_output(arg: str, option: str, write: Callable[[str], None]) -> None:
+    """The same for the session modules' writers, which take a path (``write_csv(path)``,
+    ``write_events(…, path)``): they write a temporary file, which is then renamed over the
+    output, or for ``-`` copied to standard output."""
+    if arg == STDOUT:
+        with tempfile.TemporaryDirectory(prefix="station-") as tmp:
+            path = os.path.join(tmp, "out")
+            write(path)
+            with open(path, encoding="utf-8", newline="") as src, open_output(arg, option) as out:
+                shutil.copyfileobj(src, out)
+        return
+    with _staged(arg, option) as tmp:
+        write(tmp)
 
 
 def dispatch(args: argparse.Namespace) -> int:

@@ -12,8 +12,8 @@ from station.cli.common import (
     _date,
     _positive,
     _warn,
-    open_output,
     output_path,
+    write_output,
 )
 from station.errors import InputError
 
@@ -67,7 +67,7 @@ def _replay_run(args: argparse.Namespace, quiet: bool = False):
 
 def cmd_replay(args: argparse.Namespace) -> int:
     from station.cli.terminal import _replay_ui
-    from station.session.recorder import write_events_to
+    from station.session.recorder import write_events
 
     output_path(args.csv, "--csv")
     output_path(args.events, "--events")
@@ -76,18 +76,10 @@ def cmd_replay(args: argparse.Namespace) -> int:
     run = _replay_run(args)
     print(run.summary(), file=sys.stderr)
     if args.csv:
-        _write_results(run, args.csv)
+        write_output(args.csv, "--csv", run.write_csv)
     if args.events:
-        with open_output(args.events, "--events") as fh:
-            write_events_to(run, fh)
+        write_output(args.events, "--events", lambda path: write_events(run, path))
     return 0
-
-
-def _write_results(run, path: str) -> None:
-    from station.session.results import write_results_to
-
-    with open_output(path, "--csv") as fh:
-        write_results_to(fh, run.day.rows(), run.header())
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -97,7 +89,7 @@ def cmd_export(args: argparse.Namespace) -> int:
         raise InputError("not a session directory (no raw.jsonl)", path=args.source)
     output_path(args.csv, "--csv")
     run = _replay_run(args, quiet=True)
-    _write_results(run, args.csv)
+    write_output(args.csv, "--csv", run.write_csv)
     where = "standard output" if args.csv == "-" else args.csv
     print(f"{len(run.results)} descents -> {where}", file=sys.stderr)
     return 0

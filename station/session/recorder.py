@@ -266,17 +266,12 @@ def replay(
 def write_events(run: Run, path: str) -> None:
     """The parsed impulses: line, channel, photocell, time, flag, kept or why not."""
     with open(path, "w", newline="", encoding="utf-8") as fh:
-        write_events_to(run, fh)
-
-
-def write_events_to(run: Run, fh) -> None:
-    """:func:`write_events` into an open text file (``newline=""``), e.g. standard output."""
-    w = csv.writer(fh)
-    w.writerow(["line", "channel", "photocell", "time", "flag", "kept", "reason", "descent"])
-    for e in run.processor.events:
-        w.writerow(
-            [e.line, e.channel, e.photocell or "", format_tod(e.tod_us, 4), e.flag,
-             "yes" if e.kept else "no", e.reason, e.descent or ""]
-        )  # fmt: skip
-    for line, reason, text in run.processor.unparsed:
-        w.writerow([line, "", "", "", "", "no", f"unparsed: {reason}: {text!r}", ""])
+        w = csv.writer(fh)
+        w.writerow(["line", "channel", "photocell", "time", "flag", "kept", "reason", "descent"])
+        for e in run.processor.events:
+            w.writerow(
+                [e.line, e.channel, e.photocell or "", format_tod(e.tod_us, 4), e.flag,
+                 "yes" if e.kept else "no", e.reason, e.descent or ""]
+            )  # fmt: skip
+        for line, reason, text in run.processor.unparsed:
+            w.writerow([line, "", "", "", "", "no", f"unparsed: {reason}: {text!r}", ""])

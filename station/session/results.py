@@ -13,7 +13,7 @@ from __future__ import annotations
 import csv
 import os
 import tempfile
-from typing import IO, Any
+from typing import Any
 
 import pandas as pd
 
@@ -76,28 +76,23 @@ def header_line(key: str, value: Any) -> str:
     return f"# {key}: {text}"
 
 
-def write_results_to(fh: IO[str], rows: list[dict[str, Any]], header: dict[str, str]) -> None:
-    """The results CSV into an open text file (``newline=""``), e.g. standard output."""
+def write_results(rows: list[dict[str, Any]], path: str, header: dict[str, str]) -> None:
+    """Write atomically (temp file + rename), so a reader never sees half a file."""
     df = results_frame(rows)
     lines = [f"# station {__version__} results"]
     lines += [header_line(k, v) for k, v in header.items()]
     lines.append(header_line("units", "; ".join(f"{k} {u}" for k, u in UNITS.items())))
-    fh.write("\n".join(lines) + "\n")
-    # the csv module, not DataFrame.to_csv: numbers must stay numbers (unquoted, full
-    # precision) while every text field is quoted, so a "#" in the notes is safe
-    w = csv.writer(fh, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
-    w.writerow(list(df.columns))
-    for row in df.itertuples(index=False):
-        w.writerow([_plain(v) for v in row])
-
-
-def write_results(rows: list[dict[str, Any]], path: str, header: dict[str, str]) -> None:
-    """Write atomically (temp file + rename), so a reader never sees half a file."""
     folder = os.path.dirname(os.path.abspath(path))
     fd, tmp = tempfile.mkstemp(prefix=".results-", suffix=".csv", dir=folder)
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            write_results_to(fh, rows, header)
+            fh.write("\n".join(lines) + "\n")
+            # the csv module, not DataFrame.to_csv: numbers must stay numbers (unquoted, full
+            # precision) while every text field is quoted, so a "#" in the notes is safe
+            w = csv.writer(fh, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
+            w.writerow(list(df.columns))
+            for row in df.itertuples(index=False):
+                w.writerow([_plain(v) for v in row])
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
