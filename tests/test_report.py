@@ -99,3 +99,28 @@ def test_the_command_line_does_not_load_matplotlib():
     code = "import sys, station.cli.main; print('matplotlib' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_aborted_and_unfitted_descents_have_their_panel(tmp_path, demo_track):
+    """Drawn from the report's own records: an aborted descent (a walk-through) and a descent
+    not fitted show their status instead of bars, and the page is still whole."""
+    import dataclasses
+
+    from station.report.day_report import DayData, build_day_report, descent_views
+    from station.session import store
+    from station.session.recorder import replay
+
+    session = make_session(tmp_path, order="AB")
+    run = replay(str(session), store.load_session_config(str(session)), out=lambda _m: None)
+    views = descent_views(run.results)
+    assert [v.item for v in views] == ["pair A / blue", "pair B / blue"]
+    assert all(v.good and len(v.residuals_ms) == 9 for v in views)
+    aborted = dataclasses.replace(
+        views[0], number=3, status="aborted", descent_status="aborted", estimates={}, ci90={},
+        residuals_ms={}, rms_ms=None, speed_x=None, speed_v=None, photocells_used=1,
+    )  # fmt: skip
+    page = build_day_report(DayData(str(session), run.day.track, [*views, aborted]))
+    sections = _sections(page)
+    assert sections["descents"].count("<img ") == 1
+    assert "2 descents (2 ok and valid)" in sections["descents"]
+    assert "<td>3</td>" in sections["provenance"] and "aborted" in sections["provenance"]

@@ -14,9 +14,9 @@ from station.errors import InputError
 
 def cmd_report(args: argparse.Namespace) -> int:
     from station.cli.recording import _replay_run
-    from station.cli.sessions import _started
+    from station.cli.sessions import recording_started
     from station.model.compare import CompareError, collect, joint_fit
-    from station.report.day_report import DayData, build_day_report
+    from station.report.day_report import DayData, build_day_report, descent_views
     from station.session import store as sessions
 
     if not sessions.is_session(args.session):
@@ -26,8 +26,16 @@ def cmd_report(args: argparse.Namespace) -> int:
     path = os.path.join(out, f"{name}.html")
     ns = argparse.Namespace(source=args.session, config=None, fast=True, date=None)
     run = _replay_run(ns, quiet=True)  # the session as a replay gives it, annotations included
-    day = DayData(session=args.session, run=run, recorded=_started(args.session))
-    day.annotations = len(sessions.read_annotations(args.session))
+    day = DayData(
+        session=args.session,
+        track=run.day.track,
+        descents=descent_views(run.results),
+        header=run.header(),
+        summary=run.summary(),
+        config_metadata=run.day.base_metadata(),
+        recorded=recording_started(args.session),
+        annotations=len(sessions.read_annotations(args.session)),
+    )
     with open(os.path.join(args.session, sessions.CONFIG), encoding="utf-8") as fh:
         day.config_text = fh.read()
     day.warnings = list(run.day.track.warnings)

@@ -49,12 +49,50 @@ class Section:
     after: str = ""  # HTML
 
 
+@dataclass(frozen=True)
+class DescentView:
+    """What the report shows of one descent. The report reads descents only through these
+    records, made in one place (:func:`descent_views`) from the replayed day, so a change in
+    how the session code keeps its results touches one function here."""
+
+    number: int
+    start_time: str  # ISO 8601, as in the results CSV
+    start_hours: float  # the timer's time of day at the start, hours (unwrapped)
+    item: str
+    status: str  # the fit's status, or the descent's when it was not fitted
+    descent_status: str  # complete, incomplete, aborted
+    invalid_reason: str
+    notes: str
+    flags: str
+    photocells_used: int
+    estimates: dict[str, float | None]
+    ci90: dict[str, tuple[float, float] | None]
+    residuals_ms: dict[str, float]  # photocell -> computed − measured, ms
+    rms_ms: float | None
+    speed_x: np.ndarray | None = None
+    speed_v: np.ndarray | None = None
+
+    @property
+    def fitted(self) -> bool:
+        return bool(self.residuals_ms)
+
+    @property
+    def good(self) -> bool:
+        """Valid and fitted ok: drawn in its item's colour."""
+        return self.status == "ok" and not self.invalid_reason
+
+
 @dataclass
 class DayData:
-    """What the report is drawn from: the replayed day and its comparison."""
+    """What the report is drawn from: the day's descents and track, its comparison, and where
+    it came from."""
 
     session: str
-    run: Any  # station.session.recorder.Run
+    track: Any  # station.survey.track.Track
+    descents: list[DescentView]
+    header: dict[str, str] = field(default_factory=dict)  # what the results were computed from
+    summary: str = ""  # what the timer sent
+    config_metadata: dict[str, Any] = field(default_factory=dict)
     comparison: Any | None = None  # station.model.compare.JointResult
     comparison_error: str | None = None
     compared: list[Any] = field(default_factory=list)  # DescentData that entered the fit
@@ -62,6 +100,37 @@ class DayData:
     recorded: str = ""  # local date and time the recording began
     annotations: int = 0
     warnings: list[str] = field(default_factory=list)
+
+
+def descent_views(results: Sequence[Any]) -> list[DescentView]:
+    """The report's records of a replayed day's results (``DescentResult``: descent, fit,
+    row, fitted speed)."""
+    from station.model.compare import item_of
+
+    out = []
+    for r in results:
+        d, f, row = r.descent, r.fit, r.row
+        out.append(
+            DescentView(
+                number=d.number,
+                start_time=str(r.start_time),
+                start_hours=d.times_us[0] / 3.6e9,
+                item=item_of(row),
+                status=f.status if f is not None else d.status,
+                descent_status=d.status,
+                invalid_reason=str(row.get("invalid_reason") or ""),
+                notes=str(row.get("notes") or ""),
+                flags=str(row.get("flags") or ""),
+                photocells_used=len(d.photocells),
+                estimates=dict(f.estimates) if f else {},
+                ci90=dict(f.ci90) if f else {},
+                residuals_ms={k: v * 1000 for k, v in f.residuals_s.items()} if f else {},
+                rms_ms=row.get("rms_residual_ms"),
+                speed_x=r.speed_x,
+                speed_v=r.speed_v,
+            )
+        )
+    return out
 
 
 # ----------------------------------------------------------------------------- pictures
@@ -128,42 +197,38 @@ def profile_figure(track) -> str:
 
 
 def descents_figure(
-    results, items: dict[int, str], colours: dict[str, str], pc_x: dict[str, float]
+    descents: Sequence[DescentView], colours: dict[str, str], pc_x: dict[str, float]
 ) -> str:
     """Small multiples, one per descent: residual bars at the photocells (ms, left axis) and
     the fitted skier's speed along the run (m/s, right axis)."""
-    n = len(results)
+    n = len(descents)
     cols = 4
     rows = max(1, math.ceil(n / cols))
     fig = _figure(2.3 * rows + 0.3)
     axes = np.atleast_1d(fig.subplots(rows, cols, sharex=True, squeeze=False)).ravel()
     lim = 0.0
-    for r in results:
-        if r.fit is not None and r.fit.residuals_s:
-            lim = max(lim, *(abs(v) * 1000 for v in r.fit.residuals_s.values()))
+    for d in descents:
+        lim = max(lim, *(abs(v) for v in d.residuals_ms.values()), 0.0)
     lim = max(lim * 1.15, 0.5)
-    vmax = max((float(np.max(r.speed_v)) for r in results if r.speed_v is not None), default=1.0)
-    for ax, r in zip(axes, results, strict=False):
-        d, f = r.descent, r.fit
-        item = items.get(d.number, "")
-        colour = colours.get(item, GREY)
-        invalid = r.row.get("invalid_reason")
-        status = "invalid" if invalid else (f.status if f is not None else d.status)
-        ax.set_title(f"{d.number}  {item}  ({status})", loc="left", fontsize=9,
+    vmax = max((float(np.max(d.speed_v)) for d in descents if d.speed_v is not None), default=1.0)
+    for ax, d in zip(axes, descents, strict=False):
+        colour = colours.get(d.item, GREY)
+        status = "invalid" if d.invalid_reason else d.status
+        ax.set_title(f"{d.number}  {d.item}  ({status})", loc="left", fontsize=9,
                      color="#b00020" if status not in ("ok",) else "#222222")  # fmt: skip
         _style(ax)
         ax.set_ylim(-lim, lim)
         ax.axhline(0, color="#555555", linewidth=0.8)
-        if f is None or not f.residuals_s:
+        if not d.fitted:
             ax.text(0.5, 0.5, d.status, transform=ax.transAxes, ha="center", va="center",
                     color=GREY)  # fmt: skip
             continue
-        bars_x = [pc_x[p] for p in f.residuals_s]
-        bars_ms = [v * 1000 for v in f.residuals_s.values()]
-        ax.bar(bars_x, bars_ms, width=8.0, color=GREY if invalid else colour, alpha=0.85)
-        if r.speed_x is not None:
+        bars_x = [pc_x[p] for p in d.residuals_ms]
+        bars_ms = list(d.residuals_ms.values())
+        ax.bar(bars_x, bars_ms, width=8.0, color=colour if d.good else GREY, alpha=0.85)
+        if d.speed_x is not None:
             sp = ax.twinx()
-            sp.plot(r.speed_x, r.speed_v, color="#333333", linewidth=1.0)
+            sp.plot(d.speed_x, d.speed_v, color="#333333", linewidth=1.0)
             sp.set_ylim(0, vmax * 1.1)
             sp.tick_params(labelsize=7)
             sp.spines["top"].set_visible(False)
@@ -175,16 +240,12 @@ def descents_figure(
     return _png(fig)
 
 
-def _hours(d) -> float:
-    return d.times_us[0] / 3.6e9
-
-
 def _hhmm(h: float, _pos: Any = None) -> str:
     m = int(round(h * 60)) % (24 * 60)
     return f"{m // 60:02d}:{m % 60:02d}"
 
 
-def time_of_day_figure(results, items: dict[int, str], colours: dict[str, str],
+def time_of_day_figure(descents: Sequence[DescentView], colours: dict[str, str],
                        comparison=None, compared: Sequence[Any] = ()) -> str:  # fmt: skip
     """μ and CdA of each descent against its start time with 90 % intervals; the joint fit's
     μ per item (with the drift, when fitted) and CdA drawn over them."""
@@ -193,25 +254,22 @@ def time_of_day_figure(results, items: dict[int, str], colours: dict[str, str],
     fig = _figure(5.6)
     am, ac = fig.subplots(2, 1, sharex=True)
     hours_all = []
-    for r in results:
-        f = r.fit
-        if f is None or f.estimates.get("mu") is None:
+    for d in descents:
+        if d.estimates.get("mu") is None:
             continue
-        h = _hours(r.descent)
+        h = d.start_hours
         hours_all.append(h)
-        item = items.get(r.descent.number, "")
-        invalid = bool(r.row.get("invalid_reason"))
-        colour = GREY if invalid else colours.get(item, GREY)
-        face = "white" if invalid or f.status != "ok" else colour
+        colour = colours.get(d.item, GREY) if not d.invalid_reason else GREY
+        face = colour if d.good else "white"
         for ax, key in ((am, "mu"), (ac, "cda")):
-            v = f.estimates.get(key)
+            v = d.estimates.get(key)
             if v is None:
                 continue
-            c = f.ci90.get(key)
+            c = d.ci90.get(key)
             yerr = None if c is None else [[v - c[0]], [c[1] - v]]
             ax.errorbar([h], [v], yerr=yerr, fmt="o", color=colour, mfc=face, ms=6,
                         capsize=3, linewidth=1.2)  # fmt: skip
-            ax.annotate(str(r.descent.number), (h, v), textcoords="offset points",
+            ax.annotate(str(d.number), (h, v), textcoords="offset points",
                         xytext=(5, 3), fontsize=7, color="#555555")  # fmt: skip
     if comparison is not None and hours_all:
         t0, t1 = min(hours_all), max(hours_all)
@@ -305,33 +363,22 @@ def _table(head: Sequence[str] | None, rows: Sequence[Sequence[Any]], cls: str =
     return "".join(out)
 
 
-def _invalid(row: dict[str, Any]) -> str:
-    return f"invalid: {row['invalid_reason']}" if row.get("invalid_reason") else ""
+def _descent_rows(descents: Sequence[DescentView]) -> list[list[str]]:
+    def rng(d: DescentView, key: str, spec: str) -> str:
+        v, c = d.estimates.get(key), d.ci90.get(key)
+        if v is None:
+            return "—"
+        return f"{format(v, spec)} [{format(c[0], spec)}, {format(c[1], spec)}]" if c else (
+            format(v, spec))  # fmt: skip
 
-
-def _descent_rows(results, items: dict[int, str]) -> list[list[str]]:
-    rows = []
-    for r in results:
-        row, f = r.row, r.fit
-        e = f.estimates if f else {}
-        ci = f.ci90 if f else {}
-
-        def rng(key: str, spec: str, e=e, ci=ci) -> str:
-            c = ci.get(key)
-            v = e.get(key)
-            if v is None:
-                return "—"
-            return f"{format(v, spec)} [{format(c[0], spec)}, {format(c[1], spec)}]" if c else (
-                format(v, spec))  # fmt: skip
-
-        rows.append([
-            str(r.descent.number), str(r.start_time).replace("T", " ")[:19],
-            items.get(r.descent.number, ""), rng("mu", ".5f"), rng("cda", ".4f"),
-            _num(e.get("v0"), ".2f"), _num(row.get("rms_residual_ms"), ".2f"),
-            f"{row.get('photocells_used')}", row.get("status", ""),
-            "; ".join(x for x in (_invalid(row), row.get("notes"), row.get("flags")) if x),
-        ])  # fmt: skip
-    return rows
+    return [
+        [str(d.number), d.start_time.replace("T", " ")[:19], d.item, rng(d, "mu", ".5f"),
+         rng(d, "cda", ".4f"), _num(d.estimates.get("v0"), ".2f"), _num(d.rms_ms, ".2f"),
+         str(d.photocells_used), d.status,
+         "; ".join(x for x in (d.invalid_reason and f"invalid: {d.invalid_reason}", d.notes,
+                               d.flags) if x)]
+        for d in descents
+    ]  # fmt: skip
 
 
 CSS = """
@@ -375,18 +422,13 @@ def render_html(title: str, subtitle: str, sections: Sequence[Section]) -> str:
 
 def build_day_report(day: DayData) -> str:
     """The page of one test day."""
-    from station.model.compare import format_comparison, item_of
+    from station.model.compare import format_comparison
 
-    run = day.run
-    track = run.day.track
-    results = run.results
-    items = {r.descent.number: item_of(r.row) for r in results}
-    order = list(dict.fromkeys(items[r.descent.number] for r in results
-                               if r.descent.status != "aborted"))  # fmt: skip
-    colours = item_colours(order)
-    header = run.header()
-    real = [r for r in results if r.descent.status != "aborted"]
-    ok = [r for r in real if r.row.get("status") == "ok" and not r.row.get("invalid_reason")]
+    track = day.track
+    descents = day.descents
+    real = [d for d in descents if d.descent_status != "aborted"]
+    colours = item_colours(list(dict.fromkeys(d.item for d in real)))
+    ok = [d for d in real if d.good]
 
     sections = [
         Section(
@@ -405,8 +447,8 @@ def build_day_report(day: DayData) -> str:
             "each photocell (computed − measured time, bars) and the fitted speed along the run "
             "(line). Residuals larger than a few tenths of a millisecond, or a pattern along the "
             "run, point at a photocell, a gust or a skier who did not hold the tuck.</p>",
-            descents_figure(results, items, colours, {pc.id: pc.x for pc in track.photocells})
-            if results
+            descents_figure(descents, colours, {pc.id: pc.x for pc in track.photocells})
+            if descents
             else None,
             "residuals and speed of each descent",
         ),
@@ -415,15 +457,13 @@ def build_day_report(day: DayData) -> str:
             "μ and CdA over the day",
             "<p>Each descent's own fit with its 90 % interval, against its start time. "
             "Hollow grey points are invalid or not ok. Dashed: the joint fit of the day.</p>",
-            time_of_day_figure(results, items, colours, day.comparison, day.compared)
-            if real
-            else None,
+            time_of_day_figure(descents, colours, day.comparison, day.compared) if real else None,
             "friction and drag area of each descent over the time of day",
         ),
         _comparison_section(day, colours, format_comparison),
-        _provenance_section(day, header, results, items),
+        _provenance_section(day),
     ]
-    recorded = day.recorded or (results[0].start_time[:10] if results else "")
+    recorded = day.recorded or (descents[0].start_time[:10] if descents else "")
     title = f"Test day {recorded[:10]} — {track.name}".strip()
     subtitle = (f"session {os.path.basename(os.path.normpath(day.session))}; "
                 f"report made {dt.datetime.now().astimezone().isoformat(timespec='seconds')} "
@@ -479,22 +519,20 @@ def _comparison_section(day: DayData, colours: dict[str, str], format_comparison
                    after)  # fmt: skip
 
 
-def _provenance_section(day: DayData, header: dict[str, str], results, items) -> Section:
-    run = day.run
+def _provenance_section(day: DayData) -> Section:
     meta = [("session", os.path.abspath(day.session)), ("recording began", day.recorded or "—"),
             ("station version", __version__)]  # fmt: skip
-    meta += [(k, v) for k, v in header.items()]
-    meta.append(("timer data", run.summary()))
-    cfg_meta = run.day.base_metadata()
+    meta += [(k, v) for k, v in day.header.items()]
+    meta.append(("timer data", day.summary))
     for key in ("skier", "ski", "wax", "notes"):
-        if cfg_meta.get(key):
-            meta.append((f"config {key}", cfg_meta[key]))
+        if day.config_metadata.get(key):
+            meta.append((f"config {key}", day.config_metadata[key]))
     meta.append(("annotations", f"{day.annotations} entered (metadata, invalid marks, models)"))
     warn = "".join(f"<p class='warn'>{_e(w)}</p>" for w in day.warnings)
     after = _table(None, meta, "meta")
     after += "<h3>Descents</h3>" + _table(
         ["#", "start", "item", "μ [90 %]", "CdA [m²] [90 %]", "v0 [m/s]", "rms [ms]",
-         "photocells", "status", "notes"], _descent_rows(results, items))  # fmt: skip
+         "photocells", "status", "notes"], _descent_rows(day.descents))  # fmt: skip
     if day.config_text:
         after += f"<details><summary>config.yaml of the session</summary><pre>" \
                  f"{_e(day.config_text)}</pre></details>"  # fmt: skip
