@@ -1,7 +1,6 @@
 """``station sessions [DIR]``: the recorded test days in a folder, with their date, descents,
-test items and status, read from each session's results CSV (the csv module, not pandas: the
-list must come at once, even on a slow laptop in the cold).
-"""
+test items and status, read from each session's results CSV and annotations without
+replaying or fitting anything (the csv module, not pandas)."""
 
 from __future__ import annotations
 
