@@ -31,9 +31,10 @@ def make_session(
     """A session of ``len(order)`` descents of items A, B … (with ski annotations)."""
     from station.model.physics import Conditions, Params, StraightRun
     from station.session import store
+    from station.session.acquisition import replay
     from station.session.config import load_config
     from station.session.rawlog import RawLogWriter
-    from station.session.recorder import replay
+    from station.session.records import Metadata, MetadataAnnotation
     from station.survey.load import load_survey
     from station.survey.track import build_track
     from station.timing.wireformats import format_alge
@@ -76,9 +77,10 @@ def make_session(
             numbers = [k + 1 for k, it in enumerate(order) if it == item]
             store.append_annotation(
                 str(session),
-                {"t": T0, "type": "metadata", "descents": numbers,
-                 "values": {"ski": f"pair {item}", "wax": "blue"}},
-            )  # fmt: skip
+                MetadataAnnotation(
+                    Metadata(ski=f"pair {item}", wax="blue"), descents=tuple(numbers), t=T0
+                ),
+            )
     done = replay(str(session), cfg, out=lambda _m: None)
     done.write_csv(str(session / store.RESULTS))
     return session

@@ -60,3 +60,33 @@ def test_a_bad_record_inside_the_log_is_an_error(tmp_path):
     path.write_text('{"t": 1, "rx": "a"}\nnonsense\n{"t": 2, "rx": "b"}\n')
     with pytest.raises(InputError, match=r"raw.jsonl:2: not a raw-log record"):
         list(read_rawlog(str(path)))
+
+
+def test_a_lone_chunk_is_fsynced_within_a_second_without_a_further_write(tmp_path, monkeypatch):
+    import os
+    import time
+
+    import station.session.rawlog as rawlog
+
+    synced: list[float] = []
+    real_fsync = os.fsync
+
+    def spy(fd):
+        synced.append(time.monotonic())
+        real_fsync(fd)
+
+    monkeypatch.setattr(rawlog.os, "fsync", spy)
+    w = RawLogWriter(str(tmp_path / "raw.jsonl"))
+    try:
+        w.write(1.0, b" 0001 C0  10:00:00.0000 00\r")
+        time.sleep(0.2)
+        w.write(1.2, b" 0002 C1  10:00:00.2000 00\r")
+        written = time.monotonic()
+        time.sleep(1.3)  # the timer falls silent: no further write
+        after = [t for t in synced if t >= written]
+        assert after and after[0] - written <= 1.0
+        n = len(synced)
+        time.sleep(0.6)
+        assert len(synced) == n  # nothing new written: no needless fsync
+    finally:
+        w.close()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from station.session.results import COLUMNS, write_results
+from station.session.results import COLUMNS, read_results, write_results
 
 
 def test_results_csv_round_trip_and_spreadsheet_safety(tmp_path):
@@ -63,16 +63,15 @@ def test_start_time_carries_the_local_offset_of_its_date(monkeypatch):
     import time
     from types import SimpleNamespace
 
-    from station.session.analysis import Analyser
+    from station.session.analysis import start_time
 
     monkeypatch.setenv("TZ", "Europe/Zurich")
     time.tzset()
     try:
-        a = Analyser.__new__(Analyser)
         d = SimpleNamespace(start_us=(10 * 3600 + 41 * 60 + 7) * 10**6 + 234500)
-        winter = a.start_time(d, None, dt.date(2026, 2, 2))
-        summer = a.start_time(d, None, dt.date(2026, 7, 2))
-        host = a.start_time(d, dt.datetime(2026, 2, 2, 10, 41, 9).timestamp(), None)
+        winter = start_time(d, None, dt.date(2026, 2, 2))
+        summer = start_time(d, None, dt.date(2026, 7, 2))
+        host = start_time(d, dt.datetime(2026, 2, 2, 10, 41, 9).timestamp(), None)
     finally:
         monkeypatch.delenv("TZ")
         time.tzset()
@@ -80,3 +79,21 @@ def test_start_time_carries_the_local_offset_of_its_date(monkeypatch):
     assert summer == "2026-07-02T10:41:07.234500+02:00"
     assert host == winter
     assert dt.datetime.fromisoformat(winter).utcoffset() == dt.timedelta(hours=1)
+
+
+def test_read_results_without_pandas_gives_what_was_written(tmp_path):
+    rows = [
+        {"descent": 1, "photocells_used": 9, "mu": 0.008452428372456, "status": "ok",
+         "notes": "pair 3\n# not a header", "ski": "=A", "start_time": "10:41:07"},
+        {"descent": 2, "photocells_used": 1.0, "cda": float("nan"), "status": "aborted"},
+    ]  # fmt: skip
+    path = tmp_path / "results.csv"
+    write_results(rows, str(path), {"survey": "Demo run"})
+    back = read_results(str(path))
+    assert [list(r) for r in back] == [COLUMNS, COLUMNS]
+    assert back[0]["descent"] == 1 and isinstance(back[0]["descent"], int)
+    assert back[0]["mu"] == 0.008452428372456 and back[0]["cda"] is None
+    assert back[0]["notes"] == "pair 3\n# not a header" and back[0]["ski"] == "'=A"
+    assert back[1]["photocells_used"] == 1 and back[1]["status"] == "aborted"
+    assert back[1]["cda"] is None and back[1]["start_time"] is None
+    assert pd.read_csv(path, comment="#")["mu"].iloc[0] == back[0]["mu"]

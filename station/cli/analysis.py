@@ -29,41 +29,39 @@ def cmd_annotate(args: argparse.Namespace) -> int:
     import time as _time
 
     from station.session import store as sessions
+    from station.session.records import (
+        METADATA_FIELDS,
+        Annotation,
+        FitModel,
+        InvalidMark,
+        Metadata,
+        MetadataAnnotation,
+        ModelChange,
+        ValidMark,
+    )
 
     if not sessions.is_session(args.session):
         raise InputError("not a session directory (no raw.jsonl)", path=args.session)
-    values = {
-        k: v
-        for k, v in {
-            "skier": args.skier, "mass_kg": args.mass, "ski": args.ski, "wax": args.wax,
-            "air_temperature_c": args.air_temperature_c,
-            "snow_temperature_c": args.snow_temperature_c,
-            "pressure_hpa": args.pressure_hpa, "humidity_pct": args.humidity_pct,
-            "wind_ms": args.wind_ms, "wind_from_deg": args.wind_from_deg, "notes": args.notes,
-        }.items()
-        if v is not None
-    }  # fmt: skip
+    values = Metadata.from_values({f.key: getattr(args, f.key) for f in METADATA_FIELDS})
     if (args.descents is None) == (args.from_descent is None):
         raise InputError("give --descents N[,M,A-B] or --from N")
-    records = []
+    records: list[Annotation] = []
     t = _time.time()
-    if values:
-        rec = {"t": t, "type": "metadata", "values": values}
-        if args.descents is not None:
-            rec["descents"] = _numbers(args.descents)
-        else:
-            rec["from"] = args.from_descent
-        records.append(rec)
     targets = _numbers(args.descents) if args.descents is not None else []
+    if values.values():
+        if args.descents is not None:
+            records.append(MetadataAnnotation(values, descents=tuple(targets), t=t))
+        else:
+            records.append(MetadataAnnotation(values, from_descent=args.from_descent, t=t))
     if (args.invalid or args.valid or args.model) and not targets:
         raise InputError("--invalid, --valid and --model need --descents")
     for n in targets:
         if args.invalid:
-            records.append({"t": t, "type": "invalid", "descent": n, "reason": args.invalid})
+            records.append(InvalidMark(n, args.invalid, t))
         if args.valid:
-            records.append({"t": t, "type": "valid", "descent": n})
+            records.append(ValidMark(n, t))
         if args.model:
-            records.append({"t": t, "type": "model", "descent": n, "model": args.model})
+            records.append(ModelChange(n, FitModel(args.model), t))
     if not records:
         raise InputError("nothing to annotate: give metadata, --invalid, --valid or --model")
     _check_descents(args.session, targets)
@@ -101,14 +99,14 @@ def cmd_compare(args: argparse.Namespace) -> int:
         raise InputError("not a session directory (no raw.jsonl)", path=args.session)
     output_path(args.csv, "--csv")
     args.source, args.config, args.fast, args.date = args.session, None, True, None
-    run = _replay_run(args, quiet=True)
-    data, excluded, windy = collect(run.day, args.wind_limit)
+    acq = _replay_run(args, quiet=True)
+    data, excluded, windy = collect(acq.results(), args.wind_limit)
     if args.reference is not None:
         items = sorted({d.item for d in data})
         args.reference = unique_prefix(args.reference, items, "item", "--reference")
     try:
         res = joint_fit(
-            run.day.track, data, cda_fixed=args.cda, model=args.model, drift=args.drift,
+            acq.day.track, data, cda_fixed=args.cda, model=args.model, drift=args.drift,
             reference=args.reference,
         )  # fmt: skip
     except CompareError as exc:
@@ -120,7 +118,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
             "along-track wind: check them, or mark them invalid"
         )
     if args.csv:
-        _write_compare_csv(res, args.csv, run)
+        _write_compare_csv(res, args.csv, acq)
     if args.json:
         _print_json(res.to_dict())
         return 0
@@ -150,6 +148,17 @@ def _write_compare_csv(res, path: str, run) -> None:
             w.writerow([k, it.item, len(it.descents), it.mu, it.ci90[0], it.ci90[1], *row])
 
 
+#: the number parser of each kind of metadata value (records.MetadataField.check)
+_CHECKS = {
+    "text": str,
+    "number": _number,
+    "positive": _positive,
+    "nonnegative": _nonnegative,
+    "percent": _percent,
+    "celsius": _celsius,
+}
+
+
 def add_parsers(sub: Any) -> None:
     p = sub.add_parser("annotate", help="enter metadata, invalid marks or a model for descents")
     p.add_argument("session", metavar="SESSION", help="session folder")
@@ -157,18 +166,11 @@ def add_parsers(sub: Any) -> None:
     who.add_argument("--descents", metavar="LIST", help="e.g. 1,4,5-8")
     who.add_argument("--from", dest="from_descent", type=int, metavar="N",
                      help="this and all later descents")  # fmt: skip
-    p.add_argument("--skier", help="skier's name (one CdA per skier in compare)")
-    p.add_argument("--mass", type=_positive, metavar="KG", help="skier with equipment, kg")
-    p.add_argument("--ski", help="ski or pair id")
-    p.add_argument("--wax", help="wax or grind")
-    p.add_argument("--air-temperature-c", type=_celsius, metavar="T", help="°C")
-    p.add_argument("--snow-temperature-c", type=_celsius, metavar="T", help="°C")
-    p.add_argument("--pressure-hpa", type=_positive, metavar="P", help="station pressure, hPa")
-    p.add_argument("--humidity-pct", type=_percent, metavar="H", help="relative humidity, %%")
-    p.add_argument("--wind-ms", type=_nonnegative, metavar="MS", help="wind speed, m/s")
-    p.add_argument("--wind-from-deg", type=_number, metavar="DEG",
-                   help="direction the wind comes from, degrees from north")  # fmt: skip
-    p.add_argument("--notes", help="free text")
+    from station.session.records import METADATA_FIELDS
+
+    for f in METADATA_FIELDS:  # the one table of metadata keys
+        text = (f.help or f.title).replace("%", "%%")  # argparse formats help with %
+        p.add_argument(f.option, dest=f.key, type=_CHECKS[f.check], help=text)
     p.add_argument("--invalid", metavar="REASON", help="mark the descents invalid")
     p.add_argument("--valid", action="store_true", help="mark them valid again")
     p.add_argument(

@@ -10,11 +10,10 @@ import datetime as dt
 import json
 import math
 import os
-import shutil
 import stat
 import sys
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from typing import IO, Any, NoReturn
 
 from station.errors import InputError
@@ -326,21 +325,6 @@ def open_output(arg: str, option: str) -> Iterator[IO[str]]:
         return
     with _staged(arg, option) as tmp, open(tmp, "w", encoding="utf-8", newline="") as fh:
         yield fh
-
-
-def write_output(arg: str, option: str, write: Callable[[str], None]) -> None:
-    """The same for the session modules' writers, which take a path (``write_csv(path)``,
-    ``write_events(…, path)``): they write a temporary file, which is then renamed over the
-    output, or for ``-`` copied to standard output."""
-    if arg == STDOUT:
-        with tempfile.TemporaryDirectory(prefix="station-") as tmp:
-            path = os.path.join(tmp, "out")
-            write(path)
-            with open(path, encoding="utf-8", newline="") as src, open_output(arg, option) as out:
-                shutil.copyfileobj(src, out)
-        return
-    with _staged(arg, option) as tmp:
-        write(tmp)
 
 
 def dispatch(args: argparse.Namespace) -> int:

@@ -12,25 +12,25 @@ from station.cli.common import (
     _date,
     _positive,
     _warn,
+    open_output,
     output_path,
-    write_output,
 )
 from station.errors import InputError
 
 
 def cmd_record(args: argparse.Namespace) -> int:
     from station.session import store as sessions
+    from station.session.acquisition import record
     from station.session.config import load_config
     from station.session.ports import check_port
-    from station.session.recorder import record
 
     cfg = load_config(args.config)
     check_port(cfg.serial.port, args.config)  # a wrong port: say so and list them, at once
     folder = args.session_dir or sessions.default_dir()
     print(f"recording to {folder} from {cfg.serial.port} ({cfg.serial.protocol}); Ctrl-C ends",
           file=sys.stderr)  # fmt: skip
-    run = record(cfg, folder, max_descents=args.max_descents, duration_s=args.duration)
-    print(run.summary(), file=sys.stderr)
+    acq = record(cfg, folder, max_descents=args.max_descents, duration_s=args.duration)
+    print(acq.summary(), file=sys.stderr)
     print(f"results: {os.path.join(folder, sessions.RESULTS)}", file=sys.stderr)
     return 0
 
@@ -52,33 +52,36 @@ def _replay_config(args: argparse.Namespace):
 
 
 def _replay_run(args: argparse.Namespace, quiet: bool = False):
-    from station.session.recorder import replay
+    """The replay of ``args.source`` through the acquisition loop (an ``Acquisition``)."""
+    from station.session.acquisition import replay
 
     cfg = _replay_config(args)
     warnings: list[str] = []
     speed = None if getattr(args, "fast", True) else getattr(args, "speed", None)
     out = (lambda _m: None) if quiet else print
-    run = replay(args.source, cfg, out=out, speed=speed, date=_date(getattr(args, "date", None)),
+    acq = replay(args.source, cfg, out=out, speed=speed, date=_date(getattr(args, "date", None)),
                  warnings=warnings)  # fmt: skip
     for w in warnings:
         _warn(w)
-    return run
+    return acq
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
     from station.cli.terminal import _replay_ui
-    from station.session.recorder import write_events
+    from station.session.replay import write_events
 
     output_path(args.csv, "--csv")
     output_path(args.events, "--events")
     if args.ui:
         return _replay_ui(args)
-    run = _replay_run(args)
-    print(run.summary(), file=sys.stderr)
+    acq = _replay_run(args)
+    print(acq.summary(), file=sys.stderr)
     if args.csv:
-        write_output(args.csv, "--csv", run.write_csv)
+        with open_output(args.csv, "--csv") as fh:
+            acq.write_csv_to(fh)
     if args.events:
-        write_output(args.events, "--events", lambda path: write_events(run, path))
+        with open_output(args.events, "--events") as fh:
+            write_events(acq.day.processor, fh)
     return 0
 
 
@@ -88,10 +91,11 @@ def cmd_export(args: argparse.Namespace) -> int:
     if not sessions.is_session(args.source):
         raise InputError("not a session directory (no raw.jsonl)", path=args.source)
     output_path(args.csv, "--csv")
-    run = _replay_run(args, quiet=True)
-    write_output(args.csv, "--csv", run.write_csv)
+    acq = _replay_run(args, quiet=True)
+    with open_output(args.csv, "--csv") as fh:
+        acq.write_csv_to(fh)
     where = "standard output" if args.csv == "-" else args.csv
-    print(f"{len(run.results)} descents -> {where}", file=sys.stderr)
+    print(f"{len(acq.results())} descents -> {where}", file=sys.stderr)
     return 0
 
 

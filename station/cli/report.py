@@ -25,26 +25,28 @@ def cmd_report(args: argparse.Namespace) -> int:
     name = os.path.basename(os.path.normpath(os.path.abspath(args.session))) or "session"
     path = os.path.join(out, f"{name}.html")
     ns = argparse.Namespace(source=args.session, config=None, fast=True, date=None)
-    run = _replay_run(ns, quiet=True)  # the session as a replay gives it, annotations included
+    acq = _replay_run(ns, quiet=True)  # the session as a replay gives it, annotations included
+    results = acq.results()
+    base = acq.day.base_metadata()
     day = DayData(
         session=args.session,
-        track=run.day.track,
-        descents=descent_views(run.results),
-        header=run.header(),
-        summary=run.summary(),
-        config_metadata=run.day.base_metadata(),
+        track=acq.track,
+        descents=descent_views(results),
+        header=sessions.results_header(acq.config, acq.track.name),
+        summary=acq.summary(),
+        config_metadata={k: getattr(base, k, None) for k in ("skier", "ski", "wax", "notes")},
         recorded=recording_started(args.session),
         annotations=len(sessions.read_annotations(args.session)),
     )
     with open(os.path.join(args.session, sessions.CONFIG), encoding="utf-8") as fh:
         day.config_text = fh.read()
-    day.warnings = list(run.day.track.warnings)
-    data, excluded, windy = collect(run.day, args.wind_limit)
+    day.warnings = list(acq.track.warnings)
+    data, excluded, windy = collect(results, args.wind_limit)
     reference = args.reference
     if reference is not None:
         reference = unique_prefix(reference, sorted({d.item for d in data}), "item", "--reference")
     try:
-        res = joint_fit(run.day.track, data, drift=args.drift, reference=reference)
+        res = joint_fit(acq.track, data, drift=args.drift, reference=reference)
     except CompareError as exc:
         day.comparison_error = str(exc)
     else:
@@ -59,7 +61,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     with open_output(path, "--out") as fh:
         fh.write(page)
     print(path)
-    print(f"{len(run.results)} descents; open it in a browser", file=sys.stderr)
+    print(f"{len(results)} descents; open it in a browser", file=sys.stderr)
     return 0
 
 

@@ -68,7 +68,7 @@ def session_descents(session: str) -> list[int]:
     from station.cli.recording import _replay_run
 
     ns = argparse.Namespace(source=session, config=None, fast=True, date=None)
-    return [r.descent.number for r in _replay_run(ns, quiet=True).results]
+    return [r.number for r in _replay_run(ns, quiet=True).results()]
 
 
 def recording_started(session: str) -> str:
@@ -105,20 +105,21 @@ def _annotated(session: str, rows: list[dict[str, str]]) -> list[dict[str, Any]]
     for r in rows:
         n = int(r["descent"]) if (r.get("descent") or "").isdigit() else 0
         meta = day.metadata_for(n)
-        row: dict[str, Any] = {**r, "ski": meta.get("ski", ""), "wax": meta.get("wax", "")}
+        row: dict[str, Any] = {**r, "ski": meta.ski or "", "wax": meta.wax or ""}
         row["invalid_reason"] = day.invalid.get(n, "")
         out.append(row)
     return out
 
 
 def summarise(session: str, now: float | None = None) -> SessionSummary:
-    from station.model.compare import item_of
+    from station.model.compare import item_name
     from station.session import store as sessions
 
     rows = _annotated(session, read_results_rows(session) or [])
     items: list[str] = []
     for r in rows:
-        if r.get("descent_status") != "aborted" and (it := item_of(r)) not in items:
+        it = item_name(r.get("ski"), r.get("wax"))
+        if r.get("descent_status") != "aborted" and it not in items:
             items.append(it)
     raw = os.path.join(session, sessions.RAW)
     now = time.time() if now is None else now

@@ -287,8 +287,11 @@ def cmd_fit(args: argparse.Namespace) -> int:
 
     line("μ", "mu", "", ".5f")
     line("μ1", "mu1", "s/m", ".2e")
+    if "mu1" in res.consistent_with_zero:
+        print("        μ1 is not distinguishable from 0: its 90 % interval includes 0")
     line("CdA", "cda", "m²", ".4f")
     line("v0", "v0", "m/s", ".3f")
+    line("δt1", "dt0", "s", "+.5f")  # the first photocell's time is data: its fitted offset
     if res.sigma_s2 is not None:
         corr = _fmt(res.corr_mu_cda, "+.3f")
         print(

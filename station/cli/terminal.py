@@ -15,7 +15,7 @@ from station.cli.common import (
 
 def _replay_ui(args: argparse.Namespace) -> int:
     from station.cli.recording import _replay_config
-    from station.session.recorder import source_date
+    from station.session.replay import source_date
     from station.ui.app import StationApp
 
     cfg = _replay_config(args)

@@ -20,13 +20,14 @@ the μ–CdA correlation that limits a single descent, which is what makes Δμ 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from itertools import combinations
 from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.stats import t as student_t
+from scipy.special import stdtr, stdtrit  # Student-t cdf and quantile, without scipy.stats
 
 from station.model.fit import TOLERANCES
 from station.model.physics import Conditions, Params, StraightRun
@@ -262,7 +263,7 @@ def joint_fit(
     sigma2 = float(r @ r) / dof
     cov = np.linalg.pinv(jac.T @ jac) * sigma2
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    q = float(student_t.ppf(0.95, dof))
+    q = float(stdtrit(dof, 0.95))
 
     out_items = []
     for ii, it in enumerate(items):
@@ -340,7 +341,7 @@ def joint_fit(
         delta = float(p[ja] - p[jb])
         var = cov[ja, ja] + cov[jb, jb] - 2 * cov[ja, jb]
         s = math.sqrt(max(var, 0.0))
-        prob = float(student_t.cdf(-delta / s, dof)) if s > 0 else (1.0 if delta < 0 else 0.0)
+        prob = float(stdtr(dof, -delta / s)) if s > 0 else (1.0 if delta < 0 else 0.0)
         comparisons.append(
             Comparison(a, b, delta, (delta - q * s, delta + q * s), prob, times[a] - times[b])
         )
@@ -391,39 +392,46 @@ def format_comparison(res: JointResult, n_desc: int) -> str:
     return "\n".join(lines)
 
 
-def item_of(row: dict[str, Any]) -> str:
-    """The test item of a descent: ski (or pair id) and wax, as the engineer entered them."""
-    ski = str(row.get("ski") or "").strip()
-    wax = str(row.get("wax") or "").strip()
+def item_of(row: Any) -> str:
+    """The test item of a descent: ski (or pair id) and wax, as the engineer entered them
+    (``row`` is a :class:`station.session.records.ResultRow`)."""
+    return item_name(row.ski, row.wax)
+
+
+def item_name(ski: str | None, wax: str | None) -> str:
+    """A test item's name from its ski (or pair id) and wax."""
+    ski = str(ski or "").strip()
+    wax = str(wax or "").strip()
     if ski and wax:
         return f"{ski} / {wax}"
     return ski or wax or "(no item)"
 
 
 def collect(
-    day, wind_limit_ms: float = 1.0
+    results: Iterable[Any], wind_limit_ms: float = 1.0
 ) -> tuple[list[DescentData], list[tuple[int, str]], list[int]]:
-    """The descents of a :class:`station.session.day.Day` that enter the comparison, those left out
-    (with why) and those flagged for wind."""
+    """The descents that enter the comparison, those left out (with why) and those flagged for
+    wind, from a day's results (:class:`station.session.analysis.DescentResult`, in order)."""
     data: list[DescentData] = []
     excluded: list[tuple[int, str]] = []
     windy: list[int] = []
-    for n in sorted(day.results):
-        res = day.results[n]
+    for res in results:
         row, d, f = res.row, res.descent, res.fit
-        if row.get("invalid_reason"):
-            excluded.append((n, f"marked invalid: {row['invalid_reason']}"))
+        n = row.descent
+        if row.invalid_reason:
+            excluded.append((n, f"marked invalid: {row.invalid_reason}"))
             continue
-        if f is None or d.status == "aborted":
-            excluded.append((n, d.status))
+        if f is None:
+            why = "; ".join(row.flags[-1:]) if row.status == "error" else ""
+            excluded.append((n, f"{row.status}: {why}" if why else str(row.status)))
             continue
-        if f.status not in ("ok", "ill-conditioned"):
-            excluded.append((n, f.status))
+        if row.status not in ("ok", "ill-conditioned"):
+            excluded.append((n, str(row.status)))
             continue
         if len(d.photocells) < 3:
             excluded.append((n, "fewer than 3 photocells"))
             continue
-        wind = float(row.get("wind_ms") or 0.0)
+        wind = float(row.wind_ms or 0.0)
         if abs(wind) > wind_limit_ms:
             windy.append(n)
         e = f.estimates
@@ -432,12 +440,12 @@ def collect(
             DescentData(
                 number=n,
                 item=item_of(row),
-                group=str(row.get("skier") or "skier"),
+                group=str(row.skier or "skier"),
                 photocells=tuple(d.photocells),
                 times_s=(np.array(d.times_us) - d.times_us[0]) / 1e6,
                 start_hours=d.times_us[0] / US_PER_HOUR,
-                mass_kg=float(row["mass_kg"]),
-                air_density=float(row["air_density"]),
+                mass_kg=float(row.mass_kg),
+                air_density=float(row.air_density),
                 wind_ms=wind,
                 start_guess=(float(guess[0]), float(guess[1]), float(guess[2])),
             )

@@ -103,8 +103,8 @@ class DayData:
 
 
 def descent_views(results: Sequence[Any]) -> list[DescentView]:
-    """The report's records of a replayed day's results (``DescentResult``: descent, fit,
-    row, fitted speed)."""
+    """The report's records of a replayed day's results
+    (:class:`station.session.analysis.DescentResult`: descent times, fit, typed row, speed)."""
     from station.model.compare import item_of
 
     out = []
@@ -112,20 +112,20 @@ def descent_views(results: Sequence[Any]) -> list[DescentView]:
         d, f, row = r.descent, r.fit, r.row
         out.append(
             DescentView(
-                number=d.number,
-                start_time=str(r.start_time),
+                number=row.descent,
+                start_time=str(row.start_time),
                 start_hours=d.times_us[0] / 3.6e9,
                 item=item_of(row),
-                status=f.status if f is not None else d.status,
-                descent_status=d.status,
-                invalid_reason=str(row.get("invalid_reason") or ""),
-                notes=str(row.get("notes") or ""),
-                flags=str(row.get("flags") or ""),
-                photocells_used=len(d.photocells),
+                status=str(row.status),
+                descent_status=str(row.descent_status),
+                invalid_reason=row.invalid_reason or "",
+                notes=row.notes,
+                flags="; ".join(row.flags),
+                photocells_used=row.photocells_used,
                 estimates=dict(f.estimates) if f else {},
                 ci90=dict(f.ci90) if f else {},
                 residuals_ms={k: v * 1000 for k, v in f.residuals_s.items()} if f else {},
-                rms_ms=row.get("rms_residual_ms"),
+                rms_ms=row.rms_residual_ms,
                 speed_x=r.speed_x,
                 speed_v=r.speed_v,
             )
@@ -396,7 +396,8 @@ table { border-collapse: collapse; font-size: 0.88em; margin: 0.8em 0; }
 th, td { border-bottom: 1px solid #e2e2e2; padding: 0.25em 0.7em; text-align: left;
          vertical-align: top; }
 th { background: #f4f4f4; }
-td { font-variant-numeric: tabular-nums; }
+td { font-variant-numeric: tabular-nums; white-space: nowrap; }
+td:last-child { white-space: normal; }
 .warn { background: #fff4e5; border-left: 4px solid #f0a020; padding: 0.4em 0.8em; }
 .err { background: #fdecea; border-left: 4px solid #d62728; padding: 0.4em 0.8em; }
 pre { background: #f6f6f6; padding: 0.8em; overflow-x: auto; font-size: 0.85em; }

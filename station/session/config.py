@@ -21,7 +21,10 @@
     descent: {debounce_s: 0.3, timeout_s: null, min_speed_ms: 1.0}
     fit: {model: constant}        # constant | velocity
 
-Unknown keys and wrong types are one clear line naming the file, line and key.
+Unknown keys, wrong types and numbers that are not finite or outside a physical range (the
+``RANGES`` below) are one clear line naming the file, line and key. A range is wide enough for
+any real test day and narrow enough to catch a typo or a wrong unit (``mass_kg: 885``,
+``pressure_hpa: 101325``); a decimal comma (``72,5``) is read as a decimal mark.
 """
 
 from __future__ import annotations
@@ -30,11 +33,30 @@ import os
 from dataclasses import dataclass, field
 
 from station.errors import InputError
+from station.files import MAX_YAML, check_regular
 from station.model.air import air_density
 from station.timing.wireformats import PARSERS
-from station.yamlfile import Section, load_yaml
+from station.yamlfile import Section, parse_yaml, read_yaml_text
 
 PARITIES = {"N", "E", "O", "M", "S"}
+
+#: field -> (lowest, highest, unit): the physically sane range of every number in the config
+RANGES: dict[str, tuple[float, float, str]] = {
+    "serial.baudrate": (50, 4_000_000, "baud"),
+    "skier.mass_kg": (20, 200, "kg"),  # skier with equipment
+    "air.pressure_hpa": (300, 1100, "hPa"),  # station pressure from sea level to 9 000 m
+    "air.temperature_c": (-60, 50, "°C"),
+    "air.humidity_pct": (0, 100, "%"),
+    "air.density": (0.3, 2.0, "kg/m³"),
+    "descent.debounce_s": (0, 5, "s"),  # double triggers of legs and poles: < 0.5 s
+    "descent.timeout_s": (1, 3600, "s"),
+    "descent.min_speed_ms": (0.1, 20, "m/s"),  # above it every descent would time out
+}
+
+
+def _ranged(sec: Section, key: str, default=None, *, required: bool = False, kind=float):
+    lo, hi, unit = RANGES[sec.field(key)]
+    return sec.number(key, lo, hi, default, unit=unit, required=required, kind=kind)
 
 
 @dataclass(frozen=True)
@@ -75,7 +97,8 @@ _TOP = {"serial", "survey", "photocells", "skier", "ski", "wax", "notes", "air",
 
 
 def load_config(path: str) -> StationConfig:
-    data = load_yaml(path)
+    text = read_yaml_text(path, "station config")
+    data = parse_yaml(text, path)
     top = Section(data, path, "", _TOP)
     ser = Section(
         top.data.get("serial"),
@@ -97,9 +120,7 @@ def load_config(path: str) -> StationConfig:
     bytesize = ser.get("bytesize", int, 8)
     if bytesize not in (5, 6, 7, 8):
         raise ser.error("bytesize", f"byte size must be 5..8, got {bytesize!r}")
-    baud = ser.get("baudrate", int, 9600)
-    if baud <= 0:
-        raise ser.error("baudrate", f"must be positive, got {baud!r}")
+    baud = _ranged(ser, "baudrate", 9600, kind=int)
     serial = SerialConfig(
         port=ser.get("port", str, required=True),
         protocol=protocol,
@@ -115,6 +136,10 @@ def load_config(path: str) -> StationConfig:
     survey_path = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(path)), survey))
     if not os.path.exists(survey_path):
         raise top.error("survey", f"survey file {survey!r} not found")
+    try:
+        check_regular(survey_path, MAX_YAML, "survey file")
+    except InputError as exc:
+        raise top.error("survey", f"survey file {survey!r}: {exc.message}") from None
 
     pcs = top.data.get("photocells")
     if not isinstance(pcs, dict) or not pcs:
@@ -128,12 +153,20 @@ def load_config(path: str) -> StationConfig:
                 line=pcs.lines.get(ch) if hasattr(pcs, "lines") else None,
                 field=f"photocells.{ch}",
             )
+        if str(pc) in channels.values():
+            first = next(c for c, p in channels.items() if p == str(pc))
+            raise InputError(
+                f"photocell {pc} is already on channel {first}; one photocell, one channel",
+                path=path,
+                line=pcs.lines.get(ch) if hasattr(pcs, "lines") else None,
+                field=f"photocells.{ch}",
+            )
         channels[str(ch)] = str(pc)
 
     sk = Section(top.data.get("skier"), path, "skier", {"mass_kg", "name"})
     if "skier" not in top.data:
         raise InputError("missing required key (skier: {mass_kg: …})", path=path, field="skier")
-    mass = sk.positive("mass_kg", required=True)
+    mass = _ranged(sk, "mass_kg", required=True)
 
     air_sec = Section(
         top.data.get("air"),
@@ -146,7 +179,7 @@ def load_config(path: str) -> StationConfig:
             raise air_sec.error(
                 "density", "give density or pressure/temperature/humidity, not both"
             )
-        rho = air_sec.positive("density")
+        rho = _ranged(air_sec, "density")
         air = {"density": rho}
     else:
         if "air" not in top.data:
@@ -157,9 +190,9 @@ def load_config(path: str) -> StationConfig:
                 field="air",
             )
         air = {
-            "pressure_hpa": air_sec.positive("pressure_hpa", required=True),
-            "temperature_c": air_sec.get("temperature_c", float, required=True),
-            "humidity_pct": air_sec.get("humidity_pct", float, 80.0),
+            "pressure_hpa": _ranged(air_sec, "pressure_hpa", required=True),
+            "temperature_c": _ranged(air_sec, "temperature_c", required=True),
+            "humidity_pct": _ranged(air_sec, "humidity_pct", 80.0),
         }
         try:
             rho = air_density(air["pressure_hpa"], air["temperature_c"], air["humidity_pct"])
@@ -169,13 +202,10 @@ def load_config(path: str) -> StationConfig:
     dsec = Section(
         top.data.get("descent"), path, "descent", {"debounce_s", "timeout_s", "min_speed_ms"}
     )
-    debounce = dsec.get("debounce_s", float, 0.3)
-    if debounce < 0:
-        raise dsec.error("debounce_s", "must not be negative")
     descent = DescentConfig(
-        debounce_s=debounce,
-        timeout_s=dsec.positive("timeout_s"),
-        min_speed_ms=dsec.positive("min_speed_ms", 1.0),
+        debounce_s=_ranged(dsec, "debounce_s", 0.3),
+        timeout_s=_ranged(dsec, "timeout_s"),
+        min_speed_ms=_ranged(dsec, "min_speed_ms", 1.0),
     )
     fsec = Section(top.data.get("fit"), path, "fit", {"model"})
     model = fsec.get("model", str, "constant")
@@ -188,8 +218,6 @@ def load_config(path: str) -> StationConfig:
     for key in ("ski", "wax", "notes"):
         if top.has(key):
             metadata[key] = top.get(key, str)
-    with open(path, encoding="utf-8") as fh:
-        text = fh.read()
     return StationConfig(
         path=path,
         serial=serial,

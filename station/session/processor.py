@@ -15,6 +15,7 @@ from collections import Counter
 from station.errors import InputError
 from station.session.config import StationConfig
 from station.session.rawlog import Chunk
+from station.session.records import LineCounts
 from station.survey.track import Track
 from station.timing.assembly import DescentAssembler, ImpulseEvent, TimedDescent
 from station.timing.framing import LineFramer
@@ -58,6 +59,11 @@ class Processor:
     def events(self) -> list[ImpulseEvent]:
         return self.assembler.events
 
+    def line_counts(self) -> LineCounts:
+        """A snapshot of the counts, for the summary and the UI."""
+        c = self.counts
+        return LineCounts(self.lines, c["impulse"], c["edit"], c["skipped"], c["unparsed"])
+
     def feed(self, chunk: Chunk) -> list[TimedDescent]:
         if chunk.event:
             if chunk.event == "timeout":
@@ -77,8 +83,9 @@ class Processor:
             self.counts["impulse"] += 1
             before = self.assembler.count
             done = self.assembler.feed(parsed, self.lines)
-            if t is not None and self.assembler._clock is not None:
-                self.offset_us = self.assembler._clock - round(t * 1e6)
+            clock = self.assembler.clock
+            if t is not None and clock is not None:
+                self.offset_us = clock - round(t * 1e6)
             if self.assembler.count > before:
                 self.start_host[self.assembler.count] = t
             return done

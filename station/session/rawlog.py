@@ -1,6 +1,6 @@
 """The session's raw log: every chunk of bytes, with a host timestamp, written before parsing.
 
-One JSON object per line, appended and flushed per chunk, fsync'd at least once a second:
+One JSON object per line, appended and flushed per chunk, fsync'd by a timer within a second:
 
     {"t": 1763800867.123456, "rx": "?0001 C1  09:06:42.7183 00\\r"}
     {"t": 1763800900.5, "event": "disconnected", "detail": "[Errno 5] Input/output error"}
@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import os
+import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -35,23 +36,50 @@ class Chunk:
 
 
 class RawLogWriter:
-    """Append-only writer; every call is on disk (flushed) before it returns."""
+    """Append-only writer; every call is flushed to the OS before it returns, and a timer thread
+    fsyncs what was written within ``FSYNC_INTERVAL_S``.
 
-    def __init__(self, path: str, header: dict | None = None) -> None:
+    The sync is on a timer, not on the next write: a timer that sends one line and then falls
+    silent for ten minutes must not leave that line in the page cache all that time (a power
+    cut at the trackside would lose it). The writing thread never waits for the disk. An fsync
+    that fails (disk gone) is raised by the next write or by :meth:`close`."""
+
+    def __init__(
+        self, path: str, header: dict | None = None, fsync_interval_s: float = FSYNC_INTERVAL_S
+    ) -> None:
         self.path = path
         new = not os.path.exists(path) or os.path.getsize(path) == 0
         self._fh = open(path, "a", encoding="ascii", newline="\n")  # noqa: SIM115
-        self._last_sync = 0.0
+        self._lock = threading.Lock()
+        self._dirty = False
+        self._closed = threading.Event()
+        self._sync_error: OSError | None = None
+        self.interval_s = fsync_interval_s
+        self._syncer = threading.Thread(target=self._sync_loop, name="rawlog-fsync", daemon=True)
+        self._syncer.start()
         if new and header is not None:
             self._write({"t": time.time(), "event": "session", "detail": header})
 
+    def _sync_loop(self) -> None:
+        # half the interval: a record written just after a check is on disk within the interval
+        while not self._closed.wait(self.interval_s / 2):
+            with self._lock:
+                if self._dirty and not self._fh.closed:
+                    try:
+                        os.fsync(self._fh.fileno())
+                        self._dirty = False
+                    except OSError as exc:
+                        self._sync_error = exc
+
     def _write(self, record: dict) -> None:
-        self._fh.write(json.dumps(record, ensure_ascii=True, separators=(",", ":")) + "\n")
-        self._fh.flush()
-        now = time.monotonic()
-        if now - self._last_sync >= FSYNC_INTERVAL_S:
-            os.fsync(self._fh.fileno())
-            self._last_sync = now
+        text = json.dumps(record, ensure_ascii=True, separators=(",", ":")) + "\n"
+        with self._lock:
+            if self._sync_error is not None:
+                exc, self._sync_error = self._sync_error, None
+                raise exc
+            self._fh.write(text)
+            self._fh.flush()
+            self._dirty = True
 
     def write(self, t: float, data: bytes) -> None:
         self._write({"t": t, "rx": data.decode("latin-1")})
@@ -60,14 +88,20 @@ class RawLogWriter:
         self._write({"t": t, "event": event, "detail": detail})
 
     def sync(self) -> None:
-        self._fh.flush()
-        os.fsync(self._fh.fileno())
-        self._last_sync = time.monotonic()
+        with self._lock:
+            self._fh.flush()
+            os.fsync(self._fh.fileno())
+            self._dirty = False
 
     def close(self) -> None:
+        self._closed.set()
+        if self._syncer.is_alive() and self._syncer is not threading.current_thread():
+            self._syncer.join()
         if not self._fh.closed:
-            self.sync()
-            self._fh.close()
+            try:
+                self.sync()
+            finally:
+                self._fh.close()
 
 
 def read_rawlog(path: str, warnings: list[str] | None = None) -> Iterator[Chunk]:

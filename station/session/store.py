@@ -22,6 +22,7 @@ import shutil
 
 from station.errors import InputError
 from station.session.config import StationConfig, load_config
+from station.session.records import Annotation, annotation_from_json, annotation_to_json
 from station.yamlfile import load_yaml
 
 RAW = "raw.jsonl"
@@ -113,17 +114,19 @@ def results_header(cfg: StationConfig, survey_name: str) -> dict[str, str]:
     }
 
 
-def append_annotation(session: str, record: dict) -> None:
+def append_annotation(session: str, annotation: Annotation) -> None:
     """Append one annotation (flushed and fsync'd: it is the engineer's word)."""
     path = os.path.join(session, ANNOTATIONS)
+    record = annotation_to_json(annotation)
     with open(path, "a", encoding="utf-8") as fh:
         fh.write(json.dumps(record, ensure_ascii=False, sort_keys=True) + "\n")
         fh.flush()
         os.fsync(fh.fileno())
 
 
-def read_annotations(session: str) -> list[dict]:
-    """The session's annotations in order; a torn last line is passed over."""
+def read_annotations(session: str) -> list[Annotation]:
+    """The session's annotations in order; a torn last line is passed over, a kind this
+    version does not know too; a bad record is one error naming file, line and field."""
     path = os.path.join(session, ANNOTATIONS)
     if not os.path.exists(path):
         return []
@@ -139,6 +142,12 @@ def read_annotations(session: str) -> list[dict]:
             if i == len(lines):
                 break
             raise InputError("not an annotation record", path=path, line=i) from None
-        if isinstance(rec, dict):
-            out.append(rec)
+        if not isinstance(rec, dict):
+            continue
+        try:
+            annotation = annotation_from_json(rec)
+        except InputError as exc:
+            raise InputError(exc.message, path=path, line=i, field=exc.field) from None
+        if annotation is not None:
+            out.append(annotation)
     return out

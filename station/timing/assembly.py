@@ -91,6 +91,11 @@ class DescentAssembler:
 
     # -- time
 
+    @property
+    def clock(self) -> int | None:
+        """Device time of the latest accepted impulse (µs, unwrapped); None before the first."""
+        return self._clock
+
     def unwrap(self, imp: Impulse) -> int:
         """Time of day -> a monotone device time in µs (midnight wraps forward)."""
         if imp.day is not None:

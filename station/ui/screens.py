@@ -13,7 +13,7 @@ from textual.screen import ModalScreen
 from textual.validation import ValidationResult, Validator
 from textual.widgets import Button, Input, Label, Static
 
-from station.session.day import METADATA_FIELDS
+from station.session.records import METADATA_FIELDS
 
 HELP = """\
 [b]station[/b] — trackside measurement of ski friction
@@ -36,22 +36,13 @@ HELP = """\
 
 Every byte from the timer is recorded before it is parsed; a session replays with
 [i]station replay SESSION --ui[/i]. Statuses: ok, ill-conditioned (a parameter not
-identifiable: shown as —), lift-off, stopped, too-few-photocells, not-converged, aborted.
+identifiable: shown as —), lift-off, stopped, too-few-photocells, not-converged, aborted,
+error (the fit failed: the reason is in the notes; the recording goes on).
 """
 
-LABELS = {
-    "skier": "skier",
-    "mass_kg": "mass incl. equipment [kg]",
-    "ski": "ski / pair id",
-    "wax": "wax",
-    "air_temperature_c": "air temperature [°C]",
-    "snow_temperature_c": "snow temperature [°C]",
-    "pressure_hpa": "station pressure [hPa]",
-    "humidity_pct": "relative humidity [%]",
-    "wind_ms": "wind speed [m/s]",
-    "wind_from_deg": "wind from [° from north]",
-    "notes": "notes",
-}
+#: the form's labels, from the one table of metadata keys
+LABELS = {f.key: f.title for f in METADATA_FIELDS}
+KINDS = {f.key: f.kind for f in METADATA_FIELDS}
 
 
 class HelpScreen(ModalScreen[None]):
@@ -142,9 +133,9 @@ class MetadataScreen(ModalScreen[dict[str, Any] | None]):
             yield Label(f"Run metadata for descent {self.next_number} and after  (Enter saves)")
             yield Label("", id="error", markup=False)  # "[kg]" in a message is a unit
             with Grid(id="fields"):
-                for key in METADATA_FIELDS:
+                for key in KINDS:
                     yield Label(LABELS[key], markup=False)  # "[hPa]" is a unit, not markup
-                    number = METADATA_FIELDS[key] is float
+                    number = KINDS[key] is float
                     self.initial[key] = self._text(self.current.get(key))
                     field = Input(
                         self.initial[key],
@@ -182,7 +173,7 @@ class MetadataScreen(ModalScreen[dict[str, Any] | None]):
 
     def _values(self) -> dict[str, Any] | None:
         out: dict[str, Any] = {}
-        for key, kind in METADATA_FIELDS.items():
+        for key, kind in KINDS.items():
             text = self.query_one(f"#f_{key}", Input).value.strip()
             if text == "" or text == self.initial.get(key, "").strip():
                 continue  # empty, or pre-filled and left as it was

@@ -1,0 +1,136 @@
+"""Opening the files a user hands the station: regular files only, of a bounded size.
+
+Every file the station reads on a user's word (station config, survey YAML, observation files,
+times files, captures, a session's raw log) goes through here, so that ``/dev/zero``, a FIFO, a
+folder, an unreadable path or a 4 GB file given by mistake is one line naming the file, not a
+hang, a machine out of memory or a traceback. The file is opened with ``O_NONBLOCK`` (opening a
+FIFO with no writer would otherwise block forever), then ``fstat`` says what it is, and at most
+``max_bytes + 1`` bytes are read, so a file that grows or lies about its size (``/proc``) is
+still bounded.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import stat
+from typing import BinaryIO
+
+from station.errors import InputError
+
+MiB = 1024 * 1024
+
+#: size limits, far above any real file of the kind and far below what would hurt the laptop
+MAX_YAML = 4 * MiB  # a station config or survey: a few kB
+MAX_TIMES = 4 * MiB  # a hand-typed times file: under a kB
+MAX_OBSERVATIONS = 64 * MiB  # a total-station observation file: tens of kB
+MAX_CAPTURE = 2048 * MiB  # a plain capture or a day's raw log: a few MB a day
+MAX_RAWLOG = 2048 * MiB
+
+
+def _kind(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISFIFO(mode):
+        return "a pipe (FIFO)"
+    if stat.S_ISCHR(mode):
+        return "a character device"
+    if stat.S_ISBLK(mode):
+        return "a block device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def _size(n: int) -> str:
+    return f"{n / MiB:.1f} MB" if n >= MiB else f"{n} bytes"
+
+
+def _open_error(exc: OSError, path: str, what: str) -> InputError:
+    if exc.errno == errno.ENOENT:
+        return InputError(f"no such {what}", path=path)
+    if exc.errno == errno.EACCES:
+        return InputError(f"cannot read the {what}: permission denied", path=path)
+    if exc.errno == errno.EISDIR:
+        return InputError(f"is a folder, not a {what}", path=path)
+    return InputError(f"cannot read the {what}: {exc.strerror or exc}", path=path)
+
+
+def check_regular(path: str, max_bytes: int, what: str = "file") -> os.stat_result:
+    """Raise :class:`InputError` unless ``path`` names a readable regular file of at most
+    ``max_bytes``; without opening it (for a file that is copied or opened later)."""
+    if not path:
+        raise InputError(f"empty path for the {what}")
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError) as exc:
+        if isinstance(exc, ValueError):
+            raise InputError(f"not a valid path for the {what}", path=repr(path)) from None
+        raise _open_error(exc, path, what) from None
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(f"is {_kind(st.st_mode)}, not a {what}", path=path)
+    if st.st_size > max_bytes:
+        raise InputError(
+            f"is {_size(st.st_size)}; a {what} is at most {_size(max_bytes)}", path=path
+        )
+    if not os.access(path, os.R_OK):
+        raise InputError(f"cannot read the {what}: permission denied", path=path)
+    return st
+
+
+def open_regular(path: str, max_bytes: int, what: str = "file") -> BinaryIO:
+    """Open ``path`` for reading in binary, refusing anything but a regular file of at most
+    ``max_bytes``. The caller must still read at most ``max_bytes + 1`` bytes (see
+    :func:`read_bytes`) if the file may grow while it is read."""
+    if not path:
+        raise InputError(f"empty path for the {what}")
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except ValueError:
+        raise InputError(f"not a valid path for the {what}", path=repr(path)) from None
+    except OSError as exc:
+        raise _open_error(exc, path, what) from None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise InputError(f"is {_kind(st.st_mode)}, not a {what}", path=path)
+        if st.st_size > max_bytes:
+            raise InputError(
+                f"is {_size(st.st_size)}; a {what} is at most {_size(max_bytes)}", path=path
+            )
+        if hasattr(os, "set_blocking"):
+            os.set_blocking(fd, True)
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def read_bytes(path: str, max_bytes: int, what: str = "file") -> bytes:
+    """The whole file, refusing special files and files over ``max_bytes``."""
+    with open_regular(path, max_bytes, what) as fh:
+        try:
+            data = fh.read(max_bytes + 1)
+        except OSError as exc:
+            raise _open_error(exc, path, what) from None
+    if len(data) > max_bytes:
+        raise InputError(f"is larger than {_size(max_bytes)}, the limit for a {what}", path=path)
+    return data
+
+
+def decode_text(data: bytes, path: str, what: str = "file", encoding: str = "utf-8") -> str:
+    """Bytes as text; a byte that is not ``encoding`` is one line naming its line number."""
+    try:
+        return data.decode(encoding)
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        bad = data[exc.start : exc.start + 1].hex()
+        raise InputError(
+            f"not a UTF-8 text {what} (byte 0x{bad}); save it as UTF-8", path=path, line=line
+        ) from None
+
+
+def read_text(path: str, max_bytes: int, what: str = "file", encoding: str = "utf-8") -> str:
+    """The whole file as text (a UTF-8 byte-order mark is dropped)."""
+    text = decode_text(read_bytes(path, max_bytes, what), path, what, encoding)
+    return text[1:] if text.startswith("\ufeff") else text
