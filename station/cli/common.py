@@ -8,7 +8,6 @@ import argparse
 import contextlib
 import datetime as dt
 import json
-import math
 import os
 import stat
 import sys
@@ -23,6 +22,7 @@ from station.model.air import (
     DEFAULT_TEMPERATURE_C,
     air_density,
 )
+from station.numbers import parse_number
 
 EXIT_BAD_INPUT = 2
 
@@ -103,13 +103,11 @@ def _celsius(text: str) -> float:
 
 
 def _number(text: str) -> float:
+    """A finite number with a decimal point or a decimal comma (``--mass 72,5``)."""
     try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
-    return value
+        return parse_number(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _warn(message: str) -> None:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import re
 from typing import Any
 
 from textual.app import ComposeResult
@@ -13,6 +12,7 @@ from textual.screen import ModalScreen
 from textual.validation import ValidationResult, Validator
 from textual.widgets import Button, Input, Label, Static
 
+from station.numbers import parse_number
 from station.session.records import METADATA_FIELDS
 
 HELP = """\
@@ -57,23 +57,6 @@ class HelpScreen(ModalScreen[None]):
         self.dismiss(None)
 
 
-_DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:[.,][0-9]*)?|[.,][0-9]+)(?:[eE][+-]?[0-9]+)?")
-
-
-def parse_decimal(text: str) -> float:
-    """A number as people type it: ``72.5`` or ``72,5`` (a German, French or Italian laptop);
-    both marks at once (``1,234.5``) is refused, since a thousands separator cannot be told
-    from a decimal mark. ValueError with a short reason otherwise (nan, inf, ``1_000`` and
-    other things ``float`` takes are not numbers here)."""
-    t = text.strip().replace("\u2212", "-")  # the minus sign of copied text
-    if not _DECIMAL.fullmatch(t):
-        raise ValueError("use one decimal mark" if "," in t and "." in t else "not a number")
-    value = float(t.replace(",", "."))
-    if not math.isfinite(value):
-        raise ValueError("too large")
-    return value
-
-
 #: plausible ranges of the number fields (min, max, unit shown in the message)
 RANGES: dict[str, tuple[float, float]] = {
     "mass_kg": (20.0, 200.0),
@@ -97,10 +80,13 @@ class NumberField(Validator):
     def validate(self, value: str) -> ValidationResult:
         if not value.strip():
             return self.success()
-        try:
-            number = parse_decimal(value)
-        except ValueError as exc:
-            return self.failure(str(exc))
+        try:  # a decimal point or comma (72,5 on a German laptop), never nan or inf
+            number = parse_number(value)
+        except ValueError as exc:  # short: it must fit the field's border at 80 columns
+            why = str(exc)
+            if "both" in why:
+                return self.failure("point or comma, not both")
+            return self.failure("too large" if "too large" in why else "not a number")
         lo, hi = RANGES.get(self.key, (-math.inf, math.inf))
         if not lo <= number <= hi:
             return self.failure(f"must lie between {lo:g} and {hi:g}")
@@ -182,7 +168,7 @@ class MetadataScreen(ModalScreen[dict[str, Any] | None]):
                 if not result.is_valid:
                     self._refuse(key, result.failure_descriptions[0])
                     return None
-                out[key] = parse_decimal(text)
+                out[key] = parse_number(text)
             else:
                 out[key] = text
         return out
