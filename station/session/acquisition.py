@@ -279,6 +279,8 @@ class Acquisition:
         self._submit(_End())
 
     def _start_source(self, target: Callable[[], None], name: str) -> None:
+        if self._closed:  # quit before the source was ready (the demo's simulator starting)
+            return
         self._source = threading.Thread(target=target, name=name, daemon=True)
         self._source.start()
 
@@ -409,8 +411,8 @@ class Acquisition:
         day = self.day
         if isinstance(job, _WriteResults):
             with self.lock:
-                snapshot = day.snapshot()
-            self._write_session_csv(snapshot)
+                current = day.snapshot()
+            self._write_session_csv(current)
             return
         if isinstance(job, _End):
             with self.lock:

@@ -23,7 +23,14 @@ from textual.widgets import DataTable, Footer, Header, RichLog, Static
 from station.session.acquisition import Acquisition
 from station.session.analysis import DescentResult
 from station.session.config import StationConfig
-from station.session.records import FitModel, InvalidMark, LineCounts, ModelChange, ValidMark
+from station.session.records import (
+    FitModel,
+    InvalidMark,
+    LineCounts,
+    ModelChange,
+    Progress,
+    ValidMark,
+)
 from station.timing.impulses import format_tod
 from station.ui.messages import (
     AcquisitionWarning,
@@ -113,7 +120,7 @@ class StationApp(App):
         self.photocell_ids: tuple[str, ...] = ()
         # what the messages brought: the UI's own snapshots of the day
         self.results: dict[int, DescentResult] = {}
-        self.progress: Any = None  # the latest Progress
+        self.progress: Progress | None = None
         self.counts = LineCounts()
         self.metadata_from: int | None = None  # where the latest metadata entered applies from
         self.latest: int | None = None
