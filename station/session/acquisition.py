@@ -327,12 +327,12 @@ class Acquisition:
     def _after(self, first_event: int, done: list[TimedDescent]) -> list[_Job]:
         """With the lock held: what the chunk did, for the listener; the finished descents."""
         proc = self.day.processor
-        new = tuple(proc.events[first_event:])
         cur = proc.assembler.current
         if cur is not None and cur.number != self._announced:
             self._announced = cur.number
             self._descent_started(cur.number)
         if self.listener.live_view:
+            new = tuple(proc.events[first_event:])
             if new:
                 self._tell(self.listener.impulses, new, proc.line_counts())
             if new or done:
