@@ -29,6 +29,7 @@ import datetime as dt
 import os
 import queue
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -57,7 +58,8 @@ from station.timing.assembly import ImpulseEvent, TimedDescent
 
 class Listener:
     """What an acquisition tells the outside world. Called from the reader and the fit worker
-    threads, always with immutable records; the defaults do nothing."""
+    threads, always with immutable records; the defaults do nothing, but for warnings, which
+    go to stderr: a failure is never passed over in silence."""
 
     #: wants every impulse and the open descent's progress (the UI); a headless run does not
     live_view = False
@@ -79,6 +81,7 @@ class Listener:
 
     def warning(self, text: str) -> None:
         """Something failed and the acquisition went on."""
+        print(f"warning: {text}", file=sys.stderr, flush=True)
 
     def ended(self, summary: str) -> None:
         """A replay reached its end and every descent is fitted."""
@@ -168,6 +171,7 @@ class Acquisition:
         self._announced: int | None = None
         self._closed = False
         self._closing = False
+        self._csv_failed = False
         self._jobs: queue.Queue[object] = queue.Queue()
         self._worker: threading.Thread | None = None
         if threaded:
@@ -450,7 +454,11 @@ class Acquisition:
         path = os.path.join(self.session_dir, sessions.RESULTS)
         try:
             self._write(snapshot, path)
+            if self._csv_failed:
+                self._csv_failed = False
+                self._tell(self.listener.warning, f"{path} written again: it is complete")
         except Exception as exc:  # noqa: BLE001 - the recording goes on
+            self._csv_failed = True
             self._tell(
                 self.listener.warning,
                 f"{path} not written ({type(exc).__name__}: {exc}); the raw log goes on, and "

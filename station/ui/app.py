@@ -128,6 +128,7 @@ class StationApp(App):
             "no comparison yet: it needs fitted descents with ski or wax entered (m)"
         )
         self.connection = "starting"
+        self.problem = ""  # the latest failure the acquisition went on after (status line)
         self.sub_title = mode
 
     # ------------------------------------------------------------------ layout
@@ -192,7 +193,8 @@ class StationApp(App):
     def _update_status(self) -> None:
         c = self.counts
         counts = f"{c.impulses} impulses · {c.edits} edits · {c.unparsed} unparsed"
-        self.main.query_one("#status", Static).update(f" {self.connection}  │  {counts}")
+        problem = f"  │  ! {self.problem}" if self.problem else ""
+        self.main.query_one("#status", Static).update(f" {self.connection}  │  {counts}{problem}")
 
     def on_impulses_arrived(self, msg: ImpulsesArrived) -> None:
         self.counts = msg.counts
@@ -267,6 +269,8 @@ class StationApp(App):
             self.screen.update(msg.text)
 
     def on_acquisition_warning(self, msg: AcquisitionWarning) -> None:
+        self.problem = msg.text
+        self._update_status()
         self.main.query_one("#log", RichLog).write(f"! {msg.text}")
         self.notify(msg.text, title="the recording goes on", severity="error", timeout=10)
 
