@@ -48,12 +48,14 @@ def _size(n: int) -> str:
 
 def _open_error(exc: OSError, path: str, what: str) -> InputError:
     if exc.errno == errno.ENOENT:
-        return InputError(f"no such {what}", path=path)
-    if exc.errno == errno.EACCES:
-        return InputError(f"cannot read the {what}: permission denied", path=path)
-    if exc.errno == errno.EISDIR:
-        return InputError(f"is a folder, not a {what}", path=path)
-    return InputError(f"cannot read the {what}: {exc.strerror or exc}", path=path)
+        reason = "no such file"
+    elif exc.errno == errno.EACCES:
+        reason = "permission denied"
+    elif exc.errno == errno.EISDIR:
+        reason = "it is a folder"
+    else:
+        reason = exc.strerror or str(exc)
+    return InputError(f"cannot read {what}: {reason}", path=path)
 
 
 def check_regular(path: str, max_bytes: int, what: str = "file") -> os.stat_result:
@@ -74,7 +76,7 @@ def check_regular(path: str, max_bytes: int, what: str = "file") -> os.stat_resu
             f"is {_size(st.st_size)}; a {what} is at most {_size(max_bytes)}", path=path
         )
     if not os.access(path, os.R_OK):
-        raise InputError(f"cannot read the {what}: permission denied", path=path)
+        raise InputError(f"cannot read {what}: permission denied", path=path)
     return st
 
 

@@ -169,7 +169,7 @@ def test_special_and_unreadable_files_are_one_line(tmp_path, special):
         expect = "permission denied"
     elif special == "missing":
         path = tmp_path / "nowhere.yaml"
-        expect = "no such station config"
+        expect = "cannot read station config: no such file"
     else:
         path = special
         expect = "is a character device, not a station config"

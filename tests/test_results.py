@@ -51,3 +51,77 @@ def test_read_results_without_pandas_gives_what_was_written(tmp_path):
     assert back[1]["photocells_used"] == 1 and back[1]["status"] == "aborted"
     assert back[1]["cda"] is None and back[1]["start_time"] is None
     assert pd.read_csv(path, comment="#")["mu"].iloc[0] == back[0]["mu"]
+
+
+HOSTILE = [
+    "=1+2",
+    "\t=cmd|' /C calc'!A0",
+    "\r=1+2",
+    "\n=1+2",
+    "   @SUM(A1)",
+    " \t\r\n-2+3",
+    "\u00a0+1",
+    "\uff1d1+2",
+    "\t",
+    'pair "3", hard; snow\r\n# not a comment',
+]
+
+
+def _row(n: int, **text) -> dict:
+    return {c: None for c in COLUMNS} | {"descent": n, "status": "ok"} | text
+
+
+def _nl(text: str) -> str:
+    return text.replace("\r\n", "\n")
+
+
+def _formula_like(cell: str) -> bool:
+    """What a spreadsheet would run: a formula character after any leading whitespace."""
+    return cell.lstrip(" \t\r\n\u00a0")[:1] in ("=", "+", "-", "@", "\uff1d")
+
+
+def test_no_cell_a_spreadsheet_would_run_whatever_its_leading_whitespace(tmp_path):
+    import csv
+
+    rows = [_row(i + 1, notes=h, wax=h, ski=h, skier=h, flags=h) for i, h in enumerate(HOSTILE)]
+    path = tmp_path / "results.csv"
+    write_results(rows, str(path), {"survey": "Demo"})
+    with open(path, newline="", encoding="utf-8") as fh:
+        cells = [c for r in csv.reader(ln for ln in fh if not ln.startswith("#")) for c in r]
+    assert not [c for c in cells if _formula_like(c)]
+    df = pd.read_csv(path, comment="#")
+    assert len(df) == len(HOSTILE)
+    # the text is kept, only prefixed: nothing the engineer typed is lost
+    for got, typed in zip(df["notes"], HOSTILE, strict=True):
+        assert _nl(got) in (_nl(typed), _nl("'" + typed))
+
+
+def test_hostile_header_values_never_break_read_csv(tmp_path):
+    header = {
+        "survey": 'Run "A",\r\nsecond line\r=cmd;x',
+        "notes": "a,b;c\tç\u2028d\x00e",
+        "we\nird": "#, \"'",
+    }
+    path = tmp_path / "results.csv"
+    write_results([_row(1, notes="x")], str(path), header)
+    lines = path.read_text(encoding="utf-8").split("\n")
+    comments = [ln for ln in lines if ln.startswith("#")]
+    assert len(comments) == 1 + len(header)
+    assert not any(ch in ln for ln in comments for ch in ",;\r\t\x00\u2028")
+    df = pd.read_csv(path, comment="#")
+    assert list(df.columns) == COLUMNS and len(df) == 1 and df.loc[0, "notes"] == "x"
+
+
+def test_results_are_written_with_the_users_umask(tmp_path):
+    import os
+
+    old = os.umask(0o027)
+    try:
+        path = tmp_path / "results.csv"
+        write_results([_row(1)], str(path), {})
+        assert os.stat(path).st_mode & 0o777 == 0o640
+        os.umask(0o002)
+        write_results([_row(1)], str(path), {})
+        assert os.stat(path).st_mode & 0o777 == 0o664
+    finally:
+        os.umask(old)

@@ -310,5 +310,5 @@ async def test_a_results_csv_that_cannot_be_written_shows_in_the_status_line(
             app.acq.receive(Chunk(1_770_000_000.0 + i, line + b"\r"))
         await wait_for(pilot, lambda: "No space left" in app.problem)
         status = str(app.main.query_one("#status").render())
-        assert "not written" in status and "raw log goes on" in app.problem
+        assert "cannot write" in status and "raw log keeps recording" in app.problem
         assert str(app.main.query_one("#table").get_row("1")[4]) == "ok"  # the result is shown

@@ -45,6 +45,8 @@ def cmd_annotate(args: argparse.Namespace) -> int:
     values = Metadata.from_values({f.key: getattr(args, f.key) for f in METADATA_FIELDS})
     if (args.descents is None) == (args.from_descent is None):
         raise InputError("give --descents N[,M,A-B] or --from N")
+    if args.wind_ms and args.wind_from_deg is None:
+        raise InputError("--wind-ms needs --wind-from-deg (the direction the wind comes from)")
     records: list[Annotation] = []
     t = _time.time()
     targets = _numbers(args.descents) if args.descents is not None else []
@@ -107,7 +109,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     try:
         res = joint_fit(
             acq.day.track, data, cda_fixed=args.cda, model=args.model, drift=args.drift,
-            reference=args.reference,
+            reference=args.reference, timer_sd_s=args.timer_ms / 1000.0,
         )  # fmt: skip
     except CompareError as exc:
         raise InputError(str(exc), path=args.session) from None
@@ -140,7 +142,7 @@ def _write_compare_csv(res, path: str, run) -> None:
         for k, name in enumerate(res.ranking, start=1):
             it = next(i for i in res.items if i.item == name)
             c = next((c for c in res.comparisons if c.b == name and c.a == res.reference), None)
-            if c is None:
+            if c is None or c.ci90 is None or c.p_a_faster is None:  # no comparison possible
                 row = [None] * 5
             else:  # item minus reference: the comparison stores reference minus item
                 row = [-c.delta_mu, -c.ci90[1], -c.ci90[0], 1 - c.p_a_faster, -c.delta_t_s]
@@ -194,6 +196,9 @@ def add_parsers(sub: Any) -> None:
         default="auto",
         help="fit a linear drift of μ per hour of the day (auto: when an item recurs)",
     )
+    p.add_argument("--timer-ms", type=_positive, default=0.5, metavar="MS",
+                   help="the timer's precision (SD of one time, ms), against which the residuals "
+                        "are judged (default 0.5)")  # fmt: skip
     p.add_argument("--wind-limit", type=_positive, default=1.0, metavar="MS",
                    help="flag descents with more along-track wind (m/s)")  # fmt: skip
     p.add_argument("--csv", metavar="OUT", help="write the ranking as CSV; - = stdout")

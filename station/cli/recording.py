@@ -82,7 +82,17 @@ def cmd_replay(args: argparse.Namespace) -> int:
     if args.events:
         with open_output(args.events, "--events") as fh:
             write_events(acq.day.processor, fh)
+    _write_times(acq, args)
     return 0
+
+
+def _write_times(acq: Any, args: argparse.Namespace) -> None:
+    """``--times OUT``: one row per impulse kept in a descent (station.session.crossings)."""
+    if getattr(args, "times", None):
+        from station.session.crossings import write_times
+
+        n = write_times(acq.results(), args.times)
+        print(f"{n} crossing times -> {args.times}", file=sys.stderr)
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -90,12 +100,17 @@ def cmd_export(args: argparse.Namespace) -> int:
 
     if not sessions.is_session(args.source):
         raise InputError("not a session directory (no raw.jsonl)", path=args.source)
+    if not args.csv and not args.times:
+        raise InputError("give --csv OUT and/or --times OUT", path=args.source)
     output_path(args.csv, "--csv")
+    output_path(args.times, "--times")
     acq = _replay_run(args, quiet=True)
-    with open_output(args.csv, "--csv") as fh:
-        acq.write_csv_to(fh)
-    where = "standard output" if args.csv == "-" else args.csv
-    print(f"{len(acq.results())} descents -> {where}", file=sys.stderr)
+    if args.csv:
+        with open_output(args.csv, "--csv") as fh:
+            acq.write_csv_to(fh)
+        where = "standard output" if args.csv == "-" else args.csv
+        print(f"{len(acq.results())} descents -> {where}", file=sys.stderr)
+    _write_times(acq, args)
     return 0
 
 
@@ -120,6 +135,7 @@ def add_parsers(sub: Any) -> None:
     p.add_argument(
         "--events", metavar="OUT", help="write every parsed impulse and its fate (CSV); - = stdout"
     )
+    p.add_argument("--times", metavar="OUT", help="write the crossing times of every descent (CSV)")
     p.add_argument("--date", help="date of a plain capture, YYYY-MM-DD (default: file date)")
     pace = p.add_mutually_exclusive_group()
     pace.add_argument("--speed", type=_positive, metavar="X", help="replay at X times real time")
@@ -129,5 +145,6 @@ def add_parsers(sub: Any) -> None:
 
     p = sub.add_parser("export", help="write a session's results CSV")
     p.add_argument("source", metavar="SESSION", help="session folder")
-    p.add_argument("--csv", required=True, metavar="OUT", help="results CSV to write; - = stdout")
+    p.add_argument("--csv", metavar="OUT", help="results CSV to write; - = stdout")
+    p.add_argument("--times", metavar="OUT", help="the crossing times of every descent (CSV)")
     p.set_defaults(func=cmd_export)

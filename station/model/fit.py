@@ -244,11 +244,16 @@ def _predicted_decrease(
     others is shortened so that none crosses 0. A verified minimum gains (almost) nothing.
     ``bounded`` marks the parameters with that bound (default: all; a time offset has none).
     """
+    return _feasible_step(jac, r, x, scale, bounded)[0]
+
+
+def _feasible_step(jac, r, x, scale, bounded=None) -> tuple[float, np.ndarray]:
+    """The feasible Gauss-Newton step of :func:`_predicted_decrease` and what it would gain."""
     bounded = np.ones(len(x), dtype=bool) if bounded is None else bounded
     free = np.ones(len(x), dtype=bool)
     for _ in range(len(x)):
         if not free.any():
-            return 0.0
+            return 0.0, np.zeros(len(x))
         step = np.zeros(len(x))
         step[free], *_ = np.linalg.lstsq(jac[:, free], -r, rcond=None)
         blocked = free & bounded & (x <= 1e-6 * scale) & (step < 0)
@@ -257,7 +262,7 @@ def _predicted_decrease(
         free &= ~blocked
     neg = bounded & (step < 0)
     frac = min(1.0, float(np.min(x[neg] / -step[neg]))) if neg.any() else 1.0
-    return float(np.sum(r**2) - np.sum((r + frac * (jac @ step)) ** 2))
+    return float(np.sum(r**2) - np.sum((r + frac * (jac @ step)) ** 2)), frac * step
 
 
 @dataclass
@@ -291,29 +296,27 @@ def gauss_newton(
     caller falls back to scipy's dogbox).
     """
     lower = np.where(bounded, 0.0, -upper)
-    x = np.clip(x0, lower, upper)
+    x = np.minimum(np.maximum(x0, lower), upper)
     r, jac = evaluate(x)
     cost = float(r @ r)
     nfev, lam = 1, 0.0
     for _ in range(max_iter):
         if not np.isfinite(cost):
             break
-        gain = _predicted_decrease(jac, r, x, scale, bounded)
+        gain, step = _feasible_step(jac, r, x, scale, bounded)
         if gain <= 1e-6 * cost + 1e-18:
             return Search(x, r, jac, 0.5 * cost, nfev, 1, "predicted gain below 1e-6 of Σ")
-        js = jac * scale
-        hold = bounded & (x <= 1e-6 * scale) & (js.T @ r > 0)  # at 0 and pushed outward
-        free = ~hold
-        a = js[:, free]
-        if lam > 0:
+        if lam > 0:  # the full step failed: a damped one, in scaled parameters
+            js = jac * scale
+            hold = bounded & (x <= 1e-6 * scale) & (js.T @ r > 0)  # at 0 and pushed outward
+            free = ~hold
+            a = js[:, free]
             damp = np.sqrt(lam * np.sum(a * a, axis=0))
             a = np.vstack([a, np.diag(damp)])
             rhs = np.concatenate([-r, np.zeros(int(free.sum()))])
-        else:
-            rhs = -r
-        step = np.zeros(len(x))
-        step[free] = np.linalg.lstsq(a, rhs, rcond=None)[0] * scale[free]
-        x_new = np.clip(x + step, lower, upper)
+            step = np.zeros(len(x))
+            step[free] = np.linalg.lstsq(a, rhs, rcond=None)[0] * scale[free]
+        x_new = np.minimum(np.maximum(x + step, lower), upper)
         r_new, jac_new = evaluate(x_new)
         nfev += 1
         cost_new = float(r_new @ r_new)
@@ -346,7 +349,7 @@ def _solver(run: StraightRun, conditions: Conditions, n_params: int):
         if key not in cache:
             if len(cache) >= 4:
                 cache.pop(next(iter(cache)))
-            par = Params(*p[:3], mu1=p[3] if n_params == 4 else 0.0)
+            par = Params(p[0], p[1], p[2], mu1=p[3] if n_params == 4 else 0.0)
             cache[key] = run.solve(par, conditions, n_params)
         return cache[key]
 

@@ -114,11 +114,16 @@ def simulate_traverse(
 
 def read_traverse_data(path: str) -> tuple[np.ndarray, np.ndarray]:
     """(t, s) columns from a CSV with a header ``t,s`` (or ``time,position``)."""
+    import io
+
+    from station.files import MAX_TIMES, read_text
+
+    text = read_text(path, MAX_TIMES, "data file")
     try:
-        with open(path, encoding="utf-8-sig", newline="") as fh:
-            rows = [(i, r) for i, r in enumerate(csv.reader(fh), start=1) if r and r[0].strip()]
-    except OSError as exc:
-        raise InputError(f"cannot read data file: {exc.strerror}", path=path) from None
+        reader = csv.reader(io.StringIO(text, newline=""))
+        rows = [(i, r) for i, r in enumerate(reader, start=1) if r and r[0].strip()]
+    except csv.Error as exc:
+        raise InputError(f"not a CSV file: {exc}", path=path) from None
     rows = [(i, r) for i, r in rows if not r[0].lstrip().startswith("#")]
     if not rows:
         raise InputError("empty data file; expected columns t,s", path=path)
@@ -133,7 +138,8 @@ def read_traverse_data(path: str) -> tuple[np.ndarray, np.ndarray]:
             line=line,
             field="header",
         )
-    t, s = [], []
+    t: list[float] = []
+    s: list[float] = []
     for line, row in rows[1:]:
         for col, name, out in ((it, "t", t), (is_, "s", s)):
             try:
@@ -168,7 +174,7 @@ def fit_traverse(
     dof = len(t) - 4
 
     def model(p: np.ndarray):
-        return simulate_traverse(t, *p[:3], slope_deg, traverse_deg, mass_kg, air_density, g, p[3])
+        return simulate_traverse(t, *p[:3], slope_deg, traverse_deg, mass_kg, air_density, g, p[3])  # type: ignore[call-arg]
 
     # start: a quadratic s(t) gives v0 and the mean acceleration; CdA 0.3 m² accounts for drag
     tr = t - t[0]

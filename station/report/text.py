@@ -32,7 +32,7 @@ def describe(res: DescentResult) -> str:
             return f"{name} —"
         c = ci.get(key)
         rng = f" [{format(c[0], spec)}, {format(c[1], spec)}]" if c else ""
-        return f"{name} {format(e[key], spec)}{rng}"  # type: ignore[arg-type]
+        return f"{name} {format(e[key], spec)}{rng}"
 
     text = (
         f"{head}  {part('μ', 'mu', '.5f')}  {part('CdA', 'cda', '.4f')}  "

@@ -36,6 +36,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import IO, Any
 
+from station.errors import InputError
 from station.session import store as sessions
 from station.session.analysis import DescentResult
 from station.session.config import SerialConfig, StationConfig
@@ -170,8 +171,8 @@ class Acquisition:
         self._reader: Any = None
         self._announced: int | None = None
         self._closed = False
+        self._csv_problem: str | None = None  # said once, not after every descent
         self._closing = False
-        self._csv_failed = False
         self._jobs: queue.Queue[object] = queue.Queue()
         self._worker: threading.Thread | None = None
         if threaded:
@@ -447,23 +448,17 @@ class Acquisition:
         self._tell(self.listener.comparison, comparison_text(self.day.track, snapshot))
 
     def _write_session_csv(self, snapshot: Sequence[DescentResult]) -> None:
-        """The session's results CSV; one that cannot be written is reported, and written again
-        after the next descent (the raw log, written first, is not affected)."""
+        """The session's results CSV; one that cannot be written is said once, and written
+        again after the next descent (the raw log, written first, is not affected)."""
         if self.session_dir is None:
             return
         path = os.path.join(self.session_dir, sessions.RESULTS)
-        try:
-            self._write(snapshot, path)
-            if self._csv_failed:
-                self._csv_failed = False
-                self._tell(self.listener.warning, f"{path} written again: it is complete")
-        except Exception as exc:  # noqa: BLE001 - the recording goes on
-            self._csv_failed = True
-            self._tell(
-                self.listener.warning,
-                f"{path} not written ({type(exc).__name__}: {exc}); the raw log goes on, and "
-                "`station replay` of the session writes the results again",
-            )
+        problem = sessions.save_results(path, lambda p: self._write(snapshot, p))
+        if problem is not None and problem != self._csv_problem:
+            self._tell(self.listener.warning, problem)
+        elif problem is None and self._csv_problem is not None:
+            self._tell(self.listener.warning, f"{path} written again: it is complete")
+        self._csv_problem = problem
 
     def _write(self, snapshot: Sequence[DescentResult], path: str) -> None:
         from station.session.results import write_result_rows
@@ -578,6 +573,12 @@ def record(
         acq.close()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+    if isinstance(acq.source_error, OSError):  # the raw log could not be written: disk full
+        why = acq.source_error.strerror or str(acq.source_error)
+        raise InputError(
+            f"cannot write the raw log: {why}; recording stopped",
+            path=os.path.join(session_dir, sessions.RAW),
+        )
     if acq.source_error is not None:
         raise acq.source_error
     return acq

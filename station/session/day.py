@@ -16,6 +16,7 @@ import datetime as dt
 import math
 from dataclasses import dataclass, field
 
+from station.errors import InputError
 from station.model.air import air_density
 from station.session.analysis import Analyser, DescentResult, FitJob, start_time
 from station.session.config import StationConfig
@@ -41,11 +42,11 @@ def along_track_wind(speed_ms: float, from_deg: float | None, track_azimuth_deg:
     """The wind component along the run, + tailwind (blowing downhill), − headwind.
 
     ``from_deg`` is where the wind comes from (meteorological convention, degrees from grid
-    north); it blows toward ``from_deg + 180``. Without a direction the speed is taken as
-    already along the track.
+    north); it blows toward ``from_deg + 180``. A speed without a direction is refused: taken as
+    full tailwind, a 2 m/s cross wind moved μ by 0.006–0.008 (issue 12).
     """
     if from_deg is None:
-        return speed_ms
+        raise ValueError("a wind speed needs the direction it comes from (wind_from_deg)")
     toward = math.radians(from_deg + 180.0 - track_azimuth_deg)
     return speed_ms * math.cos(toward)
 
@@ -109,6 +110,14 @@ class Day:
     def wind_for(self, meta: Metadata) -> float:
         if meta.wind_ms is None:
             return 0.0
+        if meta.wind_from_deg is None and meta.wind_ms != 0.0:
+            raise InputError(
+                f"wind {meta.wind_ms:g} m/s without a direction: give the direction it comes "
+                "from (wind_from_deg), or no wind",
+                field="wind_from_deg",
+            )
+        if meta.wind_from_deg is None:
+            return 0.0
         return along_track_wind(meta.wind_ms, meta.wind_from_deg, self.track.azimuth_deg)
 
     def next_number(self) -> int:
@@ -143,8 +152,16 @@ class Day:
     # -- descents
 
     def fit_job(self, d: DescentTimes) -> FitJob:
-        """What the fit of a descent needs, as things stand now."""
+        """What the fit of a descent needs, as things stand now. The item a bib names in the
+        config (``items: {12: {ski: A}}``) is what that descent tested."""
         meta = self.metadata_for(d.number)
+        item = self.config.items.get(d.bib) if d.bib else None
+        if item:
+            meta = meta.overlay(Metadata.from_values(item, f"items.{d.bib}."))
+        try:
+            wind, problem = self.wind_for(meta), ""
+        except InputError as exc:  # the descent gets status error with the reason, the day goes on
+            wind, problem = 0.0, str(exc)
         return FitJob(
             descent=d,
             start_time=start_time(d, self.processor.start_host.get(d.number), self.date),
@@ -152,7 +169,8 @@ class Day:
             model=self.models.get(d.number, FitModel(self.config.model)),
             mass_kg=float(meta.mass_kg if meta.mass_kg is not None else self.config.mass_kg),
             air_density=self.density_for(meta),
-            wind_ms=self.wind_for(meta),
+            wind_ms=wind,
+            problem=problem,
         )
 
     def store(self, res: DescentResult) -> DescentResult:

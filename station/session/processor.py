@@ -47,6 +47,7 @@ class Processor:
             timeout_s=config.descent.timeout_s,
             positions_m=positions,
             min_speed_ms=config.descent.min_speed_ms,
+            pairing=config.descent.pairing,
         )
         self.lines = 0
         self.counts: Counter[str] = Counter()
@@ -70,6 +71,8 @@ class Processor:
                 return self.tick(chunk.t)
             if chunk.event != "session":
                 self.connection.append((chunk.t, chunk.event, chunk.detail))
+            if chunk.event == "disconnected":
+                self.assembler.disconnected(chunk.detail)
             return []
         done: list[TimedDescent] = []
         for line in self.framer.feed(chunk.data):
@@ -82,27 +85,19 @@ class Processor:
         if isinstance(parsed, Impulse):
             self.counts["impulse"] += 1
             before = self.assembler.count
-            done = self.assembler.feed(parsed, self.lines)
-            clock = self.assembler.clock
-            if t is not None and clock is not None:
-                self.offset_us = clock - round(t * 1e6)
+            now = None
+            if t is not None and t == t and self.offset_us is not None:
+                now = round(t * 1e6) + self.offset_us  # the device time now, by the host clock
+            done = self.assembler.feed(parsed, self.lines, now)
+            if t is not None and self.assembler.clock is not None:
+                self.offset_us = self.assembler.clock - round(t * 1e6)
             if self.assembler.count > before:
                 self.start_host[self.assembler.count] = t
             return done
         if isinstance(parsed, Edit):
             self.counts["edit"] += 1
-            self.assembler.events.append(
-                ImpulseEvent(
-                    self.lines,
-                    parsed.channel,
-                    self.assembler.channels.get(parsed.channel),
-                    parsed.tod_us,
-                    parsed.flag,
-                    False,
-                    f"{parsed.kind}: repeats an earlier impulse, not a new one",
-                )
-            )
-        elif isinstance(parsed, Skip):
+            return self.assembler.edit(parsed, self.lines)
+        if isinstance(parsed, Skip):
             self.counts["skipped"] += 1
         elif isinstance(parsed, Unparsed):
             self.counts["unparsed"] += 1

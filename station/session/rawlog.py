@@ -21,6 +21,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 from station.errors import InputError
+from station.files import MAX_RAWLOG, read_bytes
 
 FSYNC_INTERVAL_S = 1.0
 
@@ -107,12 +108,8 @@ class RawLogWriter:
 def read_rawlog(path: str, warnings: list[str] | None = None) -> Iterator[Chunk]:
     """The chunks of a raw log in order. A torn last line (killed mid-write) is passed over
     with a warning; a bad line anywhere else is an error naming it."""
-    try:
-        fh = open(path, encoding="ascii", newline="\n")  # noqa: SIM115
-    except OSError as exc:
-        raise InputError(f"cannot read raw log: {exc.strerror}", path=path) from None
-    with fh:
-        lines = fh.read().split("\n")
+    # ASCII by construction; a damaged byte makes its line "not a raw-log record", named
+    lines = read_bytes(path, MAX_RAWLOG, "raw log").decode("ascii", "replace").split("\n")
     last = len(lines)
     while last and not lines[last - 1]:
         last -= 1

@@ -277,6 +277,10 @@ class DescentTimes:
     status: DescentStatus
     flags: tuple[str, ...] = ()
     missing: tuple[str, ...] = ()
+    bib: str = ""  # the start's bib, where the timer sends bibs (not a counter)
+    channels: tuple[str, ...] = ()  # the timer channel of each time
+    day: int | None = None  # days since 2000-01-01 of the start, where the device says (TAG)
+    first_us: int | None = None  # the first time it had (its times may all have been cleared)
 
     @classmethod
     def of(cls, d: TimedDescent) -> DescentTimes:
@@ -287,11 +291,15 @@ class DescentTimes:
             DescentStatus(d.status),
             tuple(d.flags),
             tuple(d.missing),
+            d.bib,
+            tuple(d.channels),
+            d.day,
+            d.first_us,
         )
 
     @property
     def start_us(self) -> int:
-        return self.times_us[0]
+        return self.times_us[0] if self.times_us else (self.first_us or 0)
 
 
 @dataclass(frozen=True)

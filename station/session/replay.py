@@ -15,7 +15,6 @@ import time
 from collections.abc import Iterator
 from typing import IO
 
-from station.errors import InputError
 from station.session import store as sessions
 from station.session.processor import Processor
 from station.session.rawlog import Chunk, read_rawlog
@@ -26,11 +25,9 @@ CAPTURE_CHUNK = 4096
 
 def capture_chunks(path: str) -> Iterator[Chunk]:
     """A plain capture of a timer's output: bytes without host times."""
-    try:
-        fh = open(path, "rb")  # noqa: SIM115
-    except OSError as exc:
-        raise InputError(f"cannot read capture: {exc.strerror}", path=path) from None
-    with fh:
+    from station.files import MAX_CAPTURE, open_regular
+
+    with open_regular(path, MAX_CAPTURE, "capture") as fh:
         while data := fh.read(CAPTURE_CHUNK):
             yield Chunk(float("nan"), data)
 

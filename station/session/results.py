@@ -2,8 +2,12 @@
 
 Read it back with ``read_results`` or ``pandas.read_csv(path, comment="#")``; text fields are
 quoted, so a ``#`` in the notes stays part of them. Text fields are also safe to open in a
-spreadsheet: a value beginning with ``=``, ``+``, ``-`` or ``@`` gets a leading apostrophe, so
-it is shown as text, never run as a formula.
+spreadsheet: a value whose first character other than spaces, tabs and line breaks is ``=``,
+``+``, ``-`` or ``@`` (or their full-width forms), or that begins with a tab or a line break,
+gets a leading apostrophe, so it is shown as text, never run as a formula (spreadsheets skip
+leading whitespace before a formula). Header values are put on one line with no commas or
+semicolons, so neither pandas nor a spreadsheet splits a ``#`` line, whatever a survey name or a
+note contains.
 """
 
 from __future__ import annotations
@@ -30,14 +34,29 @@ TEXT_COLUMNS = ["missing", "status", "descent_status", "flags", "model", "skier"
                 "notes", "invalid_reason"]  # fmt: skip
 
 
+_FORMULA_START = frozenset("=+-@\uff1d\uff0b\uff0d\uff20")
+_LEADING_BLANKS = " \t\r\n\f\v\u00a0\u3000"
+
+
 def safe_text(value: Any) -> Any:
-    """Neutralise spreadsheet formulas: ``=cmd|…`` becomes ``'=cmd|…``."""
-    if isinstance(value, str) and value[:1] in ("=", "+", "-", "@"):
+    """Neutralise spreadsheet formulas: ``=cmd|…`` (also `` \t=cmd|…``) becomes ``'=cmd|…``."""
+    if not isinstance(value, str) or not value:
+        return value
+    first = value.lstrip(_LEADING_BLANKS)[:1]
+    if first in _FORMULA_START or value[0] in "\t\r\n":
         return "'" + value
     return value
 
 
 INT_COLUMNS = ("descent", "photocells_used")
+
+
+def header_text(value: Any) -> str:
+    """A header value on one line without separators: control characters (CR, LF, TAB, …)
+    become spaces, commas and semicolons become `` |``."""
+    text = "".join(" " if (ord(c) < 32 or 0x7F <= ord(c) < 0xA0 or c in "\u2028\u2029") else c
+                   for c in str(value))  # fmt: skip
+    return " ".join(text.replace(",", " |").replace(";", " |").split())
 
 
 def _number(value: Any, col: str) -> int | float | None:
@@ -79,7 +98,7 @@ def write_results_to(fh: IO[str], rows: list[dict[str, Any]], header: dict[str, 
     """The results CSV into an open text file (``newline=""``), e.g. standard output."""
     cells = results_frame(rows)
     lines = [f"# station {__version__} results"]
-    lines += [f"# {k}: {str(v).replace(chr(10), ' ')}" for k, v in header.items()]
+    lines += [f"# {header_text(k)}: {header_text(v)}" for k, v in header.items()]
     fh.write("\n".join(lines) + "\n")
     # the csv module, not DataFrame.to_csv: numbers must stay numbers (unquoted, full
     # precision) while every text field is quoted, so a "#" in the notes is safe
@@ -93,6 +112,7 @@ def write_results(rows: list[dict[str, Any]], path: str, header: dict[str, str])
     folder = os.path.dirname(os.path.abspath(path))
     fd, tmp = tempfile.mkstemp(prefix=".results-", suffix=".csv", dir=folder)
     try:
+        os.fchmod(fd, 0o666 & ~_umask())  # as open() would make it; mkstemp makes it 0600
         with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
             write_results_to(fh, rows, header)
         os.replace(tmp, path)
@@ -100,6 +120,21 @@ def write_results(rows: list[dict[str, Any]], path: str, header: dict[str, str])
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def _umask() -> int:
+    """The process's umask, read without changing it (``os.umask`` would, for a moment, for
+    every thread) where Linux tells it."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def read_results(path: str) -> list[dict[str, Any]]:

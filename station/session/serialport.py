@@ -27,6 +27,7 @@ import os
 import threading
 import time
 from collections.abc import Callable
+from typing import Any
 
 import serial
 
@@ -64,7 +65,7 @@ class KeepQueuedSerial(serial.Serial):
     def _reset_input_buffer(self) -> None:
         if self._opening:
             return
-        super()._reset_input_buffer()
+        super()._reset_input_buffer()  # type: ignore[misc]  # POSIX Serial has it; stubs do not
 
 
 def _is_device_path(port: str) -> bool:
@@ -73,10 +74,10 @@ def _is_device_path(port: str) -> bool:
     )
 
 
-def open_port(cfg: SerialConfig, timeout: float = 0.2) -> serial.SerialBase:
+def open_port(cfg: SerialConfig, timeout: float = 0.2) -> serial.Serial:
     """Open the timer's port: exclusively, keeping what the OS queued. A port held by another
     process raises :class:`PortBusy`."""
-    settings = dict(
+    settings: dict[str, Any] = dict(
         baudrate=cfg.baudrate,
         bytesize=cfg.bytesize,
         parity=PARITY[cfg.parity],
@@ -87,7 +88,7 @@ def open_port(cfg: SerialConfig, timeout: float = 0.2) -> serial.SerialBase:
         exclusive=True,
     )
     if not _is_device_path(cfg.port):
-        return serial.serial_for_url(cfg.port, **settings)
+        return serial.serial_for_url(cfg.port, **settings)  # loop://, socket:// in tests
     try:
         return KeepQueuedSerial(cfg.port, **settings)
     except serial.SerialException as exc:

@@ -9,21 +9,32 @@
 
 Replaying a session (``station replay SESSION``) runs its own snapshot through the same
 processor and reproduces ``results.csv`` byte for byte.
+
+A session never overwrites files: it is made in a new or empty folder only, and its snapshot
+files are created exclusively. A folder that cannot be written (read-only, a file, a full disk)
+is one line before recording starts; a results CSV that cannot be rewritten during recording is
+a line on the terminal (:func:`save_results`), never the end of the recording: the raw log is
+the day, the CSV can be exported from it later.
 """
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
 import hashlib
 import json
 import os
 import re
-import shutil
+from collections.abc import Callable
 
 from station.errors import InputError
+from station.files import MAX_OBSERVATIONS, MAX_YAML, read_bytes, read_text
 from station.session.config import StationConfig, load_config
 from station.session.records import Annotation, annotation_from_json, annotation_to_json
 from station.yamlfile import load_yaml
+
+#: an annotations file is the engineer's typing: kilobytes
+MAX_ANNOTATIONS = 64 * 1024 * 1024
 
 RAW = "raw.jsonl"
 CONFIG = "config.yaml"
@@ -43,9 +54,12 @@ def _inside(rel: str) -> bool:
     return not os.path.isabs(rel) and not os.path.normpath(rel).startswith("..")
 
 
-def _copy(src: str, dst: str) -> None:
+def _copy(src: str, dst: str, what: str) -> None:
+    """Copy a regular file of bounded size into the session, never over an existing file."""
+    data = read_bytes(src, MAX_OBSERVATIONS, what)
     os.makedirs(os.path.dirname(dst), exist_ok=True)
-    shutil.copyfile(src, dst)
+    with open(dst, "xb") as fh:
+        fh.write(data)
 
 
 def snapshot(cfg: StationConfig, session: str) -> None:
@@ -57,35 +71,86 @@ def snapshot(cfg: StationConfig, session: str) -> None:
         rel = os.path.join("survey", os.path.basename(cfg.survey_path))
         text = re.sub(r"(?m)^survey:.*$", f"survey: {rel}", text)
     survey_dst = os.path.join(session, rel)
-    _copy(cfg.survey_path, survey_dst)
+    _copy(cfg.survey_path, survey_dst, "survey file")
     data = load_yaml(cfg.survey_path)
     obs = data.get("observations") if isinstance(data, dict) else None
     if isinstance(obs, str):
         src = os.path.join(os.path.dirname(cfg.survey_path), obs)
         if os.path.exists(src):
             if _inside(obs):
-                _copy(src, os.path.join(os.path.dirname(survey_dst), obs))
+                _copy(src, os.path.join(os.path.dirname(survey_dst), obs), "observation file")
             else:
-                _copy(src, os.path.join(os.path.dirname(survey_dst), os.path.basename(obs)))
-                with open(survey_dst, encoding="utf-8") as fh:
-                    stext = fh.read()
+                dst = os.path.join(os.path.dirname(survey_dst), os.path.basename(obs))
+                _copy(src, dst, "observation file")
+                stext = read_text(survey_dst, MAX_YAML, "survey file")
                 stext = re.sub(
                     r"(?m)^observations:.*$", f"observations: {os.path.basename(obs)}", stext
                 )
                 with open(survey_dst, "w", encoding="utf-8") as fh:
                     fh.write(stext)
-    with open(os.path.join(session, CONFIG), "w", encoding="utf-8") as fh:
+    with open(os.path.join(session, CONFIG), "x", encoding="utf-8") as fh:
         fh.write(text)
 
 
 def create(cfg: StationConfig, session: str) -> str:
+    """Make the session folder and its snapshot; refuse a folder that holds anything (another
+    session's files are never overwritten) and say in one line why a folder cannot be made."""
     if os.path.exists(os.path.join(session, RAW)):
         raise InputError(
             "a session is already recorded there; choose a new --session-dir", path=session
         )
-    os.makedirs(session, exist_ok=True)
-    snapshot(cfg, session)
+    if os.path.lexists(session) and not os.path.isdir(session):
+        raise InputError("is a file, not a folder; choose a new --session-dir", path=session)
+    if os.path.isdir(session) and os.listdir(session):
+        raise InputError(
+            "the folder is not empty and a session never overwrites files; "
+            "choose a new --session-dir",
+            path=session,
+        )
+    made = not os.path.exists(session)
+    try:
+        os.makedirs(session, exist_ok=True)
+        snapshot(cfg, session)
+    except OSError as exc:
+        if made:
+            _remove_partial(session)
+        raise InputError(
+            f"cannot write the session folder: {exc.strerror or exc}; choose another --session-dir",
+            path=session,
+        ) from None
     return session
+
+
+def _remove_partial(session: str) -> None:
+    """Remove what :func:`create` made before it failed (only its own new folder)."""
+    for root, dirs, files in os.walk(session, topdown=False):
+        for name in files:
+            with contextlib.suppress(OSError):
+                os.unlink(os.path.join(root, name))
+        for name in dirs:
+            with contextlib.suppress(OSError):
+                os.rmdir(os.path.join(root, name))
+    with contextlib.suppress(OSError):
+        os.rmdir(session)
+
+
+def save_results(path: str, write: Callable[[str], None]) -> str | None:
+    """Rewrite the results CSV with ``write(path)``. A failure (disk full, folder gone,
+    permissions, or a bug in the writer) is returned as one line for the terminal instead of
+    raised: the caller keeps recording the raw log, from which ``station export`` writes the
+    CSV later."""
+    try:
+        write(path)
+    except OSError as exc:
+        why = exc.strerror or str(exc)
+    except Exception as exc:  # noqa: BLE001 - the recording goes on whatever the CSV does
+        why = f"{type(exc).__name__}: {exc}"
+    else:
+        return None
+    return (
+        f"cannot write {path}: {why}; the raw log keeps recording "
+        "(station export writes the CSV from it later)"
+    )
 
 
 def load_session_config(session: str) -> StationConfig:
@@ -96,21 +161,20 @@ def load_session_config(session: str) -> StationConfig:
 
 
 def _digest(path: str) -> str:
-    with open(path, "rb") as fh:
-        return hashlib.sha256(fh.read()).hexdigest()[:12]
+    return hashlib.sha256(read_bytes(path, MAX_OBSERVATIONS)).hexdigest()[:12]
 
 
 def results_header(cfg: StationConfig, survey_name: str) -> dict[str, str]:
     """What the results were computed from, the same live and in replay."""
-    air = ", ".join(f"{k} {v:g}" for k, v in cfg.air.items())
+    air = " | ".join(f"{k} {v:g}" for k, v in cfg.air.items())
     return {
-        "survey": f"{survey_name} ({os.path.basename(cfg.survey_path)}, "
+        "survey": f"{survey_name} ({os.path.basename(cfg.survey_path)} | "
         f"sha256 {_digest(cfg.survey_path)})",
         "config": f"{os.path.basename(cfg.path)} (sha256 {_digest(cfg.path)})",
         "protocol": cfg.serial.protocol,
         "skier": f"mass {cfg.mass_kg:g} kg",
-        "air": f"{air}; density {cfg.air_density:.4f} kg/m3",
-        "fit": f"model {cfg.model}; 90 % intervals linearised (Wald), Student t",
+        "air": f"{air} | density {cfg.air_density:.4f} kg/m3",
+        "fit": f"model {cfg.model} | 90 % intervals linearised (Wald) | Student t",
     }
 
 
@@ -131,8 +195,7 @@ def read_annotations(session: str) -> list[Annotation]:
     if not os.path.exists(path):
         return []
     out = []
-    with open(path, encoding="utf-8") as fh:
-        lines = fh.read().splitlines()
+    lines = read_text(path, MAX_ANNOTATIONS, "annotations file").splitlines()
     for i, line in enumerate(lines, start=1):
         if not line.strip():
             continue

@@ -171,9 +171,7 @@ def parse_gsi(text: str, path: str = "<gsi>") -> list[GsiBlock]:
 
 def read_gsi(path: str) -> list[GsiBlock]:
     """Read and decode a GSI file from disk."""
-    try:
-        with open(path, encoding="latin-1", newline="") as fh:
-            text = fh.read()
-    except OSError as exc:
-        raise InputError(f"cannot read GSI file: {exc.strerror}", path=path) from None
+    from station.files import MAX_OBSERVATIONS, read_bytes
+
+    text = read_bytes(path, MAX_OBSERVATIONS, "GSI file").decode("latin-1")
     return parse_gsi(text, path)

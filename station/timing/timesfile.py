@@ -4,17 +4,32 @@
 prints it); a time of day that goes backwards by more than twelve hours has passed midnight.
 Rows may come in any order; they are put in the survey's order down the run and must then
 increase. Every problem is reported with the file, the line and the column.
+
+Files as spreadsheets save them are read: a decimal comma is a decimal mark (``10:41:07,2345``,
+``12,345``); a header with semicolons means semicolon-separated (as a European Excel or
+LibreOffice saves "CSV"), with tabs tab-separated. In a comma-separated file an unquoted decimal
+comma splits the time in two fields (``PC1,10:41:07,2345``); when the row has exactly one field
+more than the header and the time has no decimal point, the two are joined again, otherwise
+the row is refused: a time is never silently cut to whole seconds.
 """
 
 from __future__ import annotations
 
 import csv
-import math
+import io
+import re
 from dataclasses import dataclass
 
 from station.errors import InputError
+from station.files import MAX_TIMES, read_text
+from station.numbers import parse_number
 
 DAY_S = 86400.0
+#: a time in seconds beyond this is not a timer's (1e10 s is 300 years)
+MAX_SECONDS = 1e10
+#: one descent is over in minutes; times spread over more than this are not one descent
+MAX_SPAN_S = 3600.0
+_CLOCK_FIELD = re.compile(r"[0-9]{1,2}")
 
 
 @dataclass(frozen=True)
@@ -26,46 +41,97 @@ class DescentTimes:
     lines: list[int]
 
 
+def _q(text: str) -> str:
+    return repr(text if len(text) <= 40 else text[:37] + "...")
+
+
 def parse_time(text: str) -> tuple[float, bool]:
-    """Seconds from ``ss.ffff`` or ``[h]h:mm:ss.ffff`` / ``mm:ss.ffff``; and whether it was a
-    time of day. Raises ValueError with a plain reason."""
+    """Seconds from ``ss.ffff`` or ``[h]h:mm:ss.ffff`` / ``mm:ss.ffff`` (decimal point or comma);
+    and whether it was a time of day. Raises ValueError with a plain reason."""
     text = text.strip()
     if not text:
         raise ValueError("empty time")
+    shown = _q(text)
     if ":" in text:
         parts = text.split(":")
-        if len(parts) not in (2, 3):
-            raise ValueError(f"{text!r} is not hh:mm:ss.ffff")
+        bad = ValueError(f"{shown} is not hh:mm:ss.ffff")
+        if len(parts) not in (2, 3) or not all(_CLOCK_FIELD.fullmatch(p) for p in parts[:-1]):
+            raise bad
         try:
-            nums = [float(p) for p in parts]
+            sec = parse_number(parts[-1])
         except ValueError:
-            raise ValueError(f"{text!r} is not hh:mm:ss.ffff") from None
+            raise bad from None
+        nums = [float(p) for p in parts[:-1]] + [sec]
         if len(nums) == 2:
             nums.insert(0, 0.0)
         h, m, s = nums
-        if not (0 <= h < 24 and 0 <= m < 60 and 0 <= s < 60) or h != int(h) or m != int(m):
-            raise ValueError(f"{text!r} is not a valid time of day")
+        if not (0 <= h < 24 and 0 <= m < 60 and 0 <= s < 60):
+            raise ValueError(f"{shown} is not a valid time of day")
         return h * 3600.0 + m * 60.0 + s, True
     try:
-        value = float(text)
+        value = parse_number(text)
     except ValueError:
-        raise ValueError(f"{text!r} is not a number of seconds or hh:mm:ss.ffff") from None
-    if not math.isfinite(value):
-        raise ValueError(f"{text!r} is not a finite time")
+        raise ValueError(f"{shown} is not a number of seconds or hh:mm:ss.ffff") from None
+    if abs(value) > MAX_SECONDS:
+        raise ValueError(f"{shown} s is not a time a timer gives")
     return value, False
+
+
+def _delimiter(header_line: str) -> str:
+    if ";" in header_line:
+        return ";"
+    if "\t" in header_line:
+        return "\t"
+    return ","
+
+
+def _rows(text: str, path: str) -> list[tuple[int, list[str]]]:
+    """(line, fields) of every row that is not blank or a ``#`` comment."""
+    first = next(
+        (ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")), ""
+    )
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=_delimiter(first))
+    out = []
+    try:
+        for row in reader:
+            if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#"):
+                out.append((reader.line_num, row))
+    except csv.Error as exc:
+        raise InputError(f"not a CSV file: {exc}", path=path, line=reader.line_num) from None
+    return out
+
+
+def _fields(row: list[str], header: list[str], it: int, path: str, line: int) -> list[str]:
+    """The row with as many fields as the header: trailing empty fields (a spreadsheet's
+    ``;;``) dropped, a time split at its decimal comma joined again."""
+    row = list(row)
+    while len(row) > len(header) and not row[-1].strip():
+        row.pop()
+    if (
+        len(row) == len(header) + 1
+        and it + 1 < len(row)
+        and row[it + 1].strip().isdigit()
+        and row[it + 1].strip().isascii()
+        and "." not in row[it]
+        and row[it].strip()[-1:].isdigit()
+    ):
+        row[it : it + 2] = [row[it] + "," + row[it + 1]]
+    if len(row) != len(header):
+        raise InputError(
+            f"expected {len(header)} columns, found {len(row)} (a decimal comma in a "
+            "comma-separated file? quote the time or separate with ;)"
+            if len(row) > len(header)
+            else f"expected {len(header)} columns, found {len(row)}",
+            path=path,
+            line=line,
+        )
+    return row
 
 
 def read_times(path: str, photocell_order: list[str]) -> DescentTimes:
     """Read a descent's times and check them against the survey's photocells."""
-    try:
-        with open(path, encoding="utf-8-sig", newline="") as fh:
-            rows = list(csv.reader(fh))
-    except OSError as exc:
-        raise InputError(f"cannot read times file: {exc.strerror}", path=path) from None
-    except UnicodeDecodeError:
-        raise InputError("not a UTF-8 text file", path=path) from None
-    numbered = [(i, r) for i, r in enumerate(rows, start=1) if r and any(c.strip() for c in r)]
-    numbered = [(i, r) for i, r in numbered if not r[0].lstrip().startswith("#")]
+    text = read_text(path, MAX_TIMES, "times file")
+    numbered = _rows(text, path)
     if not numbered:
         raise InputError("empty times file; expected columns photocell,time", path=path)
     header_line, header = numbered[0]
@@ -73,7 +139,7 @@ def read_times(path: str, photocell_order: list[str]) -> DescentTimes:
     for need in ("photocell", "time"):
         if need not in cols:
             raise InputError(
-                f"missing column {need!r} (header is {','.join(header)!r})",
+                f"missing column {need!r} (header is {','.join(header)[:60]!r})",
                 path=path,
                 line=header_line,
                 field="header",
@@ -82,25 +148,20 @@ def read_times(path: str, photocell_order: list[str]) -> DescentTimes:
     order = {pid: k for k, pid in enumerate(photocell_order)}
     entries: list[tuple[int, str, float, bool, int]] = []
     seen: dict[str, int] = {}
-    for line, row in numbered[1:]:
-        if len(row) <= max(ipc, it):
-            raise InputError(
-                f"expected {len(header)} columns, found {len(row)}",
-                path=path,
-                line=line,
-            )
+    for line, raw in numbered[1:]:
+        row = _fields(raw, header, it, path, line)
         pid = row[ipc].strip()
         if pid not in order:
             known = ", ".join(photocell_order)
             raise InputError(
-                f"unknown photocell {pid!r} (the survey has {known})",
+                f"unknown photocell {pid[:40]!r} (the survey has {known})",
                 path=path,
                 line=line,
                 field="photocell",
             )
         if pid in seen:
             raise InputError(
-                f"photocell {pid} appears twice (first on line {seen[pid]})",
+                f"photocell {pid[:40]} appears twice (first on line {seen[pid]})",
                 path=path,
                 line=line,
                 field="photocell",
@@ -140,6 +201,13 @@ def read_times(path: str, photocell_order: list[str]) -> DescentTimes:
                 line=entries[k][4],
                 field="time",
             )
+    if times[-1] - times[0] > MAX_SPAN_S:
+        raise InputError(
+            f"the times span {times[-1] - times[0]:.0f} s; one descent is over in minutes",
+            path=path,
+            line=entries[-1][4],
+            field="time",
+        )
     return DescentTimes(
         photocells=[e[1] for e in entries],
         times=times,

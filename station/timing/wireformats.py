@@ -263,7 +263,7 @@ class TagParser:
                     return Unparsed(f"day counter {rest[0]!r} is not a number", line)
                 day = int(rest[0])
             if kind in TAG_EDITS:
-                return Edit(TAG_EDITS[kind], channel, t[0], kind, bib, line)
+                return Edit(TAG_EDITS[kind], channel, t[0], kind, bib, line, day)
             return Impulse(channel, t[0], t[1], "" if bib else "?", bib, day, line)
         what = TAG_STATUS.get(kind)
         if what is not None:

@@ -108,6 +108,9 @@ class MetadataScreen(ModalScreen[dict[str, Any] | None]):
         if "mass_kg" in out and out["mass_kg"] <= 0:
             self.query_one("#error", Label).update("mass must be greater than 0")
             return None
+        if out.get("wind_ms") and "wind_from_deg" not in out:
+            self.query_one("#error", Label).update("wind speed needs the direction it comes from")
+            return None
         if "humidity_pct" in out and not 0 <= out["humidity_pct"] <= 100:
             self.query_one("#error", Label).update("humidity must lie between 0 and 100 %")
             return None
