@@ -155,3 +155,18 @@ def test_record_into_a_bad_session_dir_is_one_line_exit_2(tmp_path, run_station,
     assert r.returncode == 2, r.stderr
     errors = [ln for ln in r.stderr.splitlines() if ln.startswith("station: error")]
     assert len(errors) == 1 and "Traceback" not in r.stderr
+
+
+def test_an_annotation_that_cannot_be_written_is_one_line(tmp_path):
+    session = tmp_path / "s"
+    session.mkdir()
+    (session / "annotations.jsonl").mkdir()  # not writable as a file, even by root
+    with pytest.raises(InputError, match="cannot write the annotation"):
+        store.append_annotation(str(session), {"descent": 1, "wax": "x"})
+
+
+def test_a_raw_log_that_cannot_be_made_is_one_line(tmp_path):
+    from station.session.rawlog import RawLogWriter
+
+    with pytest.raises(InputError, match="cannot write the raw log"):
+        RawLogWriter(str(tmp_path / "missing-folder" / "raw.jsonl"))
