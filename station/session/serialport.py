@@ -64,32 +64,41 @@ class KeepQueuedSerial(serial.Serial):
     def _reset_input_buffer(self) -> None:
         if self._opening:
             return
-        super()._reset_input_buffer()
+        getattr(super(), "_reset_input_buffer")()  # noqa: B009 - private in pyserial's stubs
 
 
 def _is_device_path(port: str) -> bool:
-    return (
-        "://" not in port and os.name == "posix" and hasattr(serial.Serial, "_reset_input_buffer")
-    )
+    posix = os.name == "posix" and hasattr(serial.Serial, "_reset_input_buffer")
+    return posix and "://" not in port
 
 
-def open_port(cfg: SerialConfig, timeout: float = 0.2) -> serial.SerialBase:
+def open_port(cfg: SerialConfig, timeout: float = 0.2) -> serial.Serial:
     """Open the timer's port: exclusively, keeping what the OS queued. A port held by another
     process raises :class:`PortBusy`."""
-    settings = dict(
-        baudrate=cfg.baudrate,
-        bytesize=cfg.bytesize,
-        parity=PARITY[cfg.parity],
-        stopbits=cfg.stopbits,
-        rtscts=cfg.rtscts,
-        xonxoff=cfg.xonxoff,
-        timeout=timeout,
-        exclusive=True,
-    )
     if not _is_device_path(cfg.port):
-        return serial.serial_for_url(cfg.port, **settings)
+        return serial.serial_for_url(
+            cfg.port,
+            baudrate=cfg.baudrate,
+            bytesize=cfg.bytesize,
+            parity=PARITY[cfg.parity],
+            stopbits=cfg.stopbits,
+            rtscts=cfg.rtscts,
+            xonxoff=cfg.xonxoff,
+            timeout=timeout,
+            exclusive=True,
+        )
     try:
-        return KeepQueuedSerial(cfg.port, **settings)
+        return KeepQueuedSerial(
+            cfg.port,
+            baudrate=cfg.baudrate,
+            bytesize=cfg.bytesize,
+            parity=PARITY[cfg.parity],
+            stopbits=cfg.stopbits,
+            rtscts=cfg.rtscts,
+            xonxoff=cfg.xonxoff,
+            timeout=timeout,
+            exclusive=True,
+        )
     except serial.SerialException as exc:
         if "exclusively lock" in str(exc):
             raise PortBusy(
