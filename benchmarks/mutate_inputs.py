@@ -442,7 +442,7 @@ def main(argv: list[str] | None = None) -> int:
         # warm up in the parent, so every forked child starts with everything imported
         run_case(Case("warm-up", "demo", cases[0].argv), work, 60, station_main)
         import station.model.fit  # noqa: F401
-        import station.session.recorder  # noqa: F401
+        import station.session.acquisition  # noqa: F401
         import station.survey.load  # noqa: F401
 
         t0 = time.monotonic()

@@ -23,10 +23,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from station.model.physics import Conditions, Params, StraightRun  # noqa: E402
+from station.session.acquisition import replay  # noqa: E402
 from station.session.config import load_config  # noqa: E402
 from station.session.processor import Processor  # noqa: E402
 from station.session.rawlog import Chunk  # noqa: E402
-from station.session.recorder import replay  # noqa: E402
 from station.survey.load import load_survey  # noqa: E402
 from station.survey.track import build_track  # noqa: E402
 from station.timing.impulses import format_tod  # noqa: E402
@@ -106,8 +106,8 @@ def main() -> int:
         secs.append(time.perf_counter() - start)
     med = statistics.median(secs)
     statuses = {}
-    for res in r.results:
-        statuses[res.row["status"]] = statuses.get(res.row["status"], 0) + 1
+    for res in r.results():
+        statuses[res.row.status.value] = statuses.get(res.row.status.value, 0) + 1
     print(f"end to end: 50 descents, {len(out)} lines, fits and CSV: median {med * 1e3:.0f} ms "
           f"({med / 50 * 1e3:.1f} ms per descent); statuses {statuses}")  # fmt: skip
     return 0

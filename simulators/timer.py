@@ -17,21 +17,28 @@ from __future__ import annotations
 import argparse
 import contextlib
 import datetime as dt
+import fcntl
+import heapq
 import json
 import os
+import select
 import signal
+import struct
 import sys
 import tempfile
+import termios
 import time
 import tty
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from station import __version__
 from station.model.physics import Conditions, Params, StraightRun
 from station.survey.load import load_survey
 from station.survey.track import build_track
 from station.timing.impulses import format_tod
-from station.timing.wireformats import format_alge, format_racetime, format_tag
+from station.timing.wireformats import format_alge, format_racetime, format_tag, tag_cs16
 
 DEFAULT_SURVEY = os.path.join(
     os.path.dirname(os.path.dirname(__file__)), "surveys", "demo_run.yaml"
@@ -62,11 +69,40 @@ class PtyPort:
     def plug(self) -> None:
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)  # no CR->LF translation, no echo, before anyone opens it
+        self.name = os.ttyname(self.slave)
         tmp = self.link + ".new"
         if os.path.lexists(tmp):
             os.unlink(tmp)
-        os.symlink(os.ttyname(self.slave), tmp)
+        os.symlink(self.name, tmp)
         os.replace(tmp, self.link)
+
+    def wait_for_reader(self, timeout_s: float) -> bool:
+        """Wait until someone opens the port, so that nothing is written into a queue that the
+        reader's open would flush. With no slave open the master reports POLLHUP."""
+        os.close(self.slave)
+        poll = select.poll()
+        poll.register(self.master, select.POLLHUP)
+        end = time.monotonic() + timeout_s
+        found = False
+        while time.monotonic() < end:
+            if not any(ev & select.POLLHUP for _fd, ev in poll.poll(50)):
+                found = True
+                break
+        # hold the slave again: it keeps the port alive and lets drain() see the queue
+        self.slave = os.open(self.name, os.O_RDWR | os.O_NOCTTY)
+        return found
+
+    def drain(self, timeout_s: float = 3.0) -> None:
+        """Wait until the reader has taken every byte written (before an 'unplug')."""
+        end = time.monotonic() + timeout_s
+        while self.slave >= 0 and time.monotonic() < end:
+            try:
+                pending = struct.unpack("i", fcntl.ioctl(self.slave, termios.FIONREAD, b"\0" * 4))
+            except OSError:
+                return
+            if pending[0] == 0:
+                return
+            time.sleep(0.01)
 
     def unplug(self) -> None:
         for fd in (self.master, self.slave):
@@ -100,6 +136,7 @@ class Timer:
             self.tod0_us = int(((h * 60 + m) * 60 + s) * 1e6)
         self.day = (now.date() - dt.date(2000, 1, 1)).days
         self.m0 = time.monotonic()
+        self.memory: list[tuple[str, int, str, int]] = []  # what a download sends back
 
     def tod_us(self) -> int:
         """Device time of day now: runs ``speed`` times faster than the wall clock."""
@@ -112,20 +149,52 @@ class Timer:
                 return
             time.sleep(min(delay, 0.05))
 
-    def line(self, channel: str, tod_us: int) -> bytes:
+    def line(self, channel: str, tod_us: int, bib: str = "", edit: str = "") -> bytes:
+        """An impulse line, or with ``edit`` ("clear" | "insert") the operator's edit of one.
+        Without a bib an ALGE timer numbers every impulse (PC-Timer); TAG leaves it blank."""
         self.counter += 1
         p = self.args.protocol
         tod_us %= 86_400_000_000
         if p == "alge":
-            text = format_alge(channel, tod_us, self.counter, checksum=self.args.checksum)
+            flag = {"clear": "c", "insert": "i"}.get(edit, " ")
+            number = bib or self.counter
+            text = format_alge(channel, tod_us, number, flag=flag, checksum=self.args.checksum)
         elif p == "tag":
-            text = format_tag(channel, tod_us, self.counter, "", self.day)
+            kind = {"clear": "TC", "insert": "T+"}.get(edit, "TN")
+            text = format_tag(channel, tod_us, self.counter, bib, self.day, kind)
         else:
-            text = format_racetime(channel, tod_us, self.counter)
+            text = format_racetime(channel, tod_us, self.counter, int(bib or 0))
+        if not edit or edit == "insert":
+            self.memory.append((channel, tod_us, bib, self.counter))
         return text.encode("ascii") + LINE_END[p]
+
+    def download(self) -> bytes:
+        """A TAG memory download (``#DL``): DS, every impulse as AN with its bib, DE."""
+
+        def frame(data: str) -> bytes:
+            return f"{data}\t{tag_cs16(data)}".encode("ascii") + LINE_END["tag"]
+
+        out = frame("DS 01  00 START - FINISH     ")
+        for seq, (channel, tod_us, bib, _n) in enumerate(self.memory, start=1):
+            data = format_tag(channel, tod_us, seq, bib, self.day, "AN").split("\t")[0]
+            out += frame(data)
+        return out + frame("DE 01")
 
     def send(self, data: bytes) -> None:
         self.port.write(data)
+
+
+@dataclass(order=True)
+class Planned:
+    """One line the timer will send: at ``tod`` (device time), for descent ``k``."""
+
+    tod: int
+    seq: int
+    channel: str = field(compare=False)
+    # impulse | double | walkthrough | false-start | clear@TOD | insert@TOD (the time edited)
+    kind: str = field(compare=False)
+    k: int = field(compare=False)
+    bib: str = field(compare=False, default="")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -140,10 +209,14 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
+    if args.protocol == "microgate" and (args.clear or args.insert):
+        print("station-sim: a Racetime2 sends no edits; --clear/--insert ignored", file=sys.stderr)
     xs = np.array([pc.x for pc in track.photocells])
     sim = StraightRun(track.profile, xs)
     port = PtyPort(args.link)
     print(f"PORT {port.link}", flush=True)
+    if args.wait_reader > 0 and not port.wait_for_reader(args.wait_reader):
+        print("station-sim: nobody opened the port; starting anyway", file=sys.stderr, flush=True)
     timer = Timer(args, port)
     truth = open(args.truth, "a", encoding="utf-8") if args.truth else None  # noqa: SIM115
     stop = {"now": False}
@@ -155,97 +228,152 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGINT, on_signal)
     rng = timer.rng
     skis = [float(v) for v in args.skis.split(",")] if args.skis else []
-    next_start = timer.tod_us() + int(args.first_after * args.speed * 1e6)
-    next_start = -(-next_start // 1_000_000) * 1_000_000  # whole seconds: reproducible
-    prev_end: int | None = None
-    first_start = next_start
-    last_running = timer.tod_us() // 1_000_000 * 1_000_000
-    try:
-        for k in range(args.descents):
-            if stop["now"]:
-                break
-            drift = args.mu_drift_per_hour * (next_start - first_start) / 3.6e9
-            if skis and args.order:
-                # a test design: pairs in the given order, one tuck (CdA) for the skier, the
-                # track drifting; only v0 varies from descent to descent
-                pair = ord(args.order[k % len(args.order)].upper()) - ord("A")
-                p = Params(cda=args.cda, mu=skis[pair] + drift, v0=float(rng.uniform(2.5, 4.5)))
-            elif skis:
-                # pairs of skis in rotation, each with its own friction; the skier varies a little
-                p = Params(
-                    cda=float(rng.normal(0.22, 0.01)),
-                    mu=skis[k % len(skis)] * float(rng.normal(1.0, 0.03)) + drift,
-                    v0=float(rng.uniform(2.5, 4.5)),
-                )
-            elif args.vary:
-                p = Params(
-                    cda=float(rng.uniform(0.18, 0.30)),
-                    mu=float(rng.uniform(0.006, 0.030)),
-                    v0=float(rng.uniform(2.0, 6.0)),
-                )
-            else:
-                p = Params(args.cda, args.mu, args.v0, args.mu1)
-            d = sim.solve(p, Conditions(args.mass, args.air_density), sensitivities=False)
-            if d.stopped_x is not None:
-                print(f"station-sim: descent {k + 1} would stop; skipped", file=sys.stderr)
-                continue
-            t = d.t + np.concatenate([[0.0], rng.normal(0.0, args.noise_ms * 1e-3, len(d.t) - 1)])
-            start = -(-next_start // 1_000_000) * 1_000_000  # on a whole second: reproducible
-            events: list[tuple[int, str, str]] = []  # (tod, channel, kind)
-            sent_ids = []
-            for i, (ch, ti) in enumerate(zip(channels, t, strict=True)):
-                if 0 < i < len(ids) - 1 and rng.random() < args.miss:
-                    continue
-                tod = start + int(round(ti * 1e6))
-                events.append((tod, ch, "impulse"))
+    interval = args.overlap if args.overlap else args.interval
+    first_start = timer.tod_us() + int(args.first_after * args.speed * 1e6)
+    first_start = -(-first_start // 1_000_000) * 1_000_000  # whole seconds: reproducible
+    edits = args.protocol != "microgate"
+    state = {"next_start": first_start, "prev_end": None, "k": 0, "seq": 0}
+    heap: list[Planned] = []
+    truths: dict[int, dict] = {}
+    remaining: dict[int, int] = {}
+
+    def params(k: int, start: int) -> Params:
+        drift = args.mu_drift_per_hour * (start - first_start) / 3.6e9
+        if skis and args.order:
+            # a test design: pairs in the given order, one tuck (CdA) for the skier, the
+            # track drifting; only v0 varies from descent to descent
+            pair = ord(args.order[k % len(args.order)].upper()) - ord("A")
+            return Params(cda=args.cda, mu=skis[pair] + drift, v0=float(rng.uniform(2.5, 4.5)))
+        if skis:
+            # pairs of skis in rotation, each with its own friction; the skier varies a little
+            return Params(
+                cda=float(rng.normal(0.22, 0.01)),
+                mu=skis[k % len(skis)] * float(rng.normal(1.0, 0.03)) + drift,
+                v0=float(rng.uniform(2.5, 4.5)),
+            )
+        if args.vary:
+            return Params(
+                cda=float(rng.uniform(0.18, 0.30)),
+                mu=float(rng.uniform(0.006, 0.030)),
+                v0=float(rng.uniform(2.0, 6.0)),
+            )
+        return Params(args.cda, args.mu, args.v0, args.mu1)
+
+    def push(tod: int, channel: str, kind: str, k: int, bib: str) -> None:
+        state["seq"] += 1
+        heapq.heappush(heap, Planned(tod, state["seq"], channel, kind, k, bib))
+        remaining[k] = remaining.get(k, 0) + 1
+
+    def plan_next() -> None:
+        """Plan the next descent: its lines go on the heap, its truth is kept until sent."""
+        k = state["k"]
+        state["k"] += 1
+        start = -(-state["next_start"] // 1_000_000) * 1_000_000  # on a whole second
+        p = params(k, start)
+        d = sim.solve(p, Conditions(args.mass, args.air_density), sensitivities=False)
+        if d.stopped_x is not None:
+            print(f"station-sim: descent {k + 1} would stop; skipped", file=sys.stderr)
+            state["next_start"] = start + int(interval * 1e6)
+            return
+        t = d.t + np.concatenate([[0.0], rng.normal(0.0, args.noise_ms * 1e-3, len(d.t) - 1)])
+        bib = str((k % 9999) + 1) if args.bibs else ""
+        sent_ids = []
+        inserted = None
+        if edits and args.insert and rng.random() < args.insert and len(ids) > 2:
+            inserted = int(rng.integers(1, len(ids) - 1))
+        end = start
+        for i, (ch, ti) in enumerate(zip(channels, t, strict=True)):
+            tod = start + int(round(ti * 1e6))
+            end = max(end, tod)
+            if i == inserted:
                 sent_ids.append(ids[i])
-                if rng.random() < args.double_trigger:
-                    events.append((tod + int(rng.uniform(0.02, 0.15) * 1e6), ch, "double"))
-            if args.walkthrough and rng.random() < args.walkthrough and prev_end is not None:
-                # someone walks through the start beam between two descents
-                events.insert(0, ((prev_end + start) // 2, channels[0], "walkthrough"))
-            events.sort()
-            prev_end = events[-1][0]
-            for tod, ch, _kind in events:
-                if args.running_time and args.protocol == "alge":
-                    # running-time lines at every full second of the device clock (ALGE EMU1)
-                    while last_running + 1_000_000 < tod and not stop["now"]:
-                        last_running += 1_000_000
-                        timer.wait_until(last_running)
-                        timer.send(format_tod(last_running, 1).encode() + b"\r")
-                timer.wait_until(tod)
-                if args.garbage and rng.random() < args.garbage:
-                    junk = bytes(rng.integers(0, 256, int(rng.integers(3, 20)), dtype=np.uint8))
-                    timer.send(junk.replace(b"\r", b"").replace(b"\n", b"") + b"\r")
-                timer.send(timer.line(ch, tod))
-            if truth is not None:
-                truth.write(
-                    json.dumps(
-                        {
-                            "descent": k + 1,
-                            "cda": p.cda,
-                            "mu": p.mu,
-                            "v0": p.v0,
-                            "mu1": p.mu1,
-                            "pair": args.order[k % len(args.order)] if args.order else None,
-                            "start_tod_us": start,
-                            "photocells": sent_ids,
-                            "t": [float(x) for x in t],
-                        }
-                    )
-                    + "\n"
-                )
-                truth.flush()
-            if args.disconnect_after and k + 1 == args.disconnect_after:
-                port.unplug()
-                print(f"station-sim: unplugged after descent {k + 1}", file=sys.stderr, flush=True)
-                time.sleep(args.disconnect_s)
-                port.plug()
-                print("station-sim: plugged in again", file=sys.stderr, flush=True)
-            next_start = max(start + int(args.interval * 1e6), timer.tod_us() + 1_000_000)
+                continue  # the timer missed it; the operator types it in below
+            if 0 < i < len(ids) - 1 and rng.random() < args.miss:
+                continue
+            push(tod, ch, "impulse", k, bib)
+            sent_ids.append(ids[i])
+            if rng.random() < args.double_trigger:
+                push(tod + int(rng.uniform(0.02, 0.15) * 1e6), ch, "double", k, bib)
+        if inserted is not None:
+            tod = start + int(round(t[inserted] * 1e6))
+            push(end + 1_000_000, channels[inserted], f"insert@{tod}", k, bib)
+        prev_end = state["prev_end"]
+        if args.walkthrough and rng.random() < args.walkthrough and prev_end is not None:
+            # someone walks through the start beam between two descents
+            push((prev_end + start) // 2, channels[0], "walkthrough", k, "")
+        cleared = False
+        if edits and args.clear and rng.random() < args.clear:
+            # a false start, cleared by the operator before the real one
+            fs = start - int(rng.uniform(2.0, 4.0) * 1e6)
+            push(fs, channels[0], "false-start", k, bib)
+            push(fs + 500_000, channels[0], f"clear@{fs}", k, bib)
+            cleared = True
+        truths[k] = {
+            "descent": k + 1,
+            "bib": bib,
+            "cda": p.cda,
+            "mu": p.mu,
+            "v0": p.v0,
+            "mu1": p.mu1,
+            "pair": args.order[k % len(args.order)] if args.order else None,
+            "start_tod_us": start,
+            "photocells": sent_ids,
+            "t": [float(x) for x in t],
+            "inserted": ids[inserted] if inserted is not None else None,
+            "false_start_cleared": cleared,
+        }
+        state["prev_end"] = end
+        nxt = start + int(interval * 1e6)
+        if not args.overlap:
+            nxt = max(nxt, end + 1_000_000)  # one skier at a time
+        state["next_start"] = nxt
+
+    last_running = timer.tod_us() // 1_000_000 * 1_000_000
+    unplugged_after: set[int] = set()
+    try:
+        while not stop["now"]:
+            while state["k"] < args.descents and (not heap or state["next_start"] <= heap[0].tod):
+                plan_next()
+            if not heap:
+                break
+            ev = heapq.heappop(heap)
+            if args.running_time and args.protocol == "alge":
+                # running-time lines at every full second of the device clock (ALGE EMU1)
+                while last_running + 1_000_000 < ev.tod and not stop["now"]:
+                    last_running += 1_000_000
+                    timer.wait_until(last_running)
+                    timer.send(format_tod(last_running, 1).encode() + b"\r")
+            timer.wait_until(ev.tod)
+            if args.garbage and rng.random() < args.garbage:
+                junk = bytes(rng.integers(0, 256, int(rng.integers(3, 20)), dtype=np.uint8))
+                timer.send(junk.replace(b"\r", b"").replace(b"\n", b"") + b"\r")
+            if ev.kind.startswith("clear@"):
+                timer.send(timer.line(ev.channel, int(ev.kind[6:]), ev.bib, "clear"))
+            elif ev.kind.startswith("insert@"):
+                timer.send(timer.line(ev.channel, int(ev.kind[7:]), ev.bib, "insert"))
+            else:
+                timer.send(timer.line(ev.channel, ev.tod, ev.bib))
+            remaining[ev.k] -= 1
+            if remaining[ev.k] == 0:
+                if truth is not None:
+                    truth.write(json.dumps(truths.pop(ev.k)) + "\n")
+                    truth.flush()
+                if args.disconnect_after and ev.k + 1 == args.disconnect_after \
+                        and ev.k not in unplugged_after:  # fmt: skip
+                    unplugged_after.add(ev.k)
+                    port.drain()  # what was written is read before the cable comes out
+                    port.unplug()
+                    print(f"station-sim: unplugged after descent {ev.k + 1}", file=sys.stderr,
+                          flush=True)  # fmt: skip
+                    time.sleep(args.disconnect_s)
+                    port.plug()
+                    print("station-sim: plugged in again", file=sys.stderr, flush=True)
+        if args.download and args.protocol == "tag" and not stop["now"]:
+            timer.send(timer.download())
         # leave the port open a moment so the last bytes are read, unless told to hold it
-        end = time.monotonic() + args.hold
-        while time.monotonic() < end and not stop["now"]:
+        port.drain(timeout_s=max(args.hold, 0.5))
+        end_t = time.monotonic() + args.hold
+        while time.monotonic() < end_t and not stop["now"]:
             time.sleep(0.05)
     finally:
         if truth is not None:
@@ -256,6 +384,7 @@ def run(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="station-sim", description=__doc__.splitlines()[0])
+    ap.add_argument("--version", action="version", version=f"station-sim {__version__}")
     ap.add_argument("--survey", default=DEFAULT_SURVEY, help="survey YAML (default: the demo run)")
     ap.add_argument("--protocol", choices=["alge", "tag", "microgate"], default="alge")
     ap.add_argument("--channels", help="comma-separated channel names down the run")
@@ -287,6 +416,46 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--running-time", action="store_true", help="ALGE running-time lines")
     ap.add_argument(
         "--garbage", type=float, default=0.0, metavar="P", help="garbage bytes per line"
+    )
+    ap.add_argument(
+        "--bibs",
+        action="store_true",
+        help="the descent's number as bib on its impulses (default: ALGE numbers "
+        "every impulse, PC-Timer counter mode; TAG and Microgate send none)",
+    )
+    ap.add_argument(
+        "--overlap",
+        type=float,
+        default=0.0,
+        metavar="S",
+        help="start a skier every S seconds, before the one ahead has finished",
+    )
+    ap.add_argument(
+        "--clear",
+        type=float,
+        default=0.0,
+        metavar="P",
+        help="a false start the operator clears (ALGE c, TAG TC), per descent",
+    )
+    ap.add_argument(
+        "--insert",
+        type=float,
+        default=0.0,
+        metavar="P",
+        help="a middle photocell missed and typed in (ALGE i, TAG T+), per descent",
+    )
+    ap.add_argument(
+        "--download",
+        action="store_true",
+        help="TAG: send a memory download (DS, AN …, DE) at the end",
+    )
+    ap.add_argument(
+        "--wait-reader",
+        type=float,
+        default=30.0,
+        metavar="S",
+        help="wait up to S s for the station to open the port before the clock "
+        "starts (0: do not wait)",
     )
     ap.add_argument("--disconnect-after", type=int, default=0, metavar="K")
     ap.add_argument("--disconnect-s", type=float, default=2.0)

@@ -44,26 +44,39 @@ def test_fitted_times_agree_with_the_independent_dae(demo_track, demo_xs, run):
     res = fit_descent(demo_track.profile, demo_xs, t, COND, demo_track.photocell_ids, run=run)
     e = res.estimates
     ref = simulate_dae(demo_track.profile, demo_xs, Params(e["cda"], e["mu"], e["v0"]), COND)
-    model = (t - t[0]) + np.array(list(res.residuals_s.values()))
+    model = (t - t[0]) + np.array(list(res.residuals_s.values())) - e["dt0"]
     assert np.max(np.abs(ref.t - model)) < 1e-6
 
 
+@pytest.mark.slow
 def test_ninety_percent_intervals_cover_the_truth_about_ninety_percent_of_the_time(
     demo_track, demo_xs, run
 ):
+    """The timer is as noisy at the first photocell as anywhere: with noise on every time,
+    including the first, each 90 % interval (v0 too) holds the truth close to nine times in ten.
+    Treating the first time as exact gave v0 83–88 %; 240 draws: binomial sd 1.9 %."""
     truth = {"cda": 0.22, "mu": 0.0085, "v0": 3.4}
     t0 = run.solve(Params(**truth), COND).t
     rng = np.random.default_rng(2024)
     hits = {k: 0 for k in truth}
-    n = 100
+    n = 240
     for _ in range(n):
-        t = t0 + np.concatenate([[0.0], rng.normal(0, 1e-3, len(t0) - 1)])
+        t = t0 + rng.normal(0, 5e-4, len(t0))
         res = fit_descent(demo_track.profile, demo_xs, t, COND, run=run)
+        assert res.status == "ok"
         for k, v in truth.items():
             lo, hi = res.ci90[k]
             hits[k] += lo <= v <= hi
     for k in truth:
-        assert 0.80 <= hits[k] / n <= 0.98, (k, hits[k])
+        assert 0.85 <= hits[k] / n <= 0.95, (k, hits[k])
+
+
+def test_a_fit_takes_few_model_solves(demo_track, demo_xs, run):
+    """Gauss-Newton stops on the test of a minimum, not after steps past it."""
+    rng = np.random.default_rng(3)
+    t = run.solve(Params(0.22, 0.0085, 3.4), COND).t + rng.normal(0, 1e-4, 9)
+    res = fit_descent(demo_track.profile, demo_xs, t, COND, run=run)
+    assert res.status == "ok" and res.starts == 1 and res.nfev <= 5
 
 
 @pytest.mark.parametrize(
@@ -149,6 +162,6 @@ def test_json_form_has_the_documented_keys(demo_track, demo_xs, run):
     d = fit_descent(demo_track.profile, demo_xs, t, COND, demo_track.photocell_ids).to_dict()
     for key in ("cda", "mu", "v0", "ci90", "corr_mu_cda", "sigma_s2", "grad_norm2", "dof"):
         assert key in d
-    assert set(d["ci90"]) == {"cda", "mu", "v0"}
+    assert set(d["ci90"]) == {"cda", "mu", "v0", "dt0"}
     assert set(d["residuals_s"]) == set(demo_track.photocell_ids)
     assert d["status"] == "ok" and "mu1" not in d

@@ -21,6 +21,7 @@ CORE_MODULES = (
     "station.session.processor",
     "station.session.analysis",
     "station.session.day",
+    "station.session.records",
 )
 FORBIDDEN_IN_CORE = {"serial", "threading", "textual", "subprocess", "socket", "asyncio"}
 #: files of the core that read input files by design (the times file, the traverse data)

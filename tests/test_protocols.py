@@ -165,3 +165,39 @@ def test_garbage_never_raises():
 def test_unknown_protocol():
     with pytest.raises(ValueError, match="unknown protocol 'omega'"):
         make_parser("omega")
+
+
+def test_a_printout_without_footer_ends_at_the_next_impulse(real):
+    """Issue 9: a CLASSEMENT block whose footer was lost swallowed the rest of the day."""
+    lines = _lines(real / "alge" / "ALGEClassement_Runtime_Run1.txt")
+    cut = [s for s in lines if "ALGE TIMING" not in s and "TdC" not in s and "DEU" not in s
+           and "-11-" not in s]  # fmt: skip
+    parser = AlgeParser()
+    assert all(isinstance(parser.parse(s), Skip) for s in cut)
+    assert parser.in_printout
+    after = [format_alge("C0", 36_000_000_000 + i * 10**6, i) for i in range(5)]
+    assert all(isinstance(parser.parse(s), Impulse) for s in after)
+    assert not parser.in_printout
+
+
+def test_tag_cp540_frames_every_message_understood(real):
+    """SOURCES.md: 14 real CP540 frames, checksums verify; AN impulses with their bib."""
+    lines = [s for s in _lines(real / "tag" / "cp540_frames.txt") if not s.startswith("# ")]
+    parsed = [TagParser().parse(s) for s in lines]
+    assert not [p for p in parsed if isinstance(p, Unparsed)]
+    an = [p for p in parsed if isinstance(p, Impulse) and p.line.startswith("AN")]
+    assert [(p.bib, p.channel) for p in an] == [("1", "M1"), ("1", "M4"), ("2", "M1"), ("2", "M4")]
+    assert an[0].tod_us == (20 * 3600 + 37 * 60 + 44) * 10**6 + 136_000 and an[0].day == 6899
+    assert an[1].tod_us - an[0].tod_us == 2_477_000 and an[3].tod_us - an[2].tod_us == 704_000
+    edits = [p for p in parsed if isinstance(p, Edit)]
+    assert [(e.kind, e.bib, e.channel) for e in edits] == [("inserted", "1", "1")]
+    live = [p for p in parsed if isinstance(p, Impulse) and p.line.startswith("TN")]
+    assert [(p.bib, p.channel, p.day) for p in live] == [("2", "M1", 6994)]
+    reasons = {p.reason for p in parsed if isinstance(p, Skip)}
+    assert {
+        "device identification",
+        "memory download starts",
+        "memory download ends",
+        "run time computed by the timer",
+        "result computed by the timer",
+    } <= reasons

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from station.session.results import COLUMNS, write_results
+from station.session.results import COLUMNS, read_results, write_results
 
 
 def test_results_csv_round_trip_and_spreadsheet_safety(tmp_path):
@@ -33,6 +33,24 @@ def test_results_csv_round_trip_and_spreadsheet_safety(tmp_path):
     assert df.loc[0, "ski"] == "'+A" and df.loc[0, "skier"] == "'@me"
     assert df.loc[1, "flags"] == "'-lone start impulse"
     assert pd.isna(df.loc[1, "mu"]) and df["mu"].dtype == float
+
+
+def test_read_results_without_pandas_gives_what_was_written(tmp_path):
+    rows = [
+        {"descent": 1, "photocells_used": 9, "mu": 0.008452428372456, "status": "ok",
+         "notes": "pair 3\n# not a header", "ski": "=A", "start_time": "10:41:07"},
+        {"descent": 2, "photocells_used": 1.0, "cda": float("nan"), "status": "aborted"},
+    ]  # fmt: skip
+    path = tmp_path / "results.csv"
+    write_results(rows, str(path), {"survey": "Demo run"})
+    back = read_results(str(path))
+    assert [list(r) for r in back] == [COLUMNS, COLUMNS]
+    assert back[0]["descent"] == 1 and isinstance(back[0]["descent"], int)
+    assert back[0]["mu"] == 0.008452428372456 and back[0]["cda"] is None
+    assert back[0]["notes"] == "pair 3\n# not a header" and back[0]["ski"] == "'=A"
+    assert back[1]["photocells_used"] == 1 and back[1]["status"] == "aborted"
+    assert back[1]["cda"] is None and back[1]["start_time"] is None
+    assert pd.read_csv(path, comment="#")["mu"].iloc[0] == back[0]["mu"]
 
 
 HOSTILE = [

@@ -13,7 +13,7 @@ import pytest
 
 from station.errors import InputError
 from station.session import store
-from station.session.analysis import Analyser
+from station.session.analysis import start_time
 from station.session.config import load_config
 from station.session.results import COLUMNS
 from station.timing.impulses import DAY_US
@@ -92,10 +92,14 @@ def test_a_results_csv_that_cannot_be_written_is_a_line_not_an_exception(tmp_pat
 
     row = {c: None for c in COLUMNS} | {"descent": 1, "status": "ok"}
     path = tmp_path / "results.csv"
-    assert store.save_results(str(path), [row], {}) is None
+
+    def write(rows):
+        return lambda p: results.write_results(rows, p, {})
+
+    assert store.save_results(str(path), write([row])) is None
     before = path.read_bytes()
     monkeypatch.setattr(results.os, "replace", full)
-    problem = store.save_results(str(path), [row, row | {"descent": 2}], {})
+    problem = store.save_results(str(path), write([row, row | {"descent": 2}]))
     assert problem is not None and "No space left on device" in problem
     assert "raw log keeps recording" in problem and "\n" not in problem
     assert path.read_bytes() == before  # the last good CSV stays
@@ -122,9 +126,9 @@ def test_a_hostile_survey_name_keeps_the_csv_readable(tmp_path, run_station):
 
 
 def _start(start_us: int, host: dt.datetime | None, date: dt.date | None = None) -> str:
-    d = SimpleNamespace(start_us=start_us)
+    d = SimpleNamespace(start_us=start_us, day=None)  # no device date: TAG dates its own
     host_t = host.timestamp() if host is not None else None
-    return Analyser.start_time(None, d, host_t, date)  # type: ignore[arg-type]
+    return start_time(d, host_t, date)  # type: ignore[arg-type]
 
 
 def test_start_time_keeps_the_device_day_across_midnight():
@@ -158,11 +162,13 @@ def test_record_into_a_bad_session_dir_is_one_line_exit_2(tmp_path, run_station,
 
 
 def test_an_annotation_that_cannot_be_written_is_one_line(tmp_path):
+    from station.session.records import InvalidMark
+
     session = tmp_path / "s"
     session.mkdir()
     (session / "annotations.jsonl").mkdir()  # not writable as a file, even by root
     with pytest.raises(InputError, match="cannot write the annotation"):
-        store.append_annotation(str(session), {"descent": 1, "wax": "x"})
+        store.append_annotation(str(session), InvalidMark(1, "fell"))
 
 
 def test_a_raw_log_that_cannot_be_made_is_one_line(tmp_path):

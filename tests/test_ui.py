@@ -80,7 +80,7 @@ async def test_live_ui_against_the_simulated_timer(tmp_path, run_station):
     app = StationApp(cfg, mode="live", session_dir=str(session))
     try:
         async with app.run_test(size=(100, 30)) as pilot:
-            await wait_for(pilot, lambda: len(app.day.results) >= 1)
+            await wait_for(pilot, lambda: len(app.results) >= 1)
             table = app.main.query_one("#table")
             await wait_for(pilot, lambda: table.row_count >= 1)
             assert "timer connected" in str(app.main.query_one("#status").render())
@@ -93,8 +93,8 @@ async def test_live_ui_against_the_simulated_timer(tmp_path, run_station):
             app.screen.query_one("#f_ski").value = "pair 7"
             app.screen.query_one("#f_wax").value = "LF blue"
             await pilot.press("enter")
-            await wait_for(pilot, lambda: app.day.metadata_changes != [])
-            start = app.day.metadata_changes[-1][0]
+            await wait_for(pilot, lambda: app.metadata_from is not None)
+            start = app.metadata_from
             # mark descent 1 invalid with a reason (selected once descent 2 is in: the cursor
             # follows new descents only while it is on the last row)
             await wait_for(pilot, lambda: table.row_count >= 2)
@@ -102,12 +102,12 @@ async def test_live_ui_against_the_simulated_timer(tmp_path, run_station):
             await pilot.press("i")
             await pilot.pause(0.3)
             await pilot.press(*"fell at PC7", "enter")
-            await wait_for(pilot, lambda: app.day.invalid.get(1) == "fell at PC7")
+            await wait_for(pilot, lambda: app.results[1].row.invalid_reason == "fell at PC7")
             await wait_for(pilot, lambda: "INVALID" in str(table.get_row("1")))
             # refit it with velocity-dependent friction
             await pilot.press("v")
-            await wait_for(pilot, lambda: app.day.results[1].row["model"] == "velocity")
-            await wait_for(pilot, lambda: len(app.day.results) >= 3, timeout=60)
+            await wait_for(pilot, lambda: app.results[1].row.model == "velocity")
+            await wait_for(pilot, lambda: len(app.results) >= 3, timeout=60)
             await pilot.press("e")
             await pilot.pause(0.3)
     finally:
@@ -143,7 +143,7 @@ async def test_ui_shows_an_unplugged_timer_and_goes_on(tmp_path):
 
             await wait_for(pilot, offline)
             assert "TIMER DISCONNECTED" in str(app.main.query_one("#status").render())
-            await wait_for(pilot, lambda: len(app.day.results) >= 2, timeout=60)
+            await wait_for(pilot, lambda: len(app.results) >= 2, timeout=60)
             assert not app.has_class("offline")
     finally:
         sim.wait(timeout=30)
@@ -153,7 +153,7 @@ async def test_ui_shows_an_unplugged_timer_and_goes_on(tmp_path):
 async def test_failed_fits_and_aborted_descents_show_their_status(tmp_path, demo_track):
     app = replay_app(tmp_path, demo_track)
     async with app.run_test(size=(120, 30)) as pilot:
-        await wait_for(pilot, lambda: len(app.day.results) == 4)
+        await wait_for(pilot, lambda: len(app.results) == 4)
         await pilot.pause(0.3)
         table = app.main.query_one("#table")
         statuses = [str(table.get_row(str(n))[4]) for n in range(1, 5)]
@@ -225,3 +225,65 @@ async def test_comparison_view_updates_after_each_descent(tmp_path, demo_track):
         await pilot.press("escape")
         await pilot.pause(0.2)
         assert not isinstance(app.screen, ComparisonScreen)
+
+
+@run_async
+async def test_quitting_mid_descent_ends_it_as_record_does(tmp_path, run_station):
+    """``q`` while a skier is on the run: the descent is ended as Ctrl-C ends it in ``station
+    record`` (fitted with what it has, "the recording ended"), so the session replays to the
+    same CSV (before, the UI left it out)."""
+    sim, port, _ = start_sim(
+        tmp_path, "--speed", "5", "--first-after", "2", "--hold", "1", "--descents", "3",
+        "--seed", "3",
+    )  # fmt: skip
+    cfg = load_config(str(write_config(tmp_path, port)))
+    session = tmp_path / "session"
+    app = StationApp(cfg, mode="live", session_dir=str(session))
+    try:
+        async with app.run_test(size=(100, 30)) as pilot:
+
+            def on_the_run() -> bool:
+                p = app.progress
+                return p is not None and p.number == 2 and len(p.passed) >= 4
+
+            await wait_for(pilot, on_the_run, timeout=60)
+            assert len(app.progress.passed) < 9
+            await pilot.press("q")
+    finally:
+        sim.terminate()
+        sim.wait(timeout=10)
+    df = pd.read_csv(session / "results.csv", comment="#")
+    assert list(df["descent_status"]) == ["complete", "incomplete"]
+    assert "the recording ended" in df.loc[1, "flags"] and df.loc[1, "status"] == "ok"
+    out = tmp_path / "replay.csv"
+    r = run_station("replay", session, "--csv", out)
+    assert r.returncode == 0, r.stderr
+    assert out.read_bytes() == (session / "results.csv").read_bytes()
+
+
+@run_async
+async def test_a_fit_that_raises_shows_as_error_and_the_replay_goes_on(
+    tmp_path, demo_track, monkeypatch
+):
+    import station.session.analysis as analysis
+
+    real, calls = analysis.fit_descent, {"n": 0}
+
+    def fit(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 1:
+            raise np.linalg.LinAlgError("Singular matrix")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(analysis, "fit_descent", fit)
+    app = replay_app(tmp_path, demo_track)
+    async with app.run_test(size=(120, 30)) as pilot:
+        await wait_for(pilot, lambda: "replay finished" in app.connection)
+        await pilot.pause(0.3)
+        table = app.main.query_one("#table")
+        statuses = [str(table.get_row(str(n))[4]) for n in range(1, 5)]
+        assert statuses == ["error", "ok", "aborted", "too-few-photocells"]
+        assert "fit failed: LinAlgError: Singular matrix" in str(table.get_row("1")[10])
+        table.move_cursor(row=0)
+        await pilot.pause(0.2)
+        assert "error: fit failed" in str(app.main.query_one("#result").render())

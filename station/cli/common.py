@@ -1,14 +1,20 @@
 """What every ``station`` command shares: one-line usage errors with exit status 2, number
-parsers that say which option is wrong, the air options, and small output helpers."""
+parsers that say which option is wrong, the air options, output paths checked before any work,
+and small output helpers."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime as dt
 import json
 import math
+import os
+import stat
 import sys
-from typing import Any, NoReturn
+import tempfile
+from collections.abc import Iterator
+from typing import IO, Any, NoReturn
 
 from station.errors import InputError
 from station.model.air import (
@@ -22,10 +28,50 @@ EXIT_BAD_INPUT = 2
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse, but a usage error is one line and exit status 2."""
+    """argparse, but a usage error is one line and exit status 2, and an option must be spelt
+    out: with abbreviations ``--masss 88`` would not be "unrecognized", and ``--mas`` would
+    silently mean ``--mass`` today and something else once another ``--mas…`` option exists."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
+
+    _argv: list[str] | None = None
+
+    def parse_known_args(self, args: Any = None, namespace: Any = None) -> Any:
+        self._argv = list(sys.argv[1:] if args is None else args)
+        return super().parse_known_args(args, namespace)
 
     def error(self, message: str) -> NoReturn:
+        if message.startswith("the following arguments are required"):
+            # `--masss 88`: the typo is the problem, not the --mass it left out
+            unknown = self._unknown_options()
+            if unknown:
+                message = f"unrecognized arguments: {' '.join(unknown)}"
+        if message.startswith("unrecognized arguments"):
+            message += self._suggestion(message)
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see --help)\n")
+
+    def _unknown_options(self) -> list[str]:
+        names = [a.split("=", 1)[0] for a in self._argv or [] if a.startswith("--") and a != "--"]
+        return [n for n in names if n not in self._option_string_actions]
+
+    def _suggestion(self, message: str) -> str:
+        import difflib
+
+        options = [o for o in self._option_string_actions if o.startswith("--")]
+        for action in self._actions:  # the command's own options, when its typo is seen here
+            if isinstance(action, argparse._SubParsersAction) and self._argv:
+                command = next((a for a in self._argv if not a.startswith("-")), None)
+                chosen = action.choices.get(command) if command else None
+                if chosen is not None:
+                    options += [o for o in chosen._option_string_actions if o.startswith("--")]
+        for word in message.split(":", 1)[1].split():
+            if word.startswith("--"):
+                close = difflib.get_close_matches(word.split("=", 1)[0], options, n=1)
+                if close:
+                    return f" (did you mean {close[0]}?)"
+        return ""
 
 
 def _positive(text: str) -> float:
@@ -72,9 +118,9 @@ def _warn(message: str) -> None:
 
 def _add_air(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("air (station pressure, not sea-level QNH)")
-    g.add_argument("--pressure-hpa", type=_positive, metavar="P")
-    g.add_argument("--temperature-c", type=_celsius, metavar="T")
-    g.add_argument("--humidity-pct", type=_percent, metavar="H")
+    g.add_argument("--pressure-hpa", type=_positive, metavar="P", help="station pressure, hPa")
+    g.add_argument("--temperature-c", type=_celsius, metavar="T", help="air temperature, °C")
+    g.add_argument("--humidity-pct", type=_percent, metavar="H", help="relative humidity, %%")
     g.add_argument("--air-density", type=_positive, metavar="RHO", help="kg/m³, instead of P, T, H")
 
 
@@ -153,3 +199,143 @@ def _numbers(text: str) -> list[int]:
         else:
             raise InputError(f"--descents {text!r}: {part!r} is not a descent number")
     return out
+
+
+def unique_prefix(text: str, choices: list[str], what: str, option: str) -> str:
+    """The one choice ``text`` names: itself, or the only one it begins (case and surrounding
+    blanks ignored), so "pair A" names "pair A / LF blue" when no other item begins so."""
+    if text in choices:
+        return text
+    key = text.strip().casefold()
+    exact = [c for c in choices if c.casefold() == key]
+    if len(exact) == 1:
+        return exact[0]
+    hits = [c for c in choices if c.casefold().startswith(key)]
+    if len(hits) == 1:
+        return hits[0]
+    if hits:
+        raise InputError(f"{text!r} could be {', '.join(map(repr, hits))}: say which",
+                         field=option)  # fmt: skip
+    raise InputError(f"no {what} {text!r}; there are {', '.join(map(repr, choices))}",
+                     field=option)  # fmt: skip
+
+
+# ----------------------------------------------------------------------------- output paths
+
+STDOUT = "-"
+#: options whose value is an output file; ``-`` sends it to standard output
+OUTPUT_OPTIONS = ("csv", "events")
+#: where ``-`` writes: the real standard output, saved before the report is moved to stderr
+_data_stdout: IO[str] | None = None
+
+
+def output_path(arg: str | None, option: str) -> str | None:
+    """Check an output file before any work is done, so a day is not replayed and fitted only
+    to fail at the last step with a traceback: its folder must exist and be writable, and the
+    path must not be a folder or a special file. ``-`` (standard output) and ``None`` (not
+    asked for) pass as they are."""
+    if arg is None or arg == STDOUT:
+        return arg
+    if arg == "":
+        raise InputError("empty output path (use - for standard output)", field=option)
+    folder = os.path.dirname(os.path.abspath(arg))
+    if os.path.isdir(arg):
+        raise InputError("is a folder; give a file name (or - for standard output)",
+                         path=arg, field=option)  # fmt: skip
+    if not os.path.exists(folder):
+        raise InputError(f"folder {folder} does not exist", path=arg, field=option)
+    if not os.path.isdir(folder):
+        raise InputError(f"{folder} is not a folder", path=arg, field=option)
+    if os.path.exists(arg):
+        mode = os.stat(arg).st_mode
+        if not stat.S_ISREG(mode) and os.path.abspath(arg) != os.devnull:
+            raise InputError("is not a regular file", path=arg, field=option)
+        if not os.access(arg, os.W_OK):
+            raise InputError("file is not writable", path=arg, field=option)
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InputError(f"folder {folder} is not writable", path=arg, field=option)
+    try:  # the permission bits are not the whole story (root, read-only mounts, /sys)
+        tempfile.TemporaryFile(dir=folder).close()
+    except OSError as exc:
+        raise InputError(f"folder {folder} is not writable ({exc.strerror})",
+                         path=arg, field=option) from None  # fmt: skip
+    return arg
+
+
+def output_dir(arg: str, option: str) -> str:
+    """Check an output folder (``--out DIR``): made if missing, as long as its parent exists
+    (a mistyped parent is an error, not a tree of new folders)."""
+    if arg == "":
+        raise InputError("empty output folder", field=option)
+    if os.path.exists(arg) and not os.path.isdir(arg):
+        raise InputError("is a file, not a folder", path=arg, field=option)
+    parent = os.path.dirname(os.path.abspath(arg))
+    if not os.path.exists(arg):
+        if not os.path.isdir(parent):
+            raise InputError(f"folder {parent} does not exist", path=arg, field=option)
+        try:
+            os.mkdir(arg)
+        except OSError as exc:
+            raise InputError(f"cannot make the folder: {exc.strerror}",
+                             path=arg, field=option) from None  # fmt: skip
+    try:
+        if not os.access(arg, os.W_OK | os.X_OK):
+            raise OSError(13, "permission denied")
+        tempfile.TemporaryFile(dir=arg).close()
+    except OSError as exc:
+        raise InputError(f"folder is not writable ({exc.strerror})",
+                         path=arg, field=option) from None  # fmt: skip
+    return arg
+
+
+@contextlib.contextmanager
+def open_output(arg: str, option: str) -> Iterator[IO[str]]:
+    """The checked output as a text file: ``-`` is standard output (left open); a path is
+    written to a temporary file beside it and renamed over it only when the writing succeeded,
+    so a failed command leaves the previous file intact and never half a file."""
+    if arg == STDOUT:
+        out = _data_stdout or sys.stdout
+        yield out
+        out.flush()
+        return
+    output_path(arg, option)
+    folder = os.path.dirname(os.path.abspath(arg))
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(arg)}-", dir=folder)
+    except OSError as exc:
+        raise InputError(f"cannot write: {exc.strerror}", path=arg, field=option) from None
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+            yield fh
+        if os.path.abspath(arg) == os.devnull:
+            os.unlink(tmp)
+            return
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # as open() would have made it, not mkstemp's 0600
+        os.replace(tmp, arg)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def dispatch(args: argparse.Namespace) -> int:
+    """Run a command; when one of its outputs is ``-``, standard output carries that data only
+    and the command's report goes to stderr (so ``station export S --csv - | …`` pipes CSV)."""
+    global _data_stdout
+    to_stdout = [o for o in OUTPUT_OPTIONS if getattr(args, o, None) == STDOUT]
+    if not to_stdout:
+        return int(args.func(args) or 0)
+    if len(to_stdout) > 1:
+        raise InputError(
+            f"{' and '.join('--' + o for o in to_stdout)} cannot both go to standard output"
+        )
+    if getattr(args, "json", False):
+        raise InputError(f"--{to_stdout[0]} - and --json cannot both go to standard output")
+    _data_stdout = sys.stdout
+    try:
+        with contextlib.redirect_stdout(sys.stderr):
+            return int(args.func(args) or 0)
+    finally:
+        _data_stdout = None

@@ -13,7 +13,7 @@ import os
 import sys
 
 from station import __version__
-from station.cli import analysis, common, recording, survey, terminal
+from station.cli import analysis, common, memory, ports, recording, sessions, survey, terminal
 from station.errors import InputError
 
 
@@ -25,7 +25,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ap.add_argument("--version", action="version", version=f"station {__version__}")
     sub = ap.add_subparsers(dest="command", required=True, parser_class=common._Parser)
-    for group in (survey, recording, analysis, terminal):
+    for group in (survey, recording, analysis, terminal, sessions, ports, memory):
         group.add_parsers(sub)
     return ap
 
@@ -33,7 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        return int(args.func(args) or 0)
+        return common.dispatch(args)
     except InputError as exc:
         print(f"station: error: {exc}", file=sys.stderr)
         return common.EXIT_BAD_INPUT

@@ -12,21 +12,25 @@ from station.cli.common import (
     _date,
     _positive,
     _warn,
+    open_output,
+    output_path,
 )
 from station.errors import InputError
 
 
 def cmd_record(args: argparse.Namespace) -> int:
     from station.session import store as sessions
+    from station.session.acquisition import record
     from station.session.config import load_config
-    from station.session.recorder import record
+    from station.session.ports import check_port
 
     cfg = load_config(args.config)
+    check_port(cfg.serial.port, args.config)  # a wrong port: say so and list them, at once
     folder = args.session_dir or sessions.default_dir()
     print(f"recording to {folder} from {cfg.serial.port} ({cfg.serial.protocol}); Ctrl-C ends",
           file=sys.stderr)  # fmt: skip
-    run = record(cfg, folder, max_descents=args.max_descents, duration_s=args.duration)
-    print(run.summary(), file=sys.stderr)
+    acq = record(cfg, folder, max_descents=args.max_descents, duration_s=args.duration)
+    print(acq.summary(), file=sys.stderr)
     print(f"results: {os.path.join(folder, sessions.RESULTS)}", file=sys.stderr)
     return 0
 
@@ -48,32 +52,47 @@ def _replay_config(args: argparse.Namespace):
 
 
 def _replay_run(args: argparse.Namespace, quiet: bool = False):
-    from station.session.recorder import replay
+    """The replay of ``args.source`` through the acquisition loop (an ``Acquisition``)."""
+    from station.session.acquisition import replay
 
     cfg = _replay_config(args)
     warnings: list[str] = []
     speed = None if getattr(args, "fast", True) else getattr(args, "speed", None)
     out = (lambda _m: None) if quiet else print
-    run = replay(args.source, cfg, out=out, speed=speed, date=_date(getattr(args, "date", None)),
+    acq = replay(args.source, cfg, out=out, speed=speed, date=_date(getattr(args, "date", None)),
                  warnings=warnings)  # fmt: skip
     for w in warnings:
         _warn(w)
-    return run
+    return acq
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
     from station.cli.terminal import _replay_ui
-    from station.session.recorder import write_events
+    from station.session.replay import write_events
 
+    output_path(args.csv, "--csv")
+    output_path(args.events, "--events")
     if args.ui:
         return _replay_ui(args)
-    run = _replay_run(args)
-    print(run.summary(), file=sys.stderr)
+    acq = _replay_run(args)
+    print(acq.summary(), file=sys.stderr)
     if args.csv:
-        run.write_csv(args.csv)
+        with open_output(args.csv, "--csv") as fh:
+            acq.write_csv_to(fh)
     if args.events:
-        write_events(run, args.events)
+        with open_output(args.events, "--events") as fh:
+            write_events(acq.day.processor, fh)
+    _write_times(acq, args)
     return 0
+
+
+def _write_times(acq: Any, args: argparse.Namespace) -> None:
+    """``--times OUT``: one row per impulse kept in a descent (station.session.crossings)."""
+    if getattr(args, "times", None):
+        from station.session.crossings import write_times
+
+        n = write_times(acq.results(), args.times)
+        print(f"{n} crossing times -> {args.times}", file=sys.stderr)
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -81,9 +100,17 @@ def cmd_export(args: argparse.Namespace) -> int:
 
     if not sessions.is_session(args.source):
         raise InputError("not a session directory (no raw.jsonl)", path=args.source)
-    run = _replay_run(args, quiet=True)
-    run.write_csv(args.csv)
-    print(f"{len(run.results)} descents -> {args.csv}", file=sys.stderr)
+    if not args.csv and not args.times:
+        raise InputError("give --csv OUT and/or --times OUT", path=args.source)
+    output_path(args.csv, "--csv")
+    output_path(args.times, "--times")
+    acq = _replay_run(args, quiet=True)
+    if args.csv:
+        with open_output(args.csv, "--csv") as fh:
+            acq.write_csv_to(fh)
+        where = "standard output" if args.csv == "-" else args.csv
+        print(f"{len(acq.results())} descents -> {where}", file=sys.stderr)
+    _write_times(acq, args)
     return 0
 
 
@@ -101,10 +128,14 @@ def add_parsers(sub: Any) -> None:
     p.set_defaults(func=cmd_record)
 
     p = sub.add_parser("replay", help="replay a session or a plain capture of a timer's output")
-    p.add_argument("source", metavar="CAPTURE_OR_SESSION")
+    p.add_argument("source", metavar="CAPTURE_OR_SESSION",
+                   help="a session folder, or a file of the timer's output")  # fmt: skip
     p.add_argument("--config", help="station config (default: the session's own)")
-    p.add_argument("--csv", metavar="OUT", help="write the results CSV")
-    p.add_argument("--events", metavar="OUT", help="write every parsed impulse and its fate")
+    p.add_argument("--csv", metavar="OUT", help="write the results CSV; - = stdout")
+    p.add_argument(
+        "--events", metavar="OUT", help="write every parsed impulse and its fate (CSV); - = stdout"
+    )
+    p.add_argument("--times", metavar="OUT", help="write the crossing times of every descent (CSV)")
     p.add_argument("--date", help="date of a plain capture, YYYY-MM-DD (default: file date)")
     pace = p.add_mutually_exclusive_group()
     pace.add_argument("--speed", type=_positive, metavar="X", help="replay at X times real time")
@@ -113,6 +144,7 @@ def add_parsers(sub: Any) -> None:
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("export", help="write a session's results CSV")
-    p.add_argument("source", metavar="SESSION")
-    p.add_argument("--csv", required=True, metavar="OUT")
+    p.add_argument("source", metavar="SESSION", help="session folder")
+    p.add_argument("--csv", metavar="OUT", help="results CSV to write; - = stdout")
+    p.add_argument("--times", metavar="OUT", help="the crossing times of every descent (CSV)")
     p.set_defaults(func=cmd_export)

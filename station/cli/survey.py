@@ -19,6 +19,8 @@ from station.cli.common import (
     _positive,
     _print_json,
     _warn,
+    open_output,
+    output_path,
 )
 from station.errors import InputError
 
@@ -30,7 +32,7 @@ def cmd_survey_points(args: argparse.Namespace) -> int:
     survey = load_survey(args.survey)
     pts = list(survey.points.values())
     if args.csv:
-        with open(args.csv, "w", newline="", encoding="utf-8") as fh:
+        with open_output(args.csv, "--csv") as fh:
             w = csv.writer(fh)
             w.writerow(["point", "e", "n", "h", "sigma_h_m", "setup", "line"])
             for p in pts:
@@ -91,6 +93,7 @@ def cmd_survey_points(args: argparse.Namespace) -> int:
 
 
 def cmd_survey(args: argparse.Namespace) -> int:
+    output_path(args.csv, "--csv")
     if args.survey.lower().endswith(".gsi"):
         return cmd_survey_points(args)
     track = _load_track(args.survey)
@@ -100,7 +103,7 @@ def cmd_survey(args: argparse.Namespace) -> int:
     used = [p for p in track.points if p.used]
     sig = float(np.sqrt(np.mean([p.sigma**2 for p in used])))
     if args.csv:
-        with open(args.csv, "w", newline="", encoding="utf-8") as fh:
+        with open_output(args.csv, "--csv") as fh:
             w = csv.writer(fh)
             w.writerow(["x_m", "y_m", "slope_deg", "curvature_1_per_m"])
             for row in zip(xg, yg, sg, kg, strict=True):
@@ -179,6 +182,7 @@ def cmd_survey(args: argparse.Namespace) -> int:
 def cmd_simulate(args: argparse.Namespace) -> int:
     from station.model.physics import Conditions, Params, StraightRun
 
+    output_path(args.csv, "--csv")
     track = _load_track(args.survey)
     if len(track.photocells) < 2:
         raise InputError("the survey needs at least two photocells", path=args.survey)
@@ -195,7 +199,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if d.stopped_x is not None:
         reached = xs < d.stopped_x
     if args.csv:
-        with open(args.csv, "w", newline="", encoding="utf-8") as fh:
+        with open_output(args.csv, "--csv") as fh:
             w = csv.writer(fh)
             w.writerow(["photocell", "time"])
             for pc, ti, ok in zip(track.photocells, t, reached, strict=True):
@@ -283,8 +287,11 @@ def cmd_fit(args: argparse.Namespace) -> int:
 
     line("μ", "mu", "", ".5f")
     line("μ1", "mu1", "s/m", ".2e")
+    if "mu1" in res.consistent_with_zero:
+        print("        μ1 is not distinguishable from 0: its 90 % interval includes 0")
     line("CdA", "cda", "m²", ".4f")
     line("v0", "v0", "m/s", ".3f")
+    line("δt1", "dt0", "s", "+.5f")  # the first photocell's time is data: its fitted offset
     if res.sigma_s2 is not None:
         corr = _fmt(res.corr_mu_cda, "+.3f")
         print(
@@ -339,36 +346,60 @@ def add_parsers(sub: Any) -> None:
     p.set_defaults(func=cmd_survey)
 
     p = sub.add_parser("simulate", help="times and speeds of a skier with given μ and CdA")
-    p.add_argument("--survey", required=True)
-    p.add_argument("--mass", type=_positive, required=True, metavar="KG")
-    p.add_argument("--cda", type=_nonnegative, required=True, metavar="M2")
-    p.add_argument("--mu", type=_nonnegative, required=True)
-    p.add_argument("--v0", type=_nonnegative, required=True, metavar="M_S")
+    p.add_argument(
+        "--survey", required=True, help="survey YAML with the photocells (surveys/README.md)"
+    )
+    p.add_argument("--mass", type=_positive, required=True, metavar="KG",
+                   help="skier with equipment, kg")  # fmt: skip
+    p.add_argument("--cda", type=_nonnegative, required=True, metavar="M2",
+                   help="drag area CdA, m²")  # fmt: skip
+    p.add_argument("--mu", type=_nonnegative, required=True,
+                   help="kinetic friction coefficient μ (no unit), e.g. 0.0085")  # fmt: skip
+    p.add_argument("--v0", type=_nonnegative, required=True, metavar="M_S",
+                   help="speed at the first photocell, m/s")  # fmt: skip
     p.add_argument("--mu1", type=_nonnegative, default=0.0, help="velocity-dependent part, s/m")
-    p.add_argument("--wind-ms", type=_number, default=0.0, help="along-track wind, + = tailwind")
-    p.add_argument("--noise-ms", type=_nonnegative, default=0.0, help="add timing noise (sd)")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--start-s", type=_number, default=0.0, help="time at the first photocell")
+    p.add_argument(
+        "--wind-ms", type=_number, default=0.0, help="along-track wind, m/s, + = tailwind"
+    )
+    p.add_argument(
+        "--noise-ms",
+        type=_nonnegative,
+        default=0.0,
+        help="add timing noise, standard deviation in ms",
+    )
+    p.add_argument("--seed", type=int, default=1, help="seed of the timing noise")
+    p.add_argument("--start-s", type=_number, default=0.0, help="time at the first photocell, s")
     p.add_argument("--csv", metavar="OUT", help="write the times as a fit input (photocell,time)")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
     _add_air(p)
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("fit", help="fit μ, CdA and v0 to the photocell times of one descent")
-    p.add_argument("--survey", required=True)
-    p.add_argument("--times", required=True, help="CSV with columns photocell,time")
-    p.add_argument("--mass", type=_positive, required=True, metavar="KG")
-    p.add_argument("--model", choices=["constant", "velocity"], default="constant")
-    p.add_argument("--wind-ms", type=_number, default=0.0, help="along-track wind, + = tailwind")
-    p.add_argument("--json", action="store_true")
+    p.add_argument(
+        "--survey", required=True, help="survey YAML with the photocells (surveys/README.md)"
+    )
+    p.add_argument(
+        "--times", required=True, help="CSV with columns photocell,time (s or hh:mm:ss.ssss)"
+    )
+    p.add_argument("--mass", type=_positive, required=True, metavar="KG",
+                   help="skier with equipment, kg")  # fmt: skip
+    p.add_argument("--model", choices=["constant", "velocity"], default="constant",
+                   help="friction μ constant, or μ + μ1·v (μ1 in s/m)")  # fmt: skip
+    p.add_argument(
+        "--wind-ms", type=_number, default=0.0, help="along-track wind, m/s, + = tailwind"
+    )
+    p.add_argument("--json", action="store_true", help="machine-readable output")
     _add_air(p)
     p.set_defaults(func=cmd_fit)
 
     p = sub.add_parser("fit-traverse", help="fit μ and CdA to (t, s) data of a traverse")
-    p.add_argument("--data", required=True, help="CSV with columns t,s")
-    p.add_argument("--slope-deg", type=_positive, required=True, metavar="A")
-    p.add_argument("--traverse-deg", type=_nonnegative, required=True, metavar="B")
-    p.add_argument("--mass", type=_positive, required=True, metavar="KG")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--data", required=True, help="CSV with columns t,s (s, m)")
+    p.add_argument("--slope-deg", type=_positive, required=True, metavar="A",
+                   help="slope of the plane, degrees")  # fmt: skip
+    p.add_argument("--traverse-deg", type=_nonnegative, required=True, metavar="B",
+                   help="angle of the traverse to the fall line, degrees")  # fmt: skip
+    p.add_argument("--mass", type=_positive, required=True, metavar="KG",
+                   help="skier with equipment, kg")  # fmt: skip
+    p.add_argument("--json", action="store_true", help="machine-readable output")
     _add_air(p)
     p.set_defaults(func=cmd_fit_traverse)

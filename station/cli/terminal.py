@@ -15,7 +15,7 @@ from station.cli.common import (
 
 def _replay_ui(args: argparse.Namespace) -> int:
     from station.cli.recording import _replay_config
-    from station.session.recorder import source_date
+    from station.session.replay import source_date
     from station.ui.app import StationApp
 
     cfg = _replay_config(args)
@@ -32,9 +32,11 @@ def _run_ui(app) -> int:
 def cmd_live(args: argparse.Namespace) -> int:
     from station.session import store as sessions
     from station.session.config import load_config
+    from station.session.ports import check_port
     from station.ui.app import StationApp
 
     cfg = load_config(args.config)
+    check_port(cfg.serial.port, args.config)  # a wrong port: say so and list them, at once
     folder = args.session_dir or sessions.default_dir()
     return _run_ui(StationApp(cfg, mode="live", session_dir=folder))
 

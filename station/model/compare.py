@@ -1,38 +1,74 @@
 """Test-day analysis: which ski or wax glides better, by how much, and how sure.
 
-One joint least-squares fit over the valid descents of a session:
+One joint fit over the valid descents of a session, a model of how test days vary:
 
-- one CdA per skier shared by all their descents (the posture is the skier's tuck), or fixed
-  from a value the user gives;
-- one μ per test item (ski or pair id and wax), optionally one μ1 per item;
-- one v0 per descent;
-- optionally a linear drift of μ over the time of day, shared by all items, so that
-  μ(descent) = μ_item + drift·(t − t̄). It is estimated when an item recurs through the day,
-  and the comparison is corrected for it.
+- μ per test item (ski or pair id and wax), optionally μ1 per item;
+- per descent, its own drag area CdA_k = CdA_skier·exp(u_k) around the skier's mean: a real
+  tuck varies from descent to descent, and u_k is a *random effect*, u_k ~ N(0, s²), with the
+  posture scatter s estimated from the day (one CdA per skier with no scatter made the Δμ
+  interval far too narrow: 34–44 % coverage at 0.5–2 % scatter, issue 12);
+- per descent, v0 at the first photocell and a time offset there (the first time is data with
+  the timer's noise, not an exact zero);
+- a linear drift of μ over the time of day, shared by all items, μ = μ_item + drift·(t − t̄),
+  when the reference item recurs (the comparison is corrected for it).
 
-The exact sensitivities of each descent (:mod:`station.model.physics`) fill one Jacobian; the fit
-is the same bounded trust-region search as for one descent. Differences between items come
-with linearised 90 % intervals (Student t on the residual degrees of freedom), the probability
-that one is faster, and the time they make over the surveyed run. Sharing CdA removes most of
-the μ–CdA correlation that limits a single descent, which is what makes Δμ = 0.001 visible.
+Why this estimator. The variance of the posture effect is estimated by restricted maximum
+likelihood (REML) of the model linearised at the current estimate (Laplace / penalised
+quasi-likelihood): given γ = s²/σ², the fit is penalised least squares, Σ r² + Σ u_k²/γ, and
+−2·log L_REML = (n − p)·log PRSS(γ) + q·log γ + log det M(γ) with M the penalised normal matrix,
+n time rows, p fixed effects (items, skiers' CdA, drift, v0 and offset per descent), q descents.
+REML rather than plain maximum likelihood because every descent spends two degrees of freedom
+on its own v0 and offset: ML would count them as information about s and σ and shrink both
+(with 9 photocells, by about a quarter). The alternative the issue names, per-descent CdA as free
+parameters, cannot separate a descent's posture from its item's μ when an item has few descents;
+the random effect borrows strength across the day in exactly the proportion the data support
+(s → 0 gives back one CdA per skier, s large gives free CdA per descent). γ and the parameters
+are updated together: each outer iteration linearises the model once (one batch solve of all
+descents, :mod:`station.model.batch`), finds γ by a one-dimensional search of the REML
+criterion of that linearisation, and takes the Gauss-Newton step at that γ.
+
+Scale. Each descent's own parameters (u_k, v0_k, offset_k) touch only its own rows, so the
+normal equations are block-arrow shaped: 3×3 blocks per descent are eliminated (Schur
+complement) and only the few global parameters are solved densely. Time and memory grow
+linearly in the number of descents; BLAS threads are capped at one (threadpoolctl) since the
+dense parts are tiny and a pool of threads on a shared 2-core machine costs far more than it
+saves (50 descents took 3.7 s instead of 0.19 s with the default pool).
+
+Uncertainty. The covariance of the global parameters is σ̂²·S⁻¹ (S the Schur complement: the
+fixed-effect block of the mixed-model equations' inverse). A comparison's interval uses
+Student's t with Satterthwaite's degrees of freedom, computed from how its variance moves with
+(log σ², log γ) and their covariance from the REML curvature, so the uncertainty of the
+estimated scatter widens the interval as much as it should (on the simulated ABBA days of
+benchmarks/compare_calibration.py they come out at 45–52 of 52: each descent's nine times pin
+its own posture well, so the scatter's estimate costs little).
+
+Goodness of fit. The residual standard deviation is compared with the timer's precision
+(χ² test of PRSS/σ_timer² on n − p degrees of freedom): a day whose residuals the timer cannot
+explain is flagged ``poor-fit``, not "ok".
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from itertools import combinations
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.stats import t as student_t
 
-from station.model.fit import TOLERANCES
-from station.model.physics import Conditions, Params, StraightRun
+from station.model.batch import Rows, solve_rows
+from station.model.physics import G_STANDARD, Conditions, Params, StraightRun
 from station.survey.track import Track
 
 US_PER_HOUR = 3.6e9
+#: the timer's precision (SD of one recorded time) assumed when none is given: a 1/10 000 s
+#: timer and the jitter of a body breaking a beam
+TIMER_SD_S = 5e-4
+#: a day is flagged when its residuals are this unlikely under the timer's precision
+POOR_FIT_P = 1e-3
+#: search range of log γ, γ = s²/σ² (s posture scatter, relative; σ timing noise, s)
+LOG_GAMMA = (-14.0, 22.0)
 
 
 @dataclass(frozen=True)
@@ -41,7 +77,7 @@ class DescentData:
 
     number: int
     item: str
-    group: str  # who skied it: one CdA per group
+    group: str  # who skied it: one mean CdA per group
     photocells: tuple[str, ...]
     times_s: np.ndarray  # relative to the first photocell
     start_hours: float  # time of day of the start, hours (unwrapped)
@@ -59,6 +95,8 @@ class ItemResult:
     ci90: tuple[float, float]
     stderr: float
     mu1: float | None = None
+    mu1_ci90: tuple[float, float] | None = None
+    p_best: float | None = None  # P(this item has the lowest μ); None: not comparable
 
 
 @dataclass
@@ -66,9 +104,21 @@ class Comparison:
     a: str
     b: str
     delta_mu: float  # μ_a − μ_b
-    ci90: tuple[float, float]
-    p_a_faster: float  # P(μ_a < μ_b)
+    ci90: tuple[float, float] | None  # None: no comparison possible (see note)
+    p_a_faster: float | None  # P(μ_a < μ_b)
     delta_t_s: float  # time a takes minus time b takes over the run
+    dof: float | None = None  # Satterthwaite degrees of freedom of the interval
+    note: str = ""
+
+
+@dataclass
+class DescentEffect:
+    """What the day's fit says of one descent."""
+
+    number: int
+    cda: float
+    v0: float
+    dt0_s: float
 
 
 @dataclass
@@ -76,7 +126,7 @@ class JointResult:
     items: list[ItemResult]
     cda: dict[
         str, tuple[float, tuple[float, float] | None]
-    ]  # group -> (value, ci or None if fixed)
+    ]  # group -> (mean value, ci or None if fixed)
     drift_per_hour: tuple[float, tuple[float, float]] | None
     drift_separable: bool
     comparisons: list[Comparison]
@@ -85,14 +135,21 @@ class JointResult:
     dof: int
     sigma_s: float
     typical_v0: float
+    posture_sd: float = 0.0  # between-descent SD of CdA, relative (0.01 = 1 %)
+    posture_ci90: tuple[float, float] | None = None
+    timer_sd_s: float = TIMER_SD_S
+    chi2_p: float | None = None
+    descents: list[DescentEffect] = field(default_factory=list)
     excluded: list[tuple[int, str]] = field(default_factory=list)
     wind_flagged: list[int] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     status: str = "ok"
+    message: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "status": self.status,
+            "message": self.message,
             "items": [
                 {
                     "item": i.item,
@@ -100,13 +157,21 @@ class JointResult:
                     "mu": i.mu,
                     "ci90": list(i.ci90),
                     "stderr": i.stderr,
+                    "p_best": i.p_best,
                     **({"mu1": i.mu1} if i.mu1 is not None else {}),
+                    **({"mu1_ci90": list(i.mu1_ci90)} if i.mu1_ci90 is not None else {}),
                 }
                 for i in self.items
             ],
             "cda": {
                 g: {"value": v, "ci90": list(c) if c else None} for g, (v, c) in self.cda.items()
             },
+            "posture_sd_pct": 100.0 * self.posture_sd,
+            "posture_ci90_pct": (
+                [100.0 * self.posture_ci90[0], 100.0 * self.posture_ci90[1]]
+                if self.posture_ci90
+                else None
+            ),
             "drift": (
                 {
                     "mu_per_hour": self.drift_per_hour[0],
@@ -121,9 +186,11 @@ class JointResult:
                     "a": c.a,
                     "b": c.b,
                     "delta_mu": c.delta_mu,
-                    "ci90": list(c.ci90),
+                    "ci90": list(c.ci90) if c.ci90 else None,
                     "p_a_faster": c.p_a_faster,
                     "delta_t_s": c.delta_t_s,
+                    "dof": c.dof,
+                    "note": c.note,
                 }
                 for c in self.comparisons
             ],
@@ -131,7 +198,13 @@ class JointResult:
             "reference": self.reference,
             "dof": self.dof,
             "sigma_s": self.sigma_s,
+            "timer_sd_s": self.timer_sd_s,
+            "chi2_p": self.chi2_p,
             "typical_v0": self.typical_v0,
+            "descents": [
+                {"descent": d.number, "cda": d.cda, "v0": d.v0, "dt0_s": d.dt0_s}
+                for d in self.descents
+            ],
             "excluded": [{"descent": n, "reason": r} for n, r in self.excluded],
             "wind_flagged": self.wind_flagged,
             "warnings": self.warnings,
@@ -142,6 +215,58 @@ class CompareError(ValueError):
     """Not enough of the right data to compare."""
 
 
+@dataclass
+class _Pieces:
+    """Normal-equation pieces of the linearised day at one point (global columns scaled)."""
+
+    bb: np.ndarray  # (D, 3, 3)
+    ab: np.ndarray  # (D, G, 3)
+    aa: np.ndarray  # (G, G)
+    br: np.ndarray  # (D, 3)
+    ar: np.ndarray  # (G,)
+    a: np.ndarray  # (D, n, G)
+    b: np.ndarray  # (D, n, 3)
+    r: np.ndarray  # (D, n)
+    u: np.ndarray  # (D,)
+
+
+@dataclass
+class _Step:
+    dg: np.ndarray  # scaled global step
+    dl: np.ndarray  # (D, 3) local step
+    prss: float
+    logdet: float
+    s_inv: np.ndarray  # (G, G) scaled
+
+
+def _linear_step(pc: _Pieces, wu: float, lam: float = 0.0) -> _Step:
+    """Penalised Gauss-Newton step with the local blocks eliminated (Schur complement)."""
+    hll = pc.bb.copy()
+    hll[:, 0, 0] += wu
+    gl = pc.br.copy()
+    gl[:, 0] += wu * pc.u
+    aa = pc.aa
+    if lam > 0:
+        idx = np.arange(3)
+        hll[:, idx, idx] *= 1.0 + lam
+        aa = aa + lam * np.diag(np.diag(aa))
+    hinv = np.linalg.inv(hll)
+    k = np.einsum("dgi,dij->dgj", pc.ab, hinv)
+    s = aa - np.einsum("dgi,dhi->gh", k, pc.ab)
+    rhs = pc.ar - np.einsum("dgi,di->g", k, gl)
+    if s.size:
+        s_inv = np.linalg.inv(s)
+        dg = -s_inv @ rhs
+        logdet_s = float(np.linalg.slogdet(s)[1])
+    else:
+        s_inv, dg, logdet_s = np.zeros((0, 0)), np.zeros(0), 0.0
+    dl = -np.einsum("dij,dj->di", hinv, gl + np.einsum("dgi,g->di", pc.ab, dg))
+    lin = pc.r + np.einsum("dng,g->dn", pc.a, dg) + np.einsum("dni,di->dn", pc.b, dl)
+    prss = float(np.sum(lin * lin) + wu * np.sum((pc.u + dl[:, 0]) ** 2))
+    logdet = float(np.sum(np.linalg.slogdet(hll)[1])) + logdet_s
+    return _Step(dg, dl, prss, logdet, s_inv)
+
+
 def joint_fit(
     track: Track,
     data: list[DescentData],
@@ -150,8 +275,20 @@ def joint_fit(
     model: str = "constant",
     drift: str = "auto",
     reference: str | None = None,
+    timer_sd_s: float = TIMER_SD_S,
 ) -> JointResult:
-    """Fit all descents at once; ``drift`` is ``auto`` (when an item recurs), ``on`` or ``off``."""
+    """Fit all descents at once; ``drift`` is ``auto`` (when an item recurs), ``on`` or ``off``.
+    ``timer_sd_s``: the timer's precision, against which the residuals are judged."""
+    from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s)
+
+
+def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> JointResult:
+    from scipy.optimize import minimize_scalar
+    from scipy.special import chdtrc, stdtr, stdtrit  # χ² survival, Student t (no scipy.stats)
+
     if not data:
         raise CompareError("no valid descent to compare")
     items = sorted(
@@ -166,103 +303,193 @@ def joint_fit(
     use_drift = drift == "on" or (drift == "auto" and ref in recurring and len(data) >= 4)
     t_mean = float(np.mean([d.start_hours for d in data]))
 
-    # parameter layout
+    # global parameter layout: skiers' mean CdA, μ (and μ1) per item, drift
+    n_d = len(data)
     n_g = 0 if cda_fixed is not None else len(groups)
-    n_i = len(items)
     per_item = 2 if model == "velocity" else 1
     i_mu = n_g
-    i_v0 = n_g + n_i * per_item
-    i_drift = i_v0 + len(data)
-    n_p = i_drift + (1 if use_drift else 0)
-    n_res = sum(len(d.times_s) - 1 for d in data)
-    dof = n_res - n_p
-    if dof < 1:
-        raise CompareError(
-            f"{n_res} time differences for {n_p} unknowns: too few photocells or descents"
+    i_drift = n_g + len(items) * per_item
+    n_glob = i_drift + (1 if use_drift else 0)
+    n_cells = np.array([len(d.times_s) for d in data])
+    n_res = int(n_cells.sum())
+    n_fixed = n_glob + 2 * n_d  # v0 and offset per descent are fixed effects too
+    dof = n_res - n_fixed
+    if dof < 1 or np.any(n_cells < 3):
+        raise CompareError(f"{n_res} times for {n_fixed} unknowns: too few photocells or descents")
+
+    n_max = int(n_cells.max())
+    mask = np.arange(n_max)[None, :] < n_cells[:, None]
+    times = np.zeros((n_d, n_max))
+    for k, d in enumerate(data):
+        times[k, : n_cells[k]] = d.times_s
+    col_g = np.array([groups.index(d.group) for d in data])
+    col_mu = np.array([i_mu + items.index(d.item) * per_item for d in data])
+    dth = np.array([d.start_hours - t_mean for d in data])
+    kk = np.array([d.air_density / d.mass_kg for d in data])
+    wind = np.array([d.wind_ms for d in data])
+    runs: dict[tuple[str, ...], tuple[StraightRun, np.ndarray]] = {}
+    for pcs in {d.photocells for d in data}:
+        xs = np.array([track.photocell(p).x for p in pcs])
+        idx = np.array([k for k, d in enumerate(data) if d.photocells == pcs])
+        runs[pcs] = (StraightRun(track.profile, xs), idx)
+    rows_d = np.arange(n_d)
+
+    def evaluate(glob: np.ndarray, loc: np.ndarray):
+        """Residuals (D, n) and Jacobians of the globals (D, n, G) and locals (D, n, 3)."""
+        base = np.full(n_d, cda_fixed) if cda_fixed is not None else glob[col_g]
+        cda = base * np.exp(loc[:, 0])
+        mu = glob[col_mu] + (glob[i_drift] * dth if use_drift else 0.0)
+        mu1 = glob[col_mu + 1] if per_item == 2 else np.zeros(n_d)
+        r = np.zeros((n_d, n_max))
+        a = np.zeros((n_d, n_max, n_glob))
+        b = np.zeros((n_d, n_max, 3))
+        stopped = np.zeros(n_d, dtype=bool)
+        converged = True
+        for run, idx in runs.values():
+            sol = solve_rows(
+                run,
+                Rows(cda[idx], mu[idx], loc[idx, 1], mu1[idx], kk[idx], wind[idx], G_STANDARD),
+                n_params=3 + (per_item - 1),
+            )
+            m = sol.t.shape[1]
+            r[idx, :m] = sol.t + loc[idx, 2:3] - times[idx, :m]
+            dt = sol.dt_dp
+            if cda_fixed is None:
+                a[idx, :m, col_g[idx]] = dt[:, :, 0] * np.exp(loc[idx, 0:1])
+            a[idx, :m, col_mu[idx]] = dt[:, :, 1]
+            if per_item == 2:
+                a[idx, :m, col_mu[idx] + 1] = dt[:, :, 3]
+            if use_drift:
+                a[idx, :m, i_drift] = dt[:, :, 1] * dth[idx, None]
+            b[idx, :m, 0] = dt[:, :, 0] * cda[idx, None]
+            b[idx, :m, 1] = dt[:, :, 2]
+            b[idx, :m, 2] = 1.0
+            stopped[idx] = sol.stopped
+            converged = converged and bool(sol.converged.all())
+        r *= mask
+        a *= mask[:, :, None]
+        b *= mask[:, :, None]
+        return r, a, b, stopped, converged
+
+    # start: the single fits' medians
+    glob = np.zeros(n_glob)
+    for g_i, g in enumerate(groups[:n_g]):
+        glob[g_i] = np.median([d.start_guess[0] for d in data if d.group == g])
+    for ii, it in enumerate(items):
+        glob[i_mu + ii * per_item] = np.median([d.start_guess[1] for d in data if d.item == it])
+    loc = np.zeros((n_d, 3))
+    loc[:, 1] = [d.start_guess[2] for d in data]
+    lower = np.full(n_glob, -np.inf)
+    lower[:n_g] = 1e-3
+    lower[i_mu:i_drift] = 0.0
+
+    r, a, b, stopped, converged = evaluate(glob, loc)
+    cs = 1.0 / np.maximum(np.sqrt(np.sum(a * a, axis=(0, 1))), 1e-300)  # column scales
+
+    def pieces(r, a, b, loc) -> _Pieces:
+        a_s = a * cs
+        return _Pieces(
+            bb=np.einsum("dni,dnj->dij", b, b),
+            ab=np.einsum("dng,dni->dgi", a_s, b),
+            aa=np.einsum("dng,dnh->gh", a_s, a_s),
+            br=np.einsum("dni,dn->di", b, r),
+            ar=np.einsum("dng,dn->g", a_s, r),
+            a=a_s,
+            b=b,
+            r=r,
+            u=loc[:, 0].copy(),
         )
 
-    runs: dict[tuple[str, ...], StraightRun] = {}
-    for d in data:
-        if d.photocells not in runs:
-            xs = np.array([track.photocell(p).x for p in d.photocells])
-            runs[d.photocells] = StraightRun(track.profile, xs)
+    def reml(lg: float, pc: _Pieces) -> tuple[float, _Step]:
+        st = _linear_step(pc, math.exp(-lg))
+        return (dof * math.log(max(st.prss, 1e-300)) + n_d * lg + st.logdet), st
 
-    def unpack(p: np.ndarray, k: int, d: DescentData) -> tuple[Params, float]:
-        cda = cda_fixed if cda_fixed is not None else p[groups.index(d.group)]
-        ii = items.index(d.item)
-        dt_h = d.start_hours - t_mean
-        mu = p[i_mu + ii * per_item] + (p[i_drift] * dt_h if use_drift else 0.0)
-        mu1 = p[i_mu + ii * per_item + 1] if per_item == 2 else 0.0
-        return Params(float(cda), float(mu), float(p[i_v0 + k]), float(mu1)), dt_h
+    pc = pieces(r, a, b, loc)
+    lg = 2.0 * math.log(0.01 / 5e-4)
+    converged_outer = False
+    nfev = 1
+    for _ in range(60):
+        lg_prev = lg
+        opt = minimize_scalar(
+            lambda x, pc=pc: reml(x, pc)[0],
+            bounds=LOG_GAMMA,
+            method="bounded",
+            options={"xatol": 1e-3},
+        )
+        lg = float(opt.x)
+        wu = math.exp(-lg)
+        st = _linear_step(pc, wu)
+        cost = float(np.sum(pc.r**2) + wu * np.sum(pc.u**2))
+        if cost - st.prss <= 1e-9 * cost + 1e-24 and abs(lg - lg_prev) < 1e-2:
+            converged_outer = True
+            break
+        lam = 0.0
+        for _ in range(12):
+            g_new = np.maximum(glob + st.dg * cs, lower)
+            l_new = loc + st.dl
+            l_new[:, 1] = np.maximum(l_new[:, 1], 0.0)
+            r2, a2, b2, stopped2, conv2 = evaluate(g_new, l_new)
+            nfev += 1
+            cost2 = float(np.sum(r2**2) + wu * np.sum(l_new[:, 0] ** 2))
+            if np.isfinite(cost2) and cost2 <= cost:
+                glob, loc, r, a, b, stopped, converged = g_new, l_new, r2, a2, b2, stopped2, conv2
+                break
+            lam = 1e-3 if lam == 0 else lam * 10
+            st = _linear_step(pc, wu, lam)
+        else:
+            break
+        pc = pieces(r, a, b, loc)
 
-    cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
-
-    def evaluate(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        key = p.tobytes()
-        if key in cache:
-            return cache[key]
-        r = np.empty(n_res)
-        jac = np.zeros((n_res, n_p))
-        row = 0
-        for k, d in enumerate(data):
-            par, dt_h = unpack(p, k, d)
-            sol = runs[d.photocells].solve(
-                par,
-                Conditions(d.mass_kg, d.air_density, d.wind_ms),
-                n_params=4 if per_item == 2 else 3,
-            )
-            m = len(d.times_s) - 1
-            r[row : row + m] = sol.t[1:] - d.times_s[1:]
-            dt = sol.dt_dp[1:, :]
-            if cda_fixed is None:
-                jac[row : row + m, groups.index(d.group)] = dt[:, 0]
-            ii = items.index(d.item)
-            jac[row : row + m, i_mu + ii * per_item] = dt[:, 1]
-            if per_item == 2:
-                jac[row : row + m, i_mu + ii * per_item + 1] = dt[:, 3]
-            jac[row : row + m, i_v0 + k] = dt[:, 2]
-            if use_drift:
-                jac[row : row + m, i_drift] = dt[:, 1] * dt_h
-            row += m
-        cache.clear()
-        cache[key] = (r, jac)
-        return r, jac
-
-    # start from the single fits
-    x0 = np.zeros(n_p)
-    for g_i, g in enumerate(groups[:n_g]):
-        x0[g_i] = np.median([d.start_guess[0] for d in data if d.group == g])
-    for ii, it in enumerate(items):
-        x0[i_mu + ii * per_item] = np.median([d.start_guess[1] for d in data if d.item == it])
-    for k, d in enumerate(data):
-        x0[i_v0 + k] = d.start_guess[2]
-    lower = np.full(n_p, 0.0)
-    upper = np.full(n_p, np.inf)
-    if use_drift:
-        lower[i_drift], upper[i_drift] = -np.inf, np.inf
-    scale = np.ones(n_p)
-    scale[:n_g] = 0.1
-    scale[i_mu:i_v0] = 0.01
-    if per_item == 2:
-        scale[i_mu + 1 : i_v0 : 2] = 1e-4
-    if use_drift:
-        scale[i_drift] = 0.001
-    res = least_squares(
-        lambda p: evaluate(p)[0],
-        np.clip(x0, lower, np.where(np.isfinite(upper), upper, x0 + 1)),
-        jac=lambda p: evaluate(p)[1],
-        bounds=(lower, upper),
-        method="trf",
-        x_scale=scale,
-        **TOLERANCES,
-        max_nfev=200,
-    )
-    p = res.x
-    r, jac = evaluate(p)
-    sigma2 = float(r @ r) / dof
-    cov = np.linalg.pinv(jac.T @ jac) * sigma2
+    # at the solution: σ̂², posture scatter, covariance of the globals
+    wu = math.exp(-lg)
+    st = _linear_step(pc, wu)
+    prss = float(np.sum(pc.r**2) + wu * np.sum(pc.u**2))
+    sigma2 = prss / dof
+    posture = math.sqrt(math.exp(lg) * sigma2)
+    cov = sigma2 * (cs[:, None] * st.s_inv * cs[None, :])
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    q = float(student_t.ppf(0.95, dof))
+
+    # curvature of the REML criterion in (log σ², log γ): Satterthwaite degrees of freedom
+    h = 0.05
+    probe = {dx: _linear_step(pc, math.exp(-(lg + dx))) for dx in (-h, h)}
+    p_m, p_p = probe[-h].prss, probe[h].prss
+    l0, l_m, l_p = st.logdet, probe[-h].logdet, probe[h].logdet
+    d1p = (p_p - p_m) / (2 * h)
+    d2p = (p_p - 2 * prss + p_m) / h**2
+    d2l = (l_p - 2 * l0 + l_m) / h**2
+    hess = np.array([[prss / sigma2, -d1p / sigma2], [-d1p / sigma2, d2p / sigma2 + d2l]])
+    try:
+        vcov = 2.0 * np.linalg.inv(hess)
+        if not (np.all(np.isfinite(vcov)) and vcov[0, 0] > 0 and vcov[1, 1] > 0):
+            vcov = None
+    except np.linalg.LinAlgError:
+        vcov = None
+
+    def satterthwaite(c: np.ndarray) -> float:
+        """Degrees of freedom of the variance of c·globals."""
+        c_s = c * cs
+        f = sigma2 * float(c_s @ st.s_inv @ c_s)
+        if vcov is None or f <= 0:
+            return float(dof)
+        fm = sigma2 * float(c_s @ probe[-h].s_inv @ c_s)
+        fp = sigma2 * float(c_s @ probe[h].s_inv @ c_s)
+        grad = np.array([f, (fp - fm) / (2 * h)])
+        var_f = float(grad @ vcov @ grad)
+        if var_f <= 0:
+            return float(dof)
+        return float(min(max(2.0 * f * f / var_f, 1.0), dof))
+
+    posture_ci = None
+    if vcov is not None and posture > 0 and lg > LOG_GAMMA[0] + 2.0:
+        se = math.sqrt(max(float(np.ones(2) @ vcov @ np.ones(2)), 0.0))
+        if se < 10.0:  # else the day says next to nothing about it
+            posture_ci = (posture * math.exp(-1.645 * se / 2), posture * math.exp(1.645 * se / 2))
+
+    def interval(j: int) -> tuple[float, float]:
+        c = np.zeros(n_glob)
+        c[j] = 1.0
+        q = float(stdtrit(satterthwaite(c), 0.95))
+        return float(glob[j] - q * sd[j]), float(glob[j] + q * sd[j])
 
     out_items = []
     for ii, it in enumerate(items):
@@ -271,28 +498,24 @@ def joint_fit(
             ItemResult(
                 item=it,
                 descents=[d.number for d in data if d.item == it],
-                mu=float(p[j]),
-                ci90=(float(p[j] - q * sd[j]), float(p[j] + q * sd[j])),
+                mu=float(glob[j]),
+                ci90=interval(j),
                 stderr=float(sd[j]),
-                mu1=float(p[j + 1]) if per_item == 2 else None,
+                mu1=float(glob[j + 1]) if per_item == 2 else None,
+                mu1_ci90=interval(j + 1) if per_item == 2 else None,
             )
         )
     cda_out: dict[str, tuple[float, tuple[float, float] | None]] = {}
     for g_i, g in enumerate(groups):
-        if cda_fixed is not None:
-            cda_out[g] = (cda_fixed, None)
-        else:
-            cda_out[g] = (float(p[g_i]), (float(p[g_i] - q * sd[g_i]), float(p[g_i] + q * sd[g_i])))
+        cda_out[g] = (cda_fixed, None) if cda_fixed is not None else (
+            float(glob[g_i]), interval(g_i)
+        )  # fmt: skip
 
     warnings: list[str] = []
     drift_out = None
     separable = True
     if use_drift:
-        drift_out = (
-            float(p[i_drift]),
-            (float(p[i_drift] - q * sd[i_drift]), float(p[i_drift] + q * sd[i_drift])),
-        )
-        # can the run order tell drift from item? look at how drift and item μ co-vary
+        drift_out = (float(glob[i_drift]), interval(i_drift))
         for ii in range(len(items)):
             j = i_mu + ii * per_item
             c = cov[j, i_drift] / (sd[j] * sd[i_drift]) if sd[j] > 0 and sd[i_drift] > 0 else 1.0
@@ -300,8 +523,8 @@ def joint_fit(
                 separable = False
         if len(items) >= 2:
             spans = {it: [d.start_hours for d in data if d.item == it] for it in items}
-            for a, b in combinations(items, 2):
-                if max(spans[a]) < min(spans[b]) or max(spans[b]) < min(spans[a]):
+            for ia, ib in combinations(items, 2):
+                if max(spans[ia]) < min(spans[ib]) or max(spans[ib]) < min(spans[ia]):
                     separable = False
         if not separable:
             warnings.append(
@@ -314,12 +537,21 @@ def joint_fit(
             f"no drift estimated: the reference item {ref!r} does not recur; a change of the "
             "snow during the session would show as a difference between items"
         )
+    single = [it for it in items if counts[it] < 2]
+    if single:
+        warnings.append(
+            f"{', '.join(single)}: one descent each, so no comparison is possible for "
+            f"{'it' if len(single) == 1 else 'them'}: one descent's glide cannot be told from "
+            "that descent's posture; ski every item at least twice (ABBA)"
+        )
 
-    # comparisons, ranking, and what Δμ means in time over the run
-    typical_v0 = float(np.median([p[i_v0 + k] for k in range(len(data))]))
+    # comparisons, P(best), and what Δμ means in time over the run
+    typical_v0 = float(np.median(loc[:, 1]))
     full_ids = tuple(track.photocell_ids)
-    run_full = runs.get(full_ids) or StraightRun(
-        track.profile, np.array([pc.x for pc in track.photocells])
+    run_full = (
+        runs[full_ids][0]
+        if full_ids in runs
+        else StraightRun(track.profile, np.array([pc.x for pc in track.photocells]))
     )
     mass = float(np.median([d.mass_kg for d in data]))
     rho = float(np.median([d.air_density for d in data]))
@@ -331,21 +563,76 @@ def joint_fit(
         )
         return float(sol.t[-1])
 
-    times = {it.item: run_time(it.mu) for it in out_items}
+    run_times = {it.item: run_time(it.mu) for it in out_items}
     comparisons = []
     order = [ref] + [it for it in items if it != ref] if ref else items
-    for a, b in combinations(order, 2):
-        ja = i_mu + items.index(a) * per_item
-        jb = i_mu + items.index(b) * per_item
-        delta = float(p[ja] - p[jb])
-        var = cov[ja, ja] + cov[jb, jb] - 2 * cov[ja, jb]
-        s = math.sqrt(max(var, 0.0))
-        prob = float(student_t.cdf(-delta / s, dof)) if s > 0 else (1.0 if delta < 0 else 0.0)
-        comparisons.append(
-            Comparison(a, b, delta, (delta - q * s, delta + q * s), prob, times[a] - times[b])
-        )
+    dofs = []
+    for ia, ib in combinations(order, 2):
+        ja = i_mu + items.index(ia) * per_item
+        jb = i_mu + items.index(ib) * per_item
+        delta = float(glob[ja] - glob[jb])
+        dts = run_times[ia] - run_times[ib]
+        few = [x for x in (ia, ib) if counts[x] < 2]
+        if few:
+            note = (
+                f"no comparison possible: {' and '.join(few)} "
+                f"{'has' if len(few) == 1 else 'have'} one descent"
+            )
+            comparisons.append(Comparison(ia, ib, delta, None, None, dts, None, note))
+            continue
+        c = np.zeros(n_glob)
+        c[ja], c[jb] = 1.0, -1.0
+        s = math.sqrt(max(float(c @ cov @ c), 0.0))
+        nu = satterthwaite(c)
+        dofs.append(nu)
+        q = float(stdtrit(nu, 0.95))
+        prob = float(stdtr(nu, -delta / s)) if s > 0 else (1.0 if delta < 0 else 0.0)
+        comparisons.append(Comparison(ia, ib, delta, (delta - q * s, delta + q * s), prob, dts, nu))
+    comparable = [ii for ii, it in enumerate(items) if counts[it] >= 2]
+    if len(comparable) >= 2:
+        cols = [i_mu + ii * per_item for ii in comparable]
+        sub = cov[np.ix_(cols, cols)]
+        rng = np.random.default_rng(0)
+        nu = min(dofs) if dofs else float(dof)
+        z = rng.multivariate_normal(np.zeros(len(cols)), sub, size=20000, method="eigh")
+        w = np.sqrt(rng.chisquare(nu, size=20000) / nu)
+        best = np.argmin(glob[cols][None, :] + z / w[:, None], axis=1)
+        for n, ii in enumerate(comparable):
+            out_items[ii].p_best = float(np.mean(best == n))
+    elif len(comparable) == 1 and len(items) == 1:
+        out_items[comparable[0]].p_best = 1.0
     ranking = [it.item for it in sorted(out_items, key=lambda i: i.mu)]
-    status = "ok" if res.status > 0 else "not-converged"
+
+    chi2_stat = prss / timer_sd_s**2
+    chi2_p = float(chdtrc(dof, chi2_stat))
+    status, message = "ok", ""
+    if not converged_outer or not converged or stopped.any():
+        status = "not-converged"
+        message = (
+            "the joint fit did not reach a verified minimum"
+            + (
+                f" (descents {', '.join(str(data[k].number) for k in rows_d[stopped])} stop "
+                "before the last photocell)"
+                if stopped.any()
+                else ""
+            )  # fmt: skip
+            + ": the numbers are not a least-squares solution"
+        )
+    elif chi2_p < POOR_FIT_P:
+        status = "poor-fit"
+        message = (
+            f"the timing residual {math.sqrt(sigma2) * 1e3:.2f} ms is more than the timer's "
+            f"precision {timer_sd_s * 1e3:.2f} ms explains (χ² {chi2_stat:.0f} on {dof} dof, "
+            f"p = {chi2_p:.1e}): the model does not describe these descents (wind, edging, a "
+            "photocell or survey error, a wrong item); the intervals are not to be trusted"
+        )
+    base = np.full(n_d, cda_fixed) if cda_fixed is not None else glob[col_g]
+    effects = [
+        DescentEffect(
+            d.number, float(base[k] * math.exp(loc[k, 0])), float(loc[k, 1]), float(loc[k, 2])
+        )  # fmt: skip
+        for k, d in enumerate(data)
+    ]
     return JointResult(
         items=out_items,
         cda=cda_out,
@@ -357,30 +644,61 @@ def joint_fit(
         dof=dof,
         sigma_s=math.sqrt(sigma2),
         typical_v0=typical_v0,
+        posture_sd=posture,
+        posture_ci90=posture_ci,
+        timer_sd_s=timer_sd_s,
+        chi2_p=chi2_p,
+        descents=effects,
         warnings=warnings,
         status=status,
+        message=message,
     )
 
 
 def format_comparison(res: JointResult, n_desc: int) -> str:
     """The comparison as the terminal shows it (CLI and UI)."""
-    lines = [f"joint fit of {n_desc} descents, {len(res.items)} items, {res.dof} dof, "
-             f"timing residual {res.sigma_s * 1000:.2f} ms ({res.status})"]  # fmt: skip
+    verdict = {"ok": "ok", "poor-fit": "POOR FIT", "not-converged": "NOT CONVERGED"}
+    lines = [
+        f"joint fit of {n_desc} descents, {len(res.items)} items, {res.dof} dof, timing "
+        f"residual {res.sigma_s * 1000:.2f} ms against a timer of {res.timer_sd_s * 1000:.2f} ms"
+        + (f" (χ² p = {res.chi2_p:.2g})" if res.chi2_p is not None else "")
+        + f": {verdict.get(res.status, res.status)}"
+    ]
+    if res.message:
+        lines.append(f"  {res.message}")
     for g, (v, c) in res.cda.items():
         rng = f"[{c[0]:.4f}, {c[1]:.4f}]" if c else "(fixed)"
-        lines.append(f"  CdA {g}: {v:.4f} m² {rng}")
+        lines.append(f"  CdA {g}: {v:.4f} m² {rng} (mean over the skier's descents)")
+    pci = (
+        f" [{res.posture_ci90[0] * 100:.2f}, {res.posture_ci90[1] * 100:.2f}] %"
+        if res.posture_ci90
+        else ""
+    )
+    if not res.posture_ci90 and res.posture_sd < 1e-3:
+        pci = " (none seen beyond the timing noise)"
+    lines.append(
+        f"  posture scatter (CdA between descents of a skier): {res.posture_sd * 100:.2f} %{pci}"
+    )
     if res.drift_per_hour:
         d, (lo, hi) = res.drift_per_hour
         sep = "" if res.drift_separable else "  NOT SEPARABLE FROM ITEM"
         lines.append(f"  drift of μ: {d:+.5f} per hour [{lo:+.5f}, {hi:+.5f}]{sep}")
     lines.append("")
-    lines.append(f"{'rank':<5}{'item':<28}{'descents':>9}{'μ':>10}   90 % CI")
+    lines.append(f"{'rank':<5}{'item':<28}{'descents':>9}{'μ':>10}   90 % CI{'':<14}P(best)")
     for k, name in enumerate(res.ranking, start=1):
         it = next(i for i in res.items if i.item == name)
-        lines.append(f"{k:<5}{it.item:<28}{len(it.descents):>9}{it.mu:>10.5f}   "
-                     f"[{it.ci90[0]:.5f}, {it.ci90[1]:.5f}]")  # fmt: skip
+        pb = f"{it.p_best:.3f}" if it.p_best is not None else "—"
+        ci = f"[{it.ci90[0]:.5f}, {it.ci90[1]:.5f}]"
+        lines.append(f"{k:<5}{it.item:<28}{len(it.descents):>9}{it.mu:>10.5f}   {ci:<21}{pb}")
+        if it.mu1 is not None and it.mu1_ci90 is not None:
+            flag = "  (not distinguishable from 0)" if it.mu1_ci90[0] <= 0 <= it.mu1_ci90[1] else ""
+            lines.append(f"{'':<5}  μ1 {it.mu1:.2e} s/m [{it.mu1_ci90[0]:.2e}, "
+                         f"{it.mu1_ci90[1]:.2e}]{flag}")  # fmt: skip
     lines.append("")
     for c in res.comparisons:
+        if c.ci90 is None or c.p_a_faster is None:
+            lines.append(f"{c.a} − {c.b}: {c.note}")
+            continue
         lines.append(
             f"{c.a} − {c.b}: Δμ {c.delta_mu:+.5f} [{c.ci90[0]:+.5f}, {c.ci90[1]:+.5f}], "
             f"P({c.a} faster) = {c.p_a_faster:.3f}, "
@@ -391,39 +709,46 @@ def format_comparison(res: JointResult, n_desc: int) -> str:
     return "\n".join(lines)
 
 
-def item_of(row: dict[str, Any]) -> str:
-    """The test item of a descent: ski (or pair id) and wax, as the engineer entered them."""
-    ski = str(row.get("ski") or "").strip()
-    wax = str(row.get("wax") or "").strip()
+def item_of(row: Any) -> str:
+    """The test item of a descent: ski (or pair id) and wax, as the engineer entered them
+    (``row`` is a :class:`station.session.records.ResultRow`)."""
+    return item_name(row.ski, row.wax)
+
+
+def item_name(ski: str | None, wax: str | None) -> str:
+    """A test item's name from its ski (or pair id) and wax."""
+    ski = str(ski or "").strip()
+    wax = str(wax or "").strip()
     if ski and wax:
         return f"{ski} / {wax}"
     return ski or wax or "(no item)"
 
 
 def collect(
-    day, wind_limit_ms: float = 1.0
+    results: Iterable[Any], wind_limit_ms: float = 1.0
 ) -> tuple[list[DescentData], list[tuple[int, str]], list[int]]:
-    """The descents of a :class:`station.session.day.Day` that enter the comparison, those left out
-    (with why) and those flagged for wind."""
+    """The descents that enter the comparison, those left out (with why) and those flagged for
+    wind, from a day's results (:class:`station.session.analysis.DescentResult`, in order)."""
     data: list[DescentData] = []
     excluded: list[tuple[int, str]] = []
     windy: list[int] = []
-    for n in sorted(day.results):
-        res = day.results[n]
+    for res in results:
         row, d, f = res.row, res.descent, res.fit
-        if row.get("invalid_reason"):
-            excluded.append((n, f"marked invalid: {row['invalid_reason']}"))
+        n = row.descent
+        if row.invalid_reason:
+            excluded.append((n, f"marked invalid: {row.invalid_reason}"))
             continue
-        if f is None or d.status == "aborted":
-            excluded.append((n, d.status))
+        if f is None:
+            why = "; ".join(row.flags[-1:]) if row.status == "error" else ""
+            excluded.append((n, f"{row.status}: {why}" if why else str(row.status)))
             continue
-        if f.status not in ("ok", "ill-conditioned"):
-            excluded.append((n, f.status))
+        if row.status not in ("ok", "ill-conditioned"):
+            excluded.append((n, str(row.status)))
             continue
         if len(d.photocells) < 3:
             excluded.append((n, "fewer than 3 photocells"))
             continue
-        wind = float(row.get("wind_ms") or 0.0)
+        wind = float(row.wind_ms or 0.0)
         if abs(wind) > wind_limit_ms:
             windy.append(n)
         e = f.estimates
@@ -432,12 +757,12 @@ def collect(
             DescentData(
                 number=n,
                 item=item_of(row),
-                group=str(row.get("skier") or "skier"),
+                group=str(row.skier or "skier"),
                 photocells=tuple(d.photocells),
                 times_s=(np.array(d.times_us) - d.times_us[0]) / 1e6,
                 start_hours=d.times_us[0] / US_PER_HOUR,
-                mass_kg=float(row["mass_kg"]),
-                air_density=float(row["air_density"]),
+                mass_kg=float(row.mass_kg),
+                air_density=float(row.air_density),
                 wind_ms=wind,
                 start_guess=(float(guess[0]), float(guess[1]), float(guess[2])),
             )

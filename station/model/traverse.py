@@ -138,7 +138,8 @@ def read_traverse_data(path: str) -> tuple[np.ndarray, np.ndarray]:
             line=line,
             field="header",
         )
-    t, s = [], []
+    t: list[float] = []
+    s: list[float] = []
     for line, row in rows[1:]:
         for col, name, out in ((it, "t", t), (is_, "s", s)):
             try:
@@ -173,7 +174,7 @@ def fit_traverse(
     dof = len(t) - 4
 
     def model(p: np.ndarray):
-        return simulate_traverse(t, *p[:3], slope_deg, traverse_deg, mass_kg, air_density, g, p[3])
+        return simulate_traverse(t, *p[:3], slope_deg, traverse_deg, mass_kg, air_density, g, p[3])  # type: ignore[call-arg]
 
     # start: a quadratic s(t) gives v0 and the mean acceleration; CdA 0.3 m² accounts for drag
     tr = t - t[0]

@@ -1,32 +1,93 @@
 """Fits of finished descents: the station's track, skier and air applied to each timed descent,
-and the row of the results CSV it gives. Pure: no I/O, no threads."""
+and the row of the results it gives. Pure: no I/O, no threads.
+
+A fit that raises (a singular matrix in the interval step, a bug) never ends the day: the
+descent gets ``status: error`` with the reason in its flags, and the next descent is fitted
+as if nothing happened.
+"""
 
 from __future__ import annotations
 
 import datetime as dt
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from station.model.fit import FitResult, fit_descent
 from station.model.physics import Conditions, Params, StraightRun
 from station.session.config import StationConfig
+from station.session.records import (
+    DescentStatus,
+    DescentTimes,
+    FitModel,
+    Metadata,
+    ResultRow,
+    Status,
+    fit_status,
+)
 from station.survey.track import Track
-from station.timing.assembly import TimedDescent
 from station.timing.impulses import DAY_US
 
 
-@dataclass
-class DescentResult:
-    """A descent with its fit and everything the results CSV and the UI show of it."""
+@dataclass(frozen=True)
+class FitJob:
+    """Everything one fit needs, taken from the day under its lock; the fit itself then runs
+    without it, so the reader is never held up by a fit."""
 
-    descent: TimedDescent
-    fit: FitResult | None
+    descent: DescentTimes
     start_time: str
-    row: dict[str, Any]
+    metadata: Metadata  # in force for this descent
+    model: FitModel
+    mass_kg: float
+    air_density: float
+    wind_ms: float = 0.0
+    problem: str = ""  # what makes the fit impossible (e.g. wind without a direction)
+
+
+@dataclass(frozen=True)
+class DescentResult:
+    """A descent with its fit and its row of the results: immutable, so it can be handed to the
+    UI thread as it is (the speed arrays are read-only)."""
+
+    descent: DescentTimes
+    fit: FitResult | None
+    row: ResultRow
     speed_x: np.ndarray | None = None  # the fitted skier's speed along the run, for plots
     speed_v: np.ndarray | None = None
+
+    @property
+    def number(self) -> int:
+        return self.descent.number
+
+    @property
+    def start_time(self) -> str:
+        return self.row.start_time
+
+    def marked(self, invalid_reason: str) -> DescentResult:
+        """The same result with the engineer's invalid mark (or none) on it."""
+        if invalid_reason == self.row.invalid_reason:
+            return self
+        return replace(self, row=replace(self.row, invalid_reason=invalid_reason))
+
+
+def start_time(d: DescentTimes, host_t: float | None, date: dt.date | None) -> str:
+    """The device's time of day of the start, dated. Live, the date is the one that puts the
+    start nearest the host's clock: a descent started at 23:59:58 and finished after midnight
+    keeps its day, so start times never go backwards at midnight. In replay, the replay's
+    date plus the days the device clock counted. A timer that dates its impulses (TAG: days
+    since 2000-01-01) is believed over both."""
+    if d.day is not None:
+        tod_of_day = dt.timedelta(microseconds=d.start_us % DAY_US)
+        return (dt.datetime(2000, 1, 1) + dt.timedelta(days=d.day) + tod_of_day).isoformat()
+    days, tod = divmod(d.start_us, DAY_US)
+    t = (dt.datetime.min + dt.timedelta(microseconds=tod)).time()
+    if host_t is not None:
+        host = dt.datetime.fromtimestamp(host_t)
+        near = [dt.datetime.combine(host.date() + dt.timedelta(days=k), t) for k in (-1, 0, 1)]
+        return min(near, key=lambda c: abs(c - host)).isoformat()
+    if date is None:
+        return t.isoformat()
+    return dt.datetime.combine(date + dt.timedelta(days=days), t).isoformat()
 
 
 class Analyser:
@@ -38,75 +99,48 @@ class Analyser:
         self.track = track
         self._runs: dict[tuple[str, ...], StraightRun] = {}
 
-    def start_time(self, d: TimedDescent, host_t: float | None, date: dt.date | None) -> str:
-        """The device's time of day of the start, dated. Live, the date is the one that puts
-        the start nearest the host's clock: a descent started at 23:59:58 and finished after
-        midnight keeps its day, so start times never go backwards at midnight."""
-        days, tod = divmod(d.start_us, DAY_US)
-        t = (dt.datetime.min + dt.timedelta(microseconds=tod)).time()
-        if host_t is not None:
-            host = dt.datetime.fromtimestamp(host_t)
-            near = [dt.datetime.combine(host.date() + dt.timedelta(days=k), t) for k in (-1, 0, 1)]
-            return min(near, key=lambda c: abs(c - host)).isoformat()
-        if date is None:
-            return t.isoformat()
-        return dt.datetime.combine(date + dt.timedelta(days=days), t).isoformat()
+    def run(self, job: FitJob) -> DescentResult:
+        """Fit one descent; an exception of the fit is the descent's ``error`` status."""
+        if job.problem:
+            return error_result(job, job.problem)
+        try:
+            return self._fit(job)
+        except Exception as exc:  # noqa: BLE001 - one failed fit must not end the day
+            return error_result(job, f"fit failed: {type(exc).__name__}: {exc}")
 
-    def analyse(
-        self,
-        d: TimedDescent,
-        host_t: float | None = None,
-        date: dt.date | None = None,
-        metadata: dict[str, Any] | None = None,
-        model: str | None = None,
-        mass_kg: float | None = None,
-        air_density: float | None = None,
-        wind_ms: float = 0.0,
-    ) -> DescentResult:
-        cfg = self.config
-        meta = {**cfg.metadata, **(metadata or {})}
-        model = model or cfg.model
-        mass = mass_kg if mass_kg is not None else cfg.mass_kg
-        rho = air_density if air_density is not None else cfg.air_density
-        fit = None
-        if d.status != "aborted":
-            ids = tuple(d.photocells)
-            run = self._runs.get(ids)
-            xs = np.array([self.track.photocell(p).x for p in ids])
-            if run is None:
-                run = self._runs[ids] = StraightRun(self.track.profile, xs)
-            t = (np.array(d.times_us) - d.times_us[0]) / 1e6
-            fit = fit_descent(
-                self.track.profile,
-                xs,
-                t,
-                Conditions(mass, rho, wind_ms),
-                list(ids),
-                model=model,
-                run=run,
-            )
-        start = self.start_time(d, host_t, date)
-        row = result_row(d, fit, start, meta, model, mass, rho)
-        row["wind_ms"] = wind_ms
-        res = DescentResult(d, fit, start, row)
-        if fit is not None and all(fit.estimates.get(k) is not None for k in ("cda", "mu", "v0")):
-            e = fit.estimates
+    def _fit(self, job: FitJob) -> DescentResult:
+        d = job.descent
+        cond = Conditions(job.mass_kg, job.air_density, job.wind_ms)
+        if d.status == DescentStatus.ABORTED:
+            return DescentResult(d, None, result_row(job, None))
+        ids = d.photocells
+        run = self._runs.get(ids)
+        xs = np.array([self.track.photocell(p).x for p in ids])
+        if run is None:
+            run = self._runs[ids] = StraightRun(self.track.profile, xs)
+        t = (np.array(d.times_us) - d.times_us[0]) / 1e6
+        fit = fit_descent(
+            self.track.profile, xs, t, cond, list(ids), model=job.model.value, run=run
+        )
+        row = result_row(job, fit)
+        speed_x = speed_v = None
+        e = fit.estimates
+        if all(e.get(k) is not None for k in ("cda", "mu", "v0")):
             p = Params(e["cda"], e["mu"], e["v0"], e.get("mu1") or 0.0)  # type: ignore[arg-type]
-            sol = run.solve(p, Conditions(mass, rho, wind_ms), sensitivities=False)
-            res.speed_x, res.speed_v = sol.x, sol.speed
-        return res
+            sol = run.solve(p, cond, sensitivities=False)
+            speed_x, speed_v = _frozen(sol.x), _frozen(sol.speed)
+        return DescentResult(d, fit, row, speed_x, speed_v)
 
 
-def result_row(
-    d: TimedDescent,
-    fit: FitResult | None,
-    start: str,
-    meta: dict[str, Any],
-    model: str,
-    mass_kg: float,
-    air_density: float,
-) -> dict[str, Any]:
-    """One row of the results CSV."""
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.flags.writeable = False
+    return a
+
+
+def result_row(job: FitJob, fit: FitResult | None) -> ResultRow:
+    """The row of the results for a descent and its fit (None: not fitted)."""
+    d = job.descent
 
     def ci(key: str, i: int) -> float | None:
         if fit is None or fit.ci90.get(key) is None:
@@ -118,35 +152,40 @@ def result_row(
     if fit is not None and fit.residuals_s:
         r = np.array(list(fit.residuals_s.values())[1:])
         rms = float(np.sqrt(np.mean(r**2)) * 1000) if r.size else None
-    status = d.status if fit is None else fit.status
-    return {
-        "descent": d.number,
-        "start_time": start,
-        "photocells_used": len(d.photocells),
-        "missing": " ".join(d.missing),
-        "v0": est.get("v0"),
-        "cda": est.get("cda"),
-        "cda_lo": ci("cda", 0),
-        "cda_hi": ci("cda", 1),
-        "mu": est.get("mu"),
-        "mu_lo": ci("mu", 0),
-        "mu_hi": ci("mu", 1),
-        "mu1": est.get("mu1") if model == "velocity" else None,
-        "sigma_s2": fit.sigma_s2 if fit else None,
-        "rms_residual_ms": rms,
-        "status": status,
-        "descent_status": d.status,
-        "flags": "; ".join(d.flags),
-        "model": model,
-        "mass_kg": mass_kg,
-        "air_density": air_density,
-        "skier": meta.get("skier", ""),
-        "ski": meta.get("ski", ""),
-        "wax": meta.get("wax", ""),
-        "air_temperature_c": meta.get("air_temperature_c"),
-        "snow_temperature_c": meta.get("snow_temperature_c"),
-        "pressure_hpa": meta.get("pressure_hpa"),
-        "humidity_pct": meta.get("humidity_pct"),
-        "notes": meta.get("notes", ""),
-        "invalid_reason": "",
-    }
+    flags = d.flags
+    if fit is None:
+        status = Status.ABORTED
+    else:
+        status, why = fit_status(fit.status)
+        flags = (*flags, why) if why else flags
+    return ResultRow(
+        descent=d.number,
+        start_time=job.start_time,
+        photocells_used=len(d.photocells),
+        missing=d.missing,
+        v0=est.get("v0"),
+        cda=est.get("cda"),
+        cda_lo=ci("cda", 0),
+        cda_hi=ci("cda", 1),
+        mu=est.get("mu"),
+        mu_lo=ci("mu", 0),
+        mu_hi=ci("mu", 1),
+        mu1=est.get("mu1") if job.model == FitModel.VELOCITY else None,
+        sigma_s2=fit.sigma_s2 if fit else None,
+        rms_residual_ms=rms,
+        status=status,
+        descent_status=d.status,
+        flags=flags,
+        model=job.model,
+        mass_kg=job.mass_kg,
+        air_density=job.air_density,
+        wind_ms=job.wind_ms,
+        metadata=job.metadata,
+    )
+
+
+def error_result(job: FitJob, reason: str) -> DescentResult:
+    """A descent whose fit failed: ``status: error``, the reason last among its flags."""
+    row = result_row(job, None)
+    row = replace(row, status=Status.ERROR, flags=(*row.flags, reason))
+    return DescentResult(job.descent, None, row)

@@ -18,7 +18,8 @@
     wax: LF blue
     notes: morning, hard snow
     air: {pressure_hpa: 835, temperature_c: -4, humidity_pct: 70}   # or {density: 1.08}
-    descent: {debounce_s: 0.3, timeout_s: null, min_speed_ms: 1.0}
+    descent: {debounce_s: 0.3, timeout_s: null, min_speed_ms: 1.0, pairing: auto}
+    items: {12: {ski: A, wax: blue}}   # optional: what the bib on a start names
     fit: {model: constant}        # constant | velocity
 
 Unknown keys, wrong types and numbers that are not finite or outside a physical range (the
@@ -35,6 +36,7 @@ from dataclasses import dataclass, field
 from station.errors import InputError
 from station.files import MAX_YAML, check_regular
 from station.model.air import air_density
+from station.timing.assembly import PAIRINGS
 from station.timing.wireformats import PARSERS
 from station.yamlfile import Section, parse_yaml, read_yaml_text
 
@@ -76,6 +78,7 @@ class DescentConfig:
     debounce_s: float = 0.3
     timeout_s: float | None = None
     min_speed_ms: float = 1.0
+    pairing: str = "auto"  # auto | bib | order (station.timing.assembly)
 
 
 @dataclass
@@ -91,9 +94,11 @@ class StationConfig:
     model: str = "constant"
     metadata: dict[str, str] = field(default_factory=dict)
     text: str = ""
+    items: dict[str, dict[str, str]] = field(default_factory=dict)  # bib -> ski, wax, …
 
 
-_TOP = {"serial", "survey", "photocells", "skier", "ski", "wax", "notes", "air", "descent", "fit"}
+_TOP = {"serial", "survey", "photocells", "skier", "ski", "wax", "notes", "air", "descent", "fit",
+        "items"}  # fmt: skip
 
 
 def load_config(path: str) -> StationConfig:
@@ -203,12 +208,19 @@ def load_config(path: str) -> StationConfig:
             raise air_sec.error("humidity_pct", str(exc)) from None
 
     dsec = Section(
-        top.data.get("descent"), path, "descent", {"debounce_s", "timeout_s", "min_speed_ms"}
+        top.data.get("descent"),
+        path,
+        "descent",
+        {"debounce_s", "timeout_s", "min_speed_ms", "pairing"},
     )
+    pairing = dsec.get("pairing", str, "auto")
+    if pairing not in PAIRINGS:
+        raise dsec.error("pairing", f"unknown pairing {pairing!r} ({', '.join(PAIRINGS)})")
     descent = DescentConfig(
         debounce_s=_ranged(dsec, "debounce_s", 0.3),
         timeout_s=_ranged(dsec, "timeout_s"),
         min_speed_ms=_ranged(dsec, "min_speed_ms", 1.0),
+        pairing=pairing,
     )
     fsec = Section(top.data.get("fit"), path, "fit", {"model"})
     model = fsec.get("model", str, "constant")
@@ -221,6 +233,7 @@ def load_config(path: str) -> StationConfig:
     for key in ("ski", "wax", "notes"):
         if top.has(key):
             metadata[key] = top.get(key, str)
+    items = _items(top)
     return StationConfig(
         path=path,
         serial=serial,
@@ -233,4 +246,25 @@ def load_config(path: str) -> StationConfig:
         model=model,
         metadata=metadata,
         text=text,
+        items=items,
     )
+
+
+def _items(top: Section) -> dict[str, dict[str, str]]:
+    """``items: {12: {ski: A, wax: blue}}``: the bib on a start names the ski under test."""
+    data = top.data.get("items")
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise top.error("items", "expected a mapping of bib to {ski: …, wax: …, notes: …}")
+    out: dict[str, dict[str, str]] = {}
+    for bib, values in data.items():
+        key = str(bib).strip()
+        if isinstance(bib, bool) or not (key.isascii() and key.isdigit()):
+            raise InputError(f"a bib is a number, got {bib!r}", path=top.path,
+                             line=data.lines.get(bib) if hasattr(data, "lines") else None,
+                             field=f"items.{bib}")  # fmt: skip
+        sec = Section(values, top.path, f"items.{key}", {"ski", "wax", "notes", "skier"},
+                      line=data.lines.get(bib, 0) if hasattr(data, "lines") else 0)  # fmt: skip
+        out[key.lstrip("0") or "0"] = {k: sec.get(k, str) for k in sec.data if sec.has(k)}
+    return out

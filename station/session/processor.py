@@ -15,6 +15,7 @@ from collections import Counter
 from station.errors import InputError
 from station.session.config import StationConfig
 from station.session.rawlog import Chunk
+from station.session.records import LineCounts
 from station.survey.track import Track
 from station.timing.assembly import DescentAssembler, ImpulseEvent, TimedDescent
 from station.timing.framing import LineFramer
@@ -50,6 +51,7 @@ class Processor:
             timeout_s=config.descent.timeout_s,
             positions_m=positions,
             min_speed_ms=config.descent.min_speed_ms,
+            pairing=config.descent.pairing,
         )
         self.lines = 0
         self.counts: Counter[str] = Counter()
@@ -62,12 +64,19 @@ class Processor:
     def events(self) -> list[ImpulseEvent]:
         return self.assembler.events
 
+    def line_counts(self) -> LineCounts:
+        """A snapshot of the counts, for the summary and the UI."""
+        c = self.counts
+        return LineCounts(self.lines, c["impulse"], c["edit"], c["skipped"], c["unparsed"])
+
     def feed(self, chunk: Chunk) -> list[TimedDescent]:
         if chunk.event:
             if chunk.event == "timeout":
                 return self.tick(chunk.t)
             if chunk.event != "session":
                 self.connection.append((chunk.t, chunk.event, chunk.detail))
+            if chunk.event == "disconnected":
+                self.assembler.disconnected(chunk.detail)
             return []
         done: list[TimedDescent] = []
         for line in self.framer.feed(chunk.data):
@@ -80,26 +89,19 @@ class Processor:
         if isinstance(parsed, Impulse):
             self.counts["impulse"] += 1
             before = self.assembler.count
-            done = self.assembler.feed(parsed, self.lines)
-            if t is not None and self.assembler._clock is not None:
-                self.offset_us = self.assembler._clock - round(t * 1e6)
+            now = None
+            if t is not None and t == t and self.offset_us is not None:
+                now = round(t * 1e6) + self.offset_us  # the device time now, by the host clock
+            done = self.assembler.feed(parsed, self.lines, now)
+            if t is not None and self.assembler.clock is not None:
+                self.offset_us = self.assembler.clock - round(t * 1e6)
             if self.assembler.count > before:
                 self.start_host[self.assembler.count] = t
             return done
         if isinstance(parsed, Edit):
             self.counts["edit"] += 1
-            self.assembler.events.append(
-                ImpulseEvent(
-                    self.lines,
-                    parsed.channel,
-                    self.assembler.channels.get(parsed.channel),
-                    parsed.tod_us,
-                    parsed.flag,
-                    False,
-                    f"{parsed.kind}: repeats an earlier impulse, not a new one",
-                )
-            )
-        elif isinstance(parsed, Skip):
+            return self.assembler.edit(parsed, self.lines)
+        if isinstance(parsed, Skip):
             self.counts["skipped"] += 1
         elif isinstance(parsed, Unparsed):
             self.counts["unparsed"] += 1

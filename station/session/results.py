@@ -1,24 +1,27 @@
 """The results CSV: one row per descent, a ``#`` header saying what it was computed from.
 
-Read it back with ``pandas.read_csv(path, comment="#")``; text fields are quoted, so a ``#`` in
-the notes stays part of them. Text fields are also safe to open in a spreadsheet: a value whose
-first character other than spaces, tabs and line breaks is ``=``, ``+``, ``-`` or ``@`` (or
-their full-width forms), or that begins with a tab or a line break, gets a leading apostrophe,
-so it is shown as text, never run as a formula (spreadsheets skip leading whitespace before a
-formula). Header values are put on one line with no commas or semicolons, so neither pandas
-nor a spreadsheet splits a ``#`` line, whatever a survey name or a note contains.
+Read it back with ``read_results`` or ``pandas.read_csv(path, comment="#")``; text fields are
+quoted, so a ``#`` in the notes stays part of them. Text fields are also safe to open in a
+spreadsheet: a value whose first character other than spaces, tabs and line breaks is ``=``,
+``+``, ``-`` or ``@`` (or their full-width forms), or that begins with a tab or a line break,
+gets a leading apostrophe, so it is shown as text, never run as a formula (spreadsheets skip
+leading whitespace before a formula). Header values are put on one line with no commas or
+semicolons, so neither pandas nor a spreadsheet splits a ``#`` line, whatever a survey name or a
+note contains.
 """
 
 from __future__ import annotations
 
 import csv
+import math
+import operator
 import os
 import tempfile
-from typing import Any
-
-import pandas as pd
+from collections.abc import Sequence
+from typing import IO, Any
 
 from station import __version__
+from station.session.records import ResultRow, csv_record
 
 COLUMNS = [
     "descent", "start_time", "photocells_used", "missing", "v0", "cda", "cda_lo", "cda_hi",
@@ -45,6 +48,9 @@ def safe_text(value: Any) -> Any:
     return value
 
 
+INT_COLUMNS = ("descent", "photocells_used")
+
+
 def header_text(value: Any) -> str:
     """A header value on one line without separators: control characters (CR, LF, TAB, …)
     become spaces, commas and semicolons become `` |``."""
@@ -53,45 +59,62 @@ def header_text(value: Any) -> str:
     return " ".join(text.replace(",", " |").replace(";", " |").split())
 
 
-def results_frame(rows: list[dict[str, Any]]) -> pd.DataFrame:
-    df = pd.DataFrame(rows, columns=COLUMNS)
-    for col in TEXT_COLUMNS:
-        df[col] = df[col].map(safe_text)
-    # numbers as numbers (None -> empty), so they are written unquoted and read back as floats
-    for col in COLUMNS:
-        if col in TEXT_COLUMNS or col == "start_time":
-            continue
-        kind = "Int64" if col in ("descent", "photocells_used") else "float64"
-        df[col] = pd.to_numeric(df[col]).astype(kind)
-    return df
-
-
-def _plain(value: Any) -> Any:
-    """NaN/NA -> None (written empty); numpy scalars -> Python numbers (written unquoted)."""
-    if value is None or value is pd.NA or (isinstance(value, float) and value != value):
+def _number(value: Any, col: str) -> int | float | None:
+    """A number cell as a plain Python number (written unquoted, full precision); None or NaN
+    -> None (written empty). The csv module, not pandas: a command that writes results should
+    not pay pandas' import time."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
         return None
-    if hasattr(value, "item"):
-        return value.item()
-    return value
+    if col not in INT_COLUMNS:
+        number = float(value)  # numpy scalars and numeric strings too; text raises ValueError
+        return None if math.isnan(number) else number
+    try:
+        return operator.index(value)
+    except TypeError:
+        number = float(value)
+        if not number.is_integer():
+            raise ValueError(f"{col} {value!r} is not a whole number") from None
+        return int(number)
+
+
+def results_frame(rows: list[dict[str, Any]]) -> list[list[Any]]:
+    """The cells of each row in ``COLUMNS`` order: text made spreadsheet-safe, numbers as
+    numbers (so they are written unquoted and read back as floats), missing as None."""
+    out = []
+    for row in rows:
+        cells = []
+        for col in COLUMNS:
+            value = row.get(col)
+            if col in TEXT_COLUMNS or col == "start_time":
+                missing = isinstance(value, float) and math.isnan(value)
+                cells.append(None if missing else safe_text(value))
+            else:
+                cells.append(_number(value, col))
+        out.append(cells)
+    return out
+
+
+def write_results_to(fh: IO[str], rows: list[dict[str, Any]], header: dict[str, str]) -> None:
+    """The results CSV into an open text file (``newline=""``), e.g. standard output."""
+    cells = results_frame(rows)
+    lines = [f"# station {__version__} results"]
+    lines += [f"# {header_text(k)}: {header_text(v)}" for k, v in header.items()]
+    fh.write("\n".join(lines) + "\n")
+    # the csv module, not DataFrame.to_csv: numbers must stay numbers (unquoted, full
+    # precision) while every text field is quoted, so a "#" in the notes is safe
+    w = csv.writer(fh, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
+    w.writerow(COLUMNS)
+    w.writerows(cells)
 
 
 def write_results(rows: list[dict[str, Any]], path: str, header: dict[str, str]) -> None:
     """Write atomically (temp file + rename), so a reader never sees half a file."""
-    df = results_frame(rows)
-    lines = [f"# station {__version__} results"]
-    lines += [f"# {header_text(k)}: {header_text(v)}" for k, v in header.items()]
     folder = os.path.dirname(os.path.abspath(path))
     fd, tmp = tempfile.mkstemp(prefix=".results-", suffix=".csv", dir=folder)
     try:
         os.fchmod(fd, 0o666 & ~_umask())  # as open() would make it; mkstemp makes it 0600
         with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write("\n".join(lines) + "\n")
-            # the csv module, not DataFrame.to_csv: numbers must stay numbers (unquoted, full
-            # precision) while every text field is quoted, so a "#" in the notes is safe
-            w = csv.writer(fh, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
-            w.writerow(list(df.columns))
-            for row in df.itertuples(index=False):
-                w.writerow([_plain(v) for v in row])
+            write_results_to(fh, rows, header)
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
@@ -114,5 +137,34 @@ def _umask() -> int:
     return mask
 
 
-def read_results(path: str) -> pd.DataFrame:
-    return pd.read_csv(path, comment="#")
+def read_results(path: str) -> list[dict[str, Any]]:
+    """The rows as written: numbers as int (descent, photocells_used) or float, text as str,
+    empty cells as None. Only the ``#`` lines above the column names are skipped: a line of
+    quoted notes may begin with ``#`` too."""
+    with open(path, encoding="utf-8", newline="") as fh:
+        lines = fh.readlines()
+    start = next((i for i, line in enumerate(lines) if not line.startswith("#")), len(lines))
+    reader = csv.reader(lines[start:])
+    names = next(reader, [])
+    rows = []
+    for cells in reader:
+        row: dict[str, Any] = {}
+        for col, cell in zip(names, cells, strict=False):
+            if cell == "":
+                row[col] = None
+            elif col in TEXT_COLUMNS or col == "start_time" or col not in COLUMNS:
+                row[col] = cell
+            else:
+                row[col] = int(cell) if col in INT_COLUMNS else float(cell)
+        rows.append(row)
+    return rows
+
+
+def write_result_rows(rows: Sequence[ResultRow], path: str, header: dict[str, str]) -> None:
+    """The results CSV of typed rows: each row's one CSV view (:func:`csv_record`)."""
+    write_results([csv_record(r) for r in rows], path, header)
+
+
+def write_result_rows_to(fh: IO[str], rows: Sequence[ResultRow], header: dict[str, str]) -> None:
+    """:func:`write_result_rows` into an open text file, e.g. standard output."""
+    write_results_to(fh, [csv_record(r) for r in rows], header)

@@ -27,6 +27,7 @@ import os
 import threading
 import time
 from collections.abc import Callable
+from typing import Any
 
 import serial
 
@@ -64,41 +65,32 @@ class KeepQueuedSerial(serial.Serial):
     def _reset_input_buffer(self) -> None:
         if self._opening:
             return
-        getattr(super(), "_reset_input_buffer")()  # noqa: B009 - private in pyserial's stubs
+        super()._reset_input_buffer()  # type: ignore[misc]  # POSIX Serial has it; stubs do not
 
 
 def _is_device_path(port: str) -> bool:
-    posix = os.name == "posix" and hasattr(serial.Serial, "_reset_input_buffer")
-    return posix and "://" not in port
+    return (
+        "://" not in port and os.name == "posix" and hasattr(serial.Serial, "_reset_input_buffer")
+    )
 
 
 def open_port(cfg: SerialConfig, timeout: float = 0.2) -> serial.Serial:
     """Open the timer's port: exclusively, keeping what the OS queued. A port held by another
     process raises :class:`PortBusy`."""
+    settings: dict[str, Any] = dict(
+        baudrate=cfg.baudrate,
+        bytesize=cfg.bytesize,
+        parity=PARITY[cfg.parity],
+        stopbits=cfg.stopbits,
+        rtscts=cfg.rtscts,
+        xonxoff=cfg.xonxoff,
+        timeout=timeout,
+        exclusive=True,
+    )
     if not _is_device_path(cfg.port):
-        return serial.serial_for_url(
-            cfg.port,
-            baudrate=cfg.baudrate,
-            bytesize=cfg.bytesize,
-            parity=PARITY[cfg.parity],
-            stopbits=cfg.stopbits,
-            rtscts=cfg.rtscts,
-            xonxoff=cfg.xonxoff,
-            timeout=timeout,
-            exclusive=True,
-        )
+        return serial.serial_for_url(cfg.port, **settings)  # loop://, socket:// in tests
     try:
-        return KeepQueuedSerial(
-            cfg.port,
-            baudrate=cfg.baudrate,
-            bytesize=cfg.bytesize,
-            parity=PARITY[cfg.parity],
-            stopbits=cfg.stopbits,
-            rtscts=cfg.rtscts,
-            xonxoff=cfg.xonxoff,
-            timeout=timeout,
-            exclusive=True,
-        )
+        return KeepQueuedSerial(cfg.port, **settings)
     except serial.SerialException as exc:
         if "exclusively lock" in str(exc):
             raise PortBusy(

@@ -25,11 +25,12 @@ import hashlib
 import json
 import os
 import re
-from typing import Any
+from collections.abc import Callable
 
 from station.errors import InputError
 from station.files import MAX_OBSERVATIONS, MAX_YAML, read_bytes, read_text
 from station.session.config import StationConfig, load_config
+from station.session.records import Annotation, annotation_from_json, annotation_to_json
 from station.yamlfile import load_yaml
 
 #: an annotations file is the engineer's typing: kilobytes
@@ -133,20 +134,23 @@ def _remove_partial(session: str) -> None:
         os.rmdir(session)
 
 
-def save_results(path: str, rows: list[dict[str, Any]], header: dict[str, str]) -> str | None:
-    """Rewrite the results CSV. A failure (disk full, folder gone, permissions) is returned as
-    one line for the terminal instead of raised: the caller keeps recording the raw log, from
-    which ``station export`` writes the CSV later."""
-    from station.session.results import write_results
-
+def save_results(path: str, write: Callable[[str], None]) -> str | None:
+    """Rewrite the results CSV with ``write(path)``. A failure (disk full, folder gone,
+    permissions, or a bug in the writer) is returned as one line for the terminal instead of
+    raised: the caller keeps recording the raw log, from which ``station export`` writes the
+    CSV later."""
     try:
-        write_results(rows, path, header)
+        write(path)
     except OSError as exc:
-        return (
-            f"cannot write {path}: {exc.strerror or exc}; the raw log keeps recording "
-            "(station export writes the CSV from it later)"
-        )
-    return None
+        why = exc.strerror or str(exc)
+    except Exception as exc:  # noqa: BLE001 - the recording goes on whatever the CSV does
+        why = f"{type(exc).__name__}: {exc}"
+    else:
+        return None
+    return (
+        f"cannot write {path}: {why}; the raw log keeps recording "
+        "(station export writes the CSV from it later)"
+    )
 
 
 def load_session_config(session: str) -> StationConfig:
@@ -174,9 +178,10 @@ def results_header(cfg: StationConfig, survey_name: str) -> dict[str, str]:
     }
 
 
-def append_annotation(session: str, record: dict) -> None:
+def append_annotation(session: str, annotation: Annotation) -> None:
     """Append one annotation (flushed and fsync'd: it is the engineer's word)."""
     path = os.path.join(session, ANNOTATIONS)
+    record = annotation_to_json(annotation)
     try:
         with open(path, "a", encoding="utf-8") as fh:
             fh.write(json.dumps(record, ensure_ascii=False, sort_keys=True) + "\n")
@@ -186,8 +191,9 @@ def append_annotation(session: str, record: dict) -> None:
         raise InputError(f"cannot write the annotation: {exc.strerror or exc}", path=path) from None
 
 
-def read_annotations(session: str) -> list[dict]:
-    """The session's annotations in order; a torn last line is passed over."""
+def read_annotations(session: str) -> list[Annotation]:
+    """The session's annotations in order; a torn last line is passed over, a kind this
+    version does not know too; a bad record is one error naming file, line and field."""
     path = os.path.join(session, ANNOTATIONS)
     if not os.path.exists(path):
         return []
@@ -202,6 +208,12 @@ def read_annotations(session: str) -> list[dict]:
             if i == len(lines):
                 break
             raise InputError("not an annotation record", path=path, line=i) from None
-        if isinstance(rec, dict):
-            out.append(rec)
+        if not isinstance(rec, dict):
+            continue
+        try:
+            annotation = annotation_from_json(rec)
+        except InputError as exc:
+            raise InputError(exc.message, path=path, line=i, field=exc.field) from None
+        if annotation is not None:
+            out.append(annotation)
     return out

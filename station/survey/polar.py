@@ -180,7 +180,7 @@ def interpret_gsi(
             out.observations.append(
                 Observation(
                     point=pid,
-                    hz=float(b.value("21")),
+                    hz=float(b.value("21")),  # type: ignore[arg-type]
                     zenith=float(zenith),
                     slope_distance=b.value("31"),
                     horizontal_distance=b.value("32"),

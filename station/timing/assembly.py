@@ -1,29 +1,53 @@
 """Impulses -> descents: a pure state machine, no I/O and no clock of its own.
 
-A descent starts with an impulse at the first photocell and ends at the last one. Or it ends when
-the skier can no longer be on the run: ``timeout_s`` after the last impulse, or by default the
-distance to the photocell after next at the slowest plausible speed. Then it is fitted with the
-photocells it has and flagged. What happens in the field:
+A descent starts with an impulse at the first photocell and ends at the last one, or when the
+skier can no longer be on the run: ``timeout_s`` after the last impulse, or by default the
+distance to the photocell after next at the slowest plausible speed. Then it is fitted with
+the photocells it has and flagged. Several skiers may be on the run at once (issue 11):
 
+- **pairing** ``bib``: the number on a start and on later impulses pairs them, one open descent
+  per bib; impulses without a valid bib (``?``, blank, zero) join descents without one.
+  ``order``: the number is an impulse counter (ALGE PC-Timer) or absent; an impulse joins the
+  open descent that can reach its photocell at a plausible speed (from the survey's distances
+  and the descent's own speed so far; with several, the one closest to its expected time).
+  ``auto`` decides at the first impulse after a start: the same number as an open descent's
+  start means bibs, the previous impulse's number + 1 means a counter.
+- an impulse that no open descent can reach plausibly joins nothing and starts nothing: it is
+  rejected with the reason. A rejected impulse changes nothing: no clock, no time-out.
+- **the device clock** (for the midnight wrap) moves only with impulses that were kept. An
+  impulse more than ``jump_s`` away from it is held until the next impulse says whether the
+  clock really jumped (a long break, the timer's clock set) or this one time is corrupted
+  (issue 9: one flipped hour digit lost 18 165 impulses); the host clock confirms it at once
+  where the caller knows the device time (``now_us``).
 - double triggers (legs, poles) at one photocell within ``debounce_s`` collapse to the first;
 - a missed photocell leaves a gap: the descent goes on and is flagged;
 - a lone start impulse that nothing follows (someone walking through the beam) is *aborted*;
-- the next start while a descent is open ends the open one;
-- time of day wraps at midnight (ALGE and Microgate have no date);
-- an impulse out of order (earlier photocell, or earlier time) is rejected with its reason;
-- an impulse on a channel that is no photocell (keypad, unused input) is rejected as such.
+- **edits** from the timer (ALGE ``c`` ``i``, TAG ``TC`` ``T+`` ``T*`` ``T-``) are applied: a
+  cleared impulse leaves its descent, an inserted or edited time enters or replaces one, and a
+  finished descent that changed comes out of ``feed``/``edit`` again to be refitted;
+- a disconnect is written on the open descents' flags.
 
-Every impulse comes out once in ``events`` with whether it was kept and why not.
+Every impulse and edit comes out once in ``events`` with whether it was kept and why not.
 """
 
 from __future__ import annotations
 
+import statistics
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
-from station.timing.impulses import DAY_US, Impulse
+from station.timing.impulses import DAY_US, Edit, Impulse, format_tod
 
 HALF_DAY_US = DAY_US // 2
+PAIRINGS = ("auto", "bib", "order")
+#: the kinds of edit that remove an impulse, enter one, or only repeat one
+REMOVING = {"cleared", "memory time deleted", "disqualified", "cancelled",
+            "identification removed"}  # fmt: skip
+ENTERING = {"edited", "inserted"}
+#: a speed between two photocells may be this factor off the speed before (order pairing)
+SPEED_RATIO = 2.5
+#: the host clock confirms a jump of the device clock within this (µs)
+HOST_TOLERANCE_US = 30_000_000
 
 
 @dataclass
@@ -37,14 +61,22 @@ class TimedDescent:
     flags: list[str] = field(default_factory=list)
     missing: list[str] = field(default_factory=list)
     first_line: int = 0
+    bib: str = ""  # the start's number when it is a bib (not a counter)
+    channels: list[str] = field(default_factory=list)  # the timer channel of each time
+    day: int | None = None  # days since 2000-01-01 of the start, where the device says (TAG)
+    first_us: int | None = None  # the first time it had (its times may all be cleared)
+
+    def __post_init__(self) -> None:
+        if self.first_us is None and self.times_us:
+            self.first_us = self.times_us[0]
 
     @property
     def start_us(self) -> int:
-        return self.times_us[0]
+        return self.times_us[0] if self.times_us else (self.first_us or 0)
 
 
 class ImpulseEvent(NamedTuple):
-    """What became of one impulse."""
+    """What became of one impulse (or edit line)."""
 
     line: int
     channel: str
@@ -54,6 +86,13 @@ class ImpulseEvent(NamedTuple):
     kept: bool
     reason: str = ""
     descent: int | None = None
+
+
+def _bib(imp: Impulse | Edit) -> str:
+    """A valid bib: digits, not all zeros, not flagged ``?`` (time without valid number)."""
+    if imp.flag == "?":
+        return ""
+    return imp.bib.strip().lstrip("0")
 
 
 class DescentAssembler:
@@ -67,11 +106,26 @@ class DescentAssembler:
         timeout_s: float | None = None,
         positions_m: list[float] | None = None,
         min_speed_ms: float = 1.0,
+        max_speed_ms: float = 45.0,
+        pairing: str = "auto",
+        jump_s: float | None = None,
     ) -> None:
+        if pairing not in PAIRINGS:
+            raise ValueError(f"unknown pairing {pairing!r} ({', '.join(PAIRINGS)})")
+        # only photocells wired to a channel can have times: a descent ends at the last of
+        # them, and its time-outs run to the wired photocell after next
+        wired = set(channels.values())
+        keep = [i for i, pc in enumerate(photocells) if pc in wired] or list(range(len(photocells)))
+        photocells = [photocells[i] for i in keep]
+        if positions_m is not None:
+            positions_m = [positions_m[i] for i in keep]
         self.order = {pc: i for i, pc in enumerate(photocells)}
         self.photocells = list(photocells)
         self.channels = dict(channels)
         self.debounce_us = round(debounce_s * 1e6)
+        self.positions = list(positions_m) if positions_m is not None else None
+        self.min_speed = min_speed_ms
+        self.max_speed = max_speed_ms
         n = len(photocells)
         if timeout_s is not None:
             self.timeout_us = [round(timeout_s * 1e6)] * n
@@ -83,129 +137,449 @@ class DescentAssembler:
             ]
         else:
             self.timeout_us = [60_000_000] * n
-        self.current: TimedDescent | None = None
+        self.jump_us = (
+            round(jump_s * 1e6) if jump_s is not None else max(60_000_000, *self.timeout_us)
+        )
+        self.pairing = pairing
+        self.mode: str | None = None if pairing == "auto" else pairing
+        self.open: list[TimedDescent] = []
+        self.finished: list[TimedDescent] = []
         self.count = 0
         self.events: list[ImpulseEvent] = []
         self._day_offset = 0
-        self._clock: int | None = None  # unwrapped time of the latest impulse
+        self._clock: int | None = None  # unwrapped time of the latest kept impulse
+        self._pending: tuple[Impulse, int, int] | None = None
+        self._prev_number: int | None = None
+        self._typical: dict[int, list[int]] = {}  # photocell index -> recent t_k - t_0
+        self._last_done: TimedDescent | None = None
+        self._seen: set[tuple[str, int, int | None]] = set()  # kept: channel, time, day
+
+    @property
+    def current(self) -> TimedDescent | None:
+        """The open descent started last (the UI shows it)."""
+        return self.open[-1] if self.open else None
 
     # -- time
 
-    def unwrap(self, imp: Impulse) -> int:
-        """Time of day -> a monotone device time in µs (midnight wraps forward)."""
-        if imp.day is not None:
-            return imp.day * DAY_US + imp.tod_us
-        t = self._day_offset * DAY_US + imp.tod_us
+    @property
+    def clock(self) -> int | None:
+        """Device time of the latest accepted impulse (µs, unwrapped); None before the first."""
+        return self._clock
+
+    def _time(self, tod_us: int, day: int | None) -> int:
+        """Time of day -> device time in µs on the clock's day (midnight wraps forward).
+        Pure: the clock moves only when an impulse is kept."""
+        if day is not None:
+            return day * DAY_US + tod_us
+        t = self._day_offset * DAY_US + tod_us
         if self._clock is not None and t < self._clock - HALF_DAY_US:
-            self._day_offset += 1
             t += DAY_US
         return t
 
+    def unwrap(self, imp: Impulse) -> int:
+        return self._time(imp.tod_us, imp.day)
+
+    def _move_clock(self, t: int) -> None:
+        self._clock = t
+        self._day_offset = t // DAY_US
+
     # -- impulses
 
-    def _event(self, imp: Impulse, line: int, pc, kept: bool, reason: str = "", descent=None):
+    def _event(self, imp, line: int, pc, kept: bool, reason: str = "", descent=None) -> None:
         self.events.append(
             ImpulseEvent(line, imp.channel, pc, imp.tod_us, imp.flag, kept, reason, descent)
         )
 
-    def feed(self, imp: Impulse, line: int = 0) -> list[TimedDescent]:
-        """One impulse in; the descents it finished out."""
+    def feed(self, imp: Impulse, line: int = 0, now_us: int | None = None) -> list[TimedDescent]:
+        """One impulse in; the descents it finished out. ``now_us``: the device time now as the
+        host clock estimates it, where known (it confirms a jump of the device clock)."""
         done: list[TimedDescent] = []
         pc = self.channels.get(imp.channel)
+        number = int(imp.bib) if imp.bib.isascii() and imp.bib.isdigit() else None
+        prev_number, self._prev_number = self._prev_number, number
         if pc is None:
             self._event(imp, line, None, False, f"channel {imp.channel} is not a photocell")
             return done
+        if (imp.channel, imp.tod_us, imp.day) in self._seen:
+            self._event(imp, line, pc, False, "repeats an impulse already kept (from the "
+                        "timer's memory?); not doubled")  # fmt: skip
+            return done
         t = self.unwrap(imp)
-        if self._clock is not None and t < self._clock:
-            back = (self._clock - t) / 1e6
-            self._event(
-                imp,
-                line,
-                pc,
-                False,
-                f"out of order: {back:.4f} s earlier than the previous impulse",
-            )
-            return done
-        self._clock = t
-        k = self.order[pc]
-        cur = self.current
-        if cur is not None:
-            j = self.order[cur.photocells[-1]]
-            last = cur.times_us[-1]
-            if k == j and t - last <= self.debounce_us:
-                cur.flags.append(f"double trigger at {pc} collapsed (+{(t - last) / 1e6:.3f} s)")
+        if self._pending is not None:
+            p_imp, p_line, p_t = self._pending
+            self._pending = None
+            if 0 <= t - p_t <= self.jump_us:
+                done += self._accept(p_imp, p_line, p_t, None)
+                t = self.unwrap(imp)
+            else:
                 self._event(
-                    imp, line, pc, False, "double trigger within the debounce window", cur.number
-                )
+                    p_imp, p_line, self.channels.get(p_imp.channel), False,
+                    f"implausible time: {self._far(p_t)} the device clock, and the next "
+                    "impulse does not confirm it (a corrupted time?); the clock did not move",
+                )  # fmt: skip
+        far = self._clock is not None and abs(t - self._clock) > self.jump_us
+        if far and (now_us is None or abs(t - now_us) > HOST_TOLERANCE_US):
+            self._pending = (imp, line, t)
+            return done
+        return done + self._accept(imp, line, t, prev_number)
+
+    def _far(self, t: int) -> str:
+        assert self._clock is not None
+        d = (t - self._clock) / 1e6
+        word = "after" if d > 0 else "before"
+        d = abs(d)
+        amount = f"{d / 3600:.2f} h" if d >= 3600 else f"{d:.1f} s"
+        return f"{amount} {word}"
+
+    def _accept(
+        self, imp: Impulse, line: int, t: int, prev_number: int | None
+    ) -> list[TimedDescent]:
+        """An impulse whose time is plausible for the clock: join, start or reject."""
+        done: list[TimedDescent] = []
+        pc = self.channels[imp.channel]
+        k = self.order[pc]
+        # a double trigger of an open descent or of the one that just finished
+        for d in [*self.open, self._last_done]:
+            if d is None or not d.photocells or d.photocells[-1] != pc:
+                continue
+            gap = t - d.times_us[-1]
+            if 0 <= gap <= self.debounce_us:
+                d.flags.append(f"double trigger at {pc} collapsed (+{gap / 1e6:.3f} s)")
+                self._event(imp, line, pc, False, "double trigger within the debounce window",
+                            d.number)  # fmt: skip
                 return done
-            if t - last > self.timeout_us[j]:
-                done += self._finish(
-                    f"no impulse for {(t - last) / 1e6:.1f} s after {cur.photocells[-1]}"
-                )
-                cur = None
-            elif k == 0:
-                done += self._finish(f"ended by the next start at {pc}")
-                cur = None
-        if cur is None:
-            if k != 0:
-                self._event(imp, line, pc, False, f"{pc} without a start at {self.photocells[0]}")
-                return done
+        bib = _bib(imp)
+        if self.mode is None and k > 0 and bib and self.open:
+            if any(d.bib == bib for d in self.open):
+                self.mode = "bib"
+            elif prev_number is not None and int(bib) == (prev_number + 1) % 10000:
+                self.mode = "order"  # an impulse counter, not a bib
+                for d in self.open:
+                    d.bib = ""
+        if k == 0:
+            # a start ends no descent by time: it may itself be a corrupted time; the next
+            # impulse that joins a descent (physics checked), a tick or the end will
+            if self.mode != "order" and bib:
+                for d in list(self.open):
+                    if d.bib == bib:
+                        done += self._finish(d, f"ended by a new start of bib {bib}")
             self.count += 1
-            self.current = TimedDescent(self.count, [pc], [t], first_line=line)
-            self._event(imp, line, pc, True, "", self.count)
+            d = TimedDescent(self.count, [pc], [t], first_line=line, channels=[imp.channel],
+                             bib=bib if self.mode != "order" else "", day=imp.day)  # fmt: skip
+            self.open.append(d)
+            self._move_clock(t)
+            self._seen.add((imp.channel, imp.tod_us, imp.day))
+            self._event(imp, line, pc, True, "", d.number)
             return done
-        if k < j:
-            self._event(
-                imp, line, pc, False, f"out of order: {pc} after {cur.photocells[-1]}", cur.number
-            )
+        chosen, reason = self._choose(pc, k, t, bib)
+        if chosen is None:
+            if not self.open:
+                reason = f"{pc} without a start at {self.photocells[0]}"
+            elif self._clock is not None and t < self._clock and reason.startswith("out of"):
+                reason = f"out of order: {(self._clock - t) / 1e6:.4f} s earlier than the " \
+                    "previous impulse"  # fmt: skip
+            self._event(imp, line, pc, False, reason, self._near(bib))
             return done
-        if k == j:
-            self._event(
-                imp, line, pc, False,
-                f"second impulse at {pc}, {(t - last) / 1e6:.3f} s after the first", cur.number,
-            )  # fmt: skip
-            return done
+        d = chosen
+        j = self.order[d.photocells[-1]]
         skipped = self.photocells[j + 1 : k]
         if skipped:
-            cur.flags.append(f"missed {', '.join(skipped)}")
-            cur.missing += skipped
-        cur.photocells.append(pc)
-        cur.times_us.append(t)
-        self._event(imp, line, pc, True, "", cur.number)
+            d.flags.append(f"missed {', '.join(skipped)}")
+            d.missing += skipped
+        d.photocells.append(pc)
+        d.times_us.append(t)
+        d.channels.append(imp.channel)
+        self._move_clock(t)
+        self._seen.add((imp.channel, imp.tod_us, imp.day))
+        self._event(imp, line, pc, True, "", d.number)
         if k == len(self.photocells) - 1:
-            cur.status = "complete"
-            done.append(cur)
-            self.current = None
+            self.open.remove(d)
+            d.status = "complete"
+            self._done(d)
+            done.append(d)
+        done += self._expire(t)
+        return done
+
+    def _near(self, bib: str) -> int | None:
+        """The descent an impulse was nearest to joining, for the events list."""
+        for d in reversed(self.open):
+            if not bib or d.bib == bib:
+                return d.number
+        return None
+
+    def _why_not(self, d: TimedDescent, pc: str, k: int, t: int, by_order: bool) -> str | None:
+        """Why descent ``d`` cannot take an impulse at photocell ``pc`` at ``t`` (None: it can)."""
+        j = self.order[d.photocells[-1]]
+        last = d.times_us[-1]
+        if k < j:
+            return f"out of order: {pc} after {d.photocells[-1]}"
+        if k == j:
+            return f"second impulse at {pc}, {(t - last) / 1e6:.3f} s after the first"
+        if t <= last:
+            return f"out of order: {(last - t) / 1e6:.4f} s earlier than {d.photocells[-1]}"
+        if t - last > self.timeout_us[j]:
+            return f"no impulse for {(t - last) / 1e6:.1f} s after {d.photocells[-1]}"
+        if self.positions is None:
+            return None
+        pos = self.positions
+        v = (pos[k] - pos[j]) / ((t - last) / 1e6)
+        if v > self.max_speed:
+            return (f"implausible: {v:.1f} m/s from {d.photocells[-1]} "
+                    f"(at most {self.max_speed:g} m/s)")  # fmt: skip
+        if by_order and len(d.photocells) >= 2:
+            i = self.order[d.photocells[-2]]
+            dt = (last - d.times_us[-2]) / 1e6
+            if dt > 0:
+                v_before = (pos[j] - pos[i]) / dt
+                if not v_before / SPEED_RATIO <= v <= v_before * SPEED_RATIO:
+                    return (f"implausible: {v:.1f} m/s from {d.photocells[-1]} after "
+                            f"{v_before:.1f} m/s before it")  # fmt: skip
+        return None
+
+    def _expected(self, d: TimedDescent, k: int) -> tuple[int, int] | None:
+        """(expected time at photocell k, from when) for the order pairing's choice: from the
+        earlier descents' typical times where there are some, else at the last speed."""
+        j = self.order[d.photocells[-1]]
+        typical_k, typical_j = self._typical.get(k), self._typical.get(j)
+        if typical_k and (j == 0 or typical_j):
+            ahead = statistics.median(typical_k) - (statistics.median(typical_j) if j else 0)
+            if ahead > 0:
+                return d.times_us[-1] + round(ahead), d.times_us[-1]
+        pos = self.positions
+        if pos is not None and len(d.photocells) >= 2:
+            i, j = self.order[d.photocells[-2]], self.order[d.photocells[-1]]
+            dt = d.times_us[-1] - d.times_us[-2]
+            if dt > 0 and pos[j] > pos[i]:
+                v = (pos[j] - pos[i]) / dt
+                return d.times_us[-1] + round((pos[k] - pos[j]) / v), d.times_us[-1]
+        return None
+
+    def _choose(self, pc: str, k: int, t: int, bib: str) -> tuple[TimedDescent | None, str]:
+        reasons: list[str] = []
+        if self.mode != "order" and bib:
+            pool = [d for d in self.open if d.bib == bib]
+            if pool or self.mode == "bib":
+                for d in pool:
+                    why = self._why_not(d, pc, k, t, by_order=False)
+                    if why is None:
+                        return d, ""
+                    reasons.append(why)
+                return None, reasons[-1] if reasons else f"no open descent of bib {bib}"
+        pool = self.open if self.mode == "order" else [d for d in self.open if not d.bib]
+        if self.mode is None and bib:
+            pool = self.open  # undecided: the number may be a counter
+        scored: list[tuple[float, int, TimedDescent]] = []
+        for d in pool:
+            why = self._why_not(d, pc, k, t, by_order=True)
+            if why is not None:
+                reasons.append(why)
+                continue
+            exp = self._expected(d, k)
+            # a photocell skipped is rare: a descent that would miss one to take this is less
+            # likely than one that reaches it next
+            skipped = 0.5 * (k - self.order[d.photocells[-1]] - 1)
+            if exp is not None:
+                score = abs(t - exp[0]) / max(exp[0] - exp[1], 1)
+                scored.append((score + skipped, d.number, d))
+            else:
+                # no speed yet and no earlier descent to compare with: of two lone starts the
+                # later one (a walk through the start beam comes before the real start)
+                scored.append((0.75 + skipped, -d.number, d))
+        if scored:
+            return min(scored, key=lambda s: (s[0], s[1]))[2], ""
+        if len(reasons) == 1:
+            return None, reasons[0]
+        if reasons:
+            return None, f"no open descent can take {pc} plausibly ({'; '.join(reasons)})"
+        return None, f"{pc} without a start at {self.photocells[0]}"
+
+    def _expire(self, t: int) -> list[TimedDescent]:
+        done: list[TimedDescent] = []
+        for d in list(self.open):
+            j = self.order[d.photocells[-1]]
+            if t - d.times_us[-1] > self.timeout_us[j]:
+                done += self._finish(
+                    d, f"no impulse for {(t - d.times_us[-1]) / 1e6:.1f} s after {d.photocells[-1]}"
+                )
         return done
 
     def tick(self, now_us: int) -> list[TimedDescent]:
-        """Device time now (estimated from the host clock): end a descent that timed out."""
-        cur = self.current
-        if cur is None:
-            return []
-        j = self.order[cur.photocells[-1]]
-        if now_us - cur.times_us[-1] > self.timeout_us[j]:
-            waited = (now_us - cur.times_us[-1]) / 1e6
-            return self._finish(f"no impulse for {waited:.1f} s after {cur.photocells[-1]}")
-        return []
+        """Device time now (estimated from the host clock): end descents that timed out."""
+        return self._expire(now_us)
 
     def close(self) -> list[TimedDescent]:
-        """End of the capture: an open descent ends here."""
-        if self.current is None:
-            return []
-        return self._finish("the recording ended")
+        """End of the capture: a held impulse is taken as it is, open descents end here."""
+        done: list[TimedDescent] = []
+        if self._pending is not None:
+            p_imp, p_line, p_t = self._pending
+            self._pending = None
+            done += self._accept(p_imp, p_line, p_t, None)
+        for d in list(self.open):
+            done += self._finish(d, "the recording ended")
+        return done
 
-    def _finish(self, why: str) -> list[TimedDescent]:
-        cur = self.current
-        assert cur is not None
-        self.current = None
-        if len(cur.photocells) == 1:
-            cur.status = "aborted"
-            cur.flags.append(f"lone start impulse, {why}")
+    def disconnected(self, detail: str = "") -> None:
+        """The connection to the timer broke: the open descents say so."""
+        for d in self.open:
+            d.flags.append("timer disconnected" + (f" ({detail})" if detail else ""))
+
+    def _done(self, d: TimedDescent) -> None:
+        self.finished.append(d)
+        self._last_done = d
+        if d.status == "complete":
+            for pc, ti in zip(d.photocells[1:], d.times_us[1:], strict=True):
+                hist = self._typical.setdefault(self.order[pc], [])
+                hist.append(ti - d.times_us[0])
+                del hist[:-10]
+
+    def _finish(self, d: TimedDescent, why: str) -> list[TimedDescent]:
+        self.open.remove(d)
+        if len(d.photocells) == 1:
+            d.status = "aborted"
+            d.flags.append(f"lone start impulse, {why}")
         else:
-            cur.status = "incomplete"
-            last = self.order[cur.photocells[-1]]
+            d.status = "incomplete"
+            last = self.order[d.photocells[-1]]
             tail = self.photocells[last + 1 :]
-            cur.missing += tail
-            cur.flags.append(f"{why}; missing {', '.join(tail)}")
-        return [cur]
+            d.missing += tail
+            d.flags.append(f"{why}; missing {', '.join(tail)}")
+        self._done(d)
+        return [d]
+
+    # -- edits
+
+    def _find(self, pc: str, tod_us: int, bib: str) -> tuple[TimedDescent, int] | None:
+        """The kept impulse an edit names: photocell and time of day (and bib where given)."""
+        for d in [*reversed(self.open), *reversed(self.finished)]:
+            for i, (p, ti) in enumerate(zip(d.photocells, d.times_us, strict=True)):
+                if p == pc and ti % DAY_US == tod_us and (not bib or not d.bib or d.bib == bib):
+                    return d, i
+        return None
+
+    def edit(self, e: Edit, line: int = 0) -> list[TimedDescent]:
+        """An edit from the timer; finished descents it changed come back to be refitted."""
+        pc = self.channels.get(e.channel)
+        if pc is None:
+            self._event(
+                e,
+                line,
+                None,
+                False,
+                f"{e.kind}: channel {e.channel} is not a photocell; nothing changed",
+            )
+            return []  # fmt: skip
+        bib = _bib(e) if self.mode != "order" else ""
+        if e.kind == "new identification":
+            done, removed = self._remove(e, line, pc, bib="")
+            return done + (self._enter(e, line, pc, bib) if removed else [])
+        if e.kind in REMOVING:
+            return self._remove(e, line, pc, bib)[0]
+        if e.kind in ENTERING:
+            return self._enter(e, line, pc, bib)
+        self._event(e, line, pc, False, f"{e.kind}: repeats an earlier impulse; nothing changed")
+        return []
+
+    def _remove(self, e: Edit, line: int, pc: str, bib: str) -> tuple[list[TimedDescent], bool]:
+        found = self._find(pc, e.tod_us, bib)
+        when = format_tod(e.tod_us)
+        if found is None:
+            self._event(
+                e, line, pc, False, f"{e.kind}: no kept impulse at {pc} {when}; nothing changed"
+            )
+            return [], False  # fmt: skip
+        d, i = found
+        for lst in (d.photocells, d.times_us, d.channels):
+            del lst[i]
+        d.flags.append(f"{pc} {when} {e.kind} at the timer")
+        is_open = d in self.open
+        if not d.photocells:
+            if is_open:
+                self.open.remove(d)
+                self.finished.append(d)
+            d.status = "aborted"
+            self._event(e, line, pc, False,
+                        f"{e.kind}: removed {pc} {when}; descent {d.number} has no time left",
+                        d.number)  # fmt: skip
+            return [d], True
+        if is_open:
+            self._event(e, line, pc, False, f"{e.kind}: removed {pc} {when} from open descent "
+                        f"{d.number}", d.number)  # fmt: skip
+            return [], True
+        if i == len(d.photocells):  # the last time went: the descent no longer reaches there
+            d.missing = [p for p in d.missing if self.order[p] < self.order[pc]]
+            d.missing += self.photocells[self.order[d.photocells[-1]] + 1 :]
+            d.status = "incomplete"
+        elif i > 0:
+            d.missing = sorted({*d.missing, pc}, key=self.order.__getitem__)
+        if len(d.photocells) == 1:
+            d.status = "aborted"
+        self._event(e, line, pc, False,
+                    f"{e.kind}: removed {pc} {when} from descent {d.number} (refitted)",
+                    d.number)  # fmt: skip
+        return [d], True
+
+    def _enter(self, e: Edit, line: int, pc: str, bib: str) -> list[TimedDescent]:
+        """An inserted or edited time: it enters the descent of its bib (or the one whose
+        times it falls between), replacing that descent's time at the same photocell."""
+        t = self._time(e.tod_us, e.day)
+        k = self.order[pc]
+        when = format_tod(e.tod_us)
+        target = None
+        for d in [*reversed(self.open), *reversed(self.finished)]:
+            if not d.times_us or (bib and d.bib != bib):
+                continue
+            if not bib and not (d.times_us[0] <= t or k == 0):
+                continue
+            if t - d.times_us[0] > max(self.timeout_us) * len(self.photocells):
+                continue
+            target = d
+            break
+        if target is None:
+            if k == 0:
+                self.count += 1
+                d = TimedDescent(self.count, [pc], [t], first_line=line, channels=[e.channel],
+                                 bib=bib, day=e.day)  # fmt: skip
+                d.flags.append(f"start {when} {e.kind} at the timer")
+                self.open.append(d)
+                self._event(e, line, pc, True, f"{e.kind}: {pc} {when} starts descent "
+                            f"{d.number}", d.number)  # fmt: skip
+                return []
+            self._event(e, line, pc, False,
+                        f"{e.kind}: no descent{' of bib ' + bib if bib else ''} to enter "
+                        f"{pc} {when} into; nothing changed")  # fmt: skip
+            return []
+        d = target
+        what = "entered"
+        if pc in d.photocells:
+            i = d.photocells.index(pc)
+            old = d.times_us[i]
+            d.times_us[i] = t
+            d.channels[i] = e.channel
+            what = f"replaced {format_tod(old % DAY_US)} at"
+        else:
+            i = sum(self.order[p] < k for p in d.photocells)
+            d.photocells.insert(i, pc)
+            d.times_us.insert(i, t)
+            d.channels.insert(i, e.channel)
+            if pc in d.missing:
+                d.missing.remove(pc)
+        if any(b <= a for a, b in zip(d.times_us, d.times_us[1:], strict=False)):
+            del d.photocells[i], d.times_us[i], d.channels[i]
+            self._event(e, line, pc, False, f"{e.kind}: {pc} {when} does not fit between the "
+                        f"times of descent {d.number}; nothing changed", d.number)  # fmt: skip
+            return []
+        d.flags.append(f"{pc} {when} {e.kind} at the timer")
+        is_open = d in self.open
+        if d.photocells[-1] == self.photocells[-1] and len(d.photocells) >= 2:
+            d.missing = [p for p in d.missing if p not in d.photocells]
+            d.status = "complete"
+            if is_open:
+                self.open.remove(d)
+                self._done(d)
+                is_open = False
+        elif not is_open and len(d.photocells) >= 2 and d.status == "aborted":
+            d.status = "incomplete"
+        self._event(e, line, pc, True,
+                    f"{e.kind}: {pc} {when} {what} descent {d.number}"
+                    + ("" if is_open else " (refitted)"), d.number)  # fmt: skip
+        return [] if is_open else [d]

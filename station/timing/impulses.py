@@ -35,6 +35,7 @@ class Edit(NamedTuple):
     flag: str
     bib: str
     line: str = ""
+    day: int | None = None  # days since 2000-01-01 where the device says (TAG)
 
 
 class Skip(NamedTuple):

@@ -38,11 +38,11 @@ def _tod(text: str) -> tuple[int, int] | None:
     if text[8] not in ".,:":
         return None
     frac = text[9:]
-    if not frac.isdigit():
+    if not _digits(frac):
         frac = frac.rstrip()
         if not frac:
             return base, 1_000_000
-        if not frac.isdigit():
+        if not _digits(frac):
             return None
     k = len(frac)
     if k > 6:
@@ -52,6 +52,13 @@ def _tod(text: str) -> tuple[int, int] | None:
 
 
 _POW = [10**i for i in range(7)]
+
+
+def _digits(text: str) -> bool:
+    """ASCII digits only. ``str.isdigit`` also accepts the Latin-1 superscripts ``²³¹`` (bytes
+    0xB2, 0xB3, 0xB9, which a bit flip makes of ``2``, ``3``, ``9``), which ``int`` refuses:
+    a parser that trusted it raised on one flipped bit and ended the recording (issue 9)."""
+    return text.isascii() and text.isdigit()
 
 
 def _frac(tod_us: int, decimals: int) -> str:
@@ -92,7 +99,11 @@ def alge_checksum(line26: str) -> str:
 
 
 class AlgeParser:
-    """ALGE Timy / TdC 8000/8001 PC output: ``yNNNNxCCCxHH:MM:SS.zhtqxGG``."""
+    """ALGE Timy / TdC 8000/8001 PC output: ``yNNNNxCCCxHH:MM:SS.zhtqxGG``.
+
+    A classement print-out (``CLASSEMENT:`` … footer) is skipped as a block. It ends at its
+    footer's date line or at the first line that is an impulse: a print-out whose footer was
+    lost must not swallow the rest of the day (issue 9: 9 000 lines became 9 impulses)."""
 
     name = "alge"
 
@@ -105,7 +116,10 @@ class AlgeParser:
         if self.in_printout:
             if n >= 15 and s[2] == "-" and s[5] == "-":  # the footer's date line "21-11-28  17:04"
                 self.in_printout = False
-            return Skip("classement print-out", line)
+                return Skip("classement print-out", line)
+            if not (n in (26, 28) and s[6] in "cC" and s[9] == " " and s[23] == " "):
+                return Skip("classement print-out", line)
+            self.in_printout = False  # an impulse line: the print-out ended without its footer
         if n == 0 or s.isspace():
             return Skip("blank line", line)
         if n == 28:  # CHK1 checksum appended
@@ -119,7 +133,7 @@ class AlgeParser:
             flag = s[0]
             chan = s[6:9]
             c0 = chan[0]
-            if c0 in "cC" and chan[1].isdigit():
+            if c0 in "cC" and _digits(chan[1]):
                 channel = "C" + chan[1] + ("M" if chan[2] in "mM" else "")
                 if chan[2] not in " mM":
                     return Unparsed(f"unknown channel {chan!r}", line)
@@ -130,14 +144,17 @@ class AlgeParser:
             t = _tod(s[10:23])
             if t is None:
                 return Unparsed(f"time {s[10:23]!r} is not HH:MM:SS.ffff", line)
-            bib = s[1:5].strip()
+            raw_bib = s[1:5]
+            bib = raw_bib.strip()
+            if bib and not _digits(bib):
+                return Unparsed(f"start number {raw_bib!r} is not a number", line)
             if flag == " " or flag == "?":
                 return Impulse(channel, t[0], t[1], flag.strip(), bib, None, line)
             kind = ALGE_EDIT_FLAGS.get(flag)
             if kind is not None:
                 return Edit(kind, channel, t[0], flag, bib, line)
             return Skip(f"flag {flag!r} is not an impulse", line)
-        if n in (5, 6) and s[0] in "ns" and s[1:5].isdigit():
+        if n in (5, 6) and s[0] in "ns" and _digits(s[1:5]):
             return Skip("start number shown", line)
         if n == 10 and _tod(s) is not None:
             return Skip("running time", line)
@@ -174,7 +191,7 @@ def format_alge(
 def tag_cs16(data: str) -> str:
     """THCOM08 CS16: 16-bit sum of the data bytes (a leading # excluded), 4 hex digits."""
     body = data[1:] if data.startswith("#") else data
-    return f"{sum(body.encode('latin-1')) & 0xFFFF:04X}"
+    return f"{sum(map(ord, body)) & 0xFFFF:04X}"
 
 
 TAG_EDITS = {
@@ -185,12 +202,34 @@ TAG_EDITS = {
     "TC": "cancelled",
     "TI": "ideal start",
 }
-TAG_STATUS = ("AK", "SN", "OP", "CL", "DS", "DE", "AN", "A-", "RR", "GR", "IR", "DR", "VE", "&P",
-              "&S", "!T")  # fmt: skip
+#: messages that are not impulses, with what they are (timing-protocols.md §3.1, SOURCES.md)
+TAG_STATUS = {
+    "AK": "command acknowledged",
+    "ID": "device identification",
+    "SN": "serial number, model and version",
+    "OP": "run opened",
+    "CL": "run closed",
+    "DS": "memory download starts",
+    "DE": "memory download ends",
+    "A-": "download answer without a time",
+    "RR": "run time computed by the timer",
+    "GR": "result computed by the timer",
+    "IR": "result computed by the timer",
+    "DR": "result computed by the timer",
+    "VE": "speed",
+    "&P": "parameter",
+    "&S": "system event",
+    "!T": "synchro time",
+}
+#: messages laid out like a time message that are impulses: a live one and one from memory
+TAG_IMPULSES = {"TN": "", "AN": "from memory"}
 
 
 class TagParser:
-    """TAG Heuer THCOM08 (CP540/545, HL440/940/975): ``Tx NNNN SSSS CC HH:MM:SS.FFFFF DDDDD``."""
+    """TAG Heuer THCOM08 (CP540/545, HL440/940/975): ``Tx NNNN SSSS CC HH:MM:SS.FFFFF DDDDD``.
+
+    ``AN`` lines of a memory download (``DS`` … ``DE``) are impulses with their bib, laid out
+    like ``TN``; the day counter DDDDD is days since 2000-01-01 and dates the impulse."""
 
     name = "tag"
 
@@ -202,21 +241,33 @@ class TagParser:
         if not s.strip():
             return Skip("blank line", line)
         kind = s[:2]
-        if kind == "TN" or kind in TAG_EDITS:
+        if kind in TAG_IMPULSES or kind in TAG_EDITS:
             if len(s) < 30:
                 return Unparsed("time message too short", line)
             t = _tod(s[16:30])
             if t is None:
                 return Unparsed(f"time {s[16:30]!r} is not HH:MM:SS.FFFFF", line)
             channel = s[13:15].strip()
+            if not channel or not channel.isascii() or not channel.isalnum():
+                return Unparsed(f"channel {s[13:15]!r} is not a channel", line)
             bib = s[3:7].strip()
-            if kind != "TN":
-                return Edit(TAG_EDITS[kind], channel, t[0], kind, bib, line)
+            if bib and not _digits(bib):
+                return Unparsed(f"candidate {s[3:7]!r} is not a number", line)
+            seq = s[8:12].strip()
+            if seq and not _digits(seq):
+                return Unparsed(f"sequence {s[8:12]!r} is not a number", line)
             rest = s[30:].split()
-            day = int(rest[0]) if rest and rest[0].isdigit() else None
+            day = None
+            if rest:
+                if not _digits(rest[0]) or len(rest[0]) > 5:
+                    return Unparsed(f"day counter {rest[0]!r} is not a number", line)
+                day = int(rest[0])
+            if kind in TAG_EDITS:
+                return Edit(TAG_EDITS[kind], channel, t[0], kind, bib, line, day)
             return Impulse(channel, t[0], t[1], "" if bib else "?", bib, day, line)
-        if kind in TAG_STATUS:
-            return Skip("status line", line)
+        what = TAG_STATUS.get(kind)
+        if what is not None:
+            return Skip(what, line)
         return Unparsed("not a THCOM08 line", line)
 
 
@@ -245,7 +296,7 @@ class RacetimeParser:
             return Skip("blank line", line)
         if s[0] in "\x02\x03":
             return Skip("transfer header or epilog", line)
-        if len(s) != 29 or not s[0:17].isdigit() or not s[20:29].isdigit():
+        if len(s) != 29 or not _digits(s[0:17]) or not _digits(s[20:29]):
             return Unparsed("not a Racetime2 record", line)
         info, origin = s[17], s[18]
         t = s[20:29]

@@ -1,19 +1,16 @@
 """The trackside UI: live from a timer, a demo with the simulated timer, or a replay.
 
-Threads: the *acquisition* worker reads the serial port (or a replay), writes every chunk to
-the raw log first, then parses and assembles under the day's lock; the *fit* worker fits
-finished descents and applies annotations. Both talk to the UI only through messages
-(:mod:`station.ui.messages`); the UI thread never parses, fits or reads the port.
+Wiring only: the acquisition loop (:mod:`station.session.acquisition`) reads the timer or the
+replay, writes the raw log first, fits finished descents and writes the results CSV in threads
+of its own; it reports to the UI through messages (:mod:`station.ui.messages`) that carry
+immutable snapshots. The UI thread never parses, fits, reads the port or touches the day: what
+it shows is what the messages brought, and what the engineer enters goes to the acquisition.
 """
 
 from __future__ import annotations
 
 import datetime as dt
 import os
-import queue
-import subprocess
-import threading
-import time
 from dataclasses import replace
 from typing import Any
 
@@ -23,26 +20,24 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, RichLog, Static
 
-from station.session import store as sessions
+from station.session.acquisition import Acquisition
 from station.session.analysis import DescentResult
 from station.session.config import StationConfig
-from station.session.day import Day
-from station.session.rawlog import Chunk, RawLogWriter
-from station.session.recorder import replay_chunks
-from station.session.results import write_results
-from station.survey.load import load_survey
-from station.survey.track import build_track
+from station.session.records import FitModel, InvalidMark, LineCounts, ModelChange, ValidMark
 from station.timing.impulses import format_tod
 from station.ui.messages import (
+    AcquisitionWarning,
     ComparisonUpdated,
     ConnectionChanged,
     DescentFitted,
     DescentProgress,
     ImpulsesArrived,
+    PostingListener,
     SourceEnded,
 )
 from station.ui.plots import residual_plot, speed_plot
 from station.ui.screens import ComparisonScreen, HelpScreen, MetadataScreen, ReasonScreen
+from station.ui.simulator import SimulatedTimer, SimulatorError
 
 #: (label, key, width): fixed widths, so the table does not jump as rows arrive and the
 #: columns that matter most fit in 80 columns
@@ -110,23 +105,21 @@ class StationApp(App):
         self.source = source
         self.session_dir = session_dir
         self.speed = speed
-        self.sim_command = sim_command
+        self.date = date
+        self.sim = SimulatedTimer(sim_command) if sim_command else None
         self.demo_skis = demo_skis or []
-        self.sim: subprocess.Popen | None = None
         self.config = config
-        self.track = build_track(load_survey(config.survey_path))
-        self.day = Day.start(config, self.track, date)
-        self.lock = threading.Lock()
-        self.jobs: queue.Queue = queue.Queue()
-        self.rawlog: RawLogWriter | None = None
-        self.reader = None
-        self.stop_event = threading.Event()
+        self.acq: Acquisition | None = None
+        self.photocell_ids: tuple[str, ...] = ()
+        # what the messages brought: the UI's own snapshots of the day
+        self.results: dict[int, DescentResult] = {}
+        self.progress: Any = None  # the latest Progress
+        self.counts = LineCounts()
+        self.metadata_from: int | None = None  # where the latest metadata entered applies from
         self.latest: int | None = None
-        self._announced: int | None = None
         self.comparison_text = (
             "no comparison yet: it needs fitted descents with ski or wax entered (m)"
         )
-        self.counts: dict[str, int] = {}
         self.connection = "starting"
         self.sub_title = mode
 
@@ -140,199 +133,40 @@ class StationApp(App):
             table.add_column(label, key=key, width=width)
         self._update_status()
         self.on_resize()
+        self.acq = Acquisition.open(
+            self.config,
+            PostingListener(self),
+            session_dir=self.session_dir,
+            date=self.date,
+            compare=True,
+            ski_rotation=self.demo_skis if self.mode == "demo" else (),
+        )
+        self.photocell_ids = tuple(self.acq.track.photocell_ids)
         if self.session_dir is not None:
-            sessions.create(self.config, self.session_dir)
-            self.config = sessions.load_session_config(self.session_dir)
-            self.day = Day.start(self.config, self.track, self.day.date)
-            self.rawlog = RawLogWriter(
-                os.path.join(self.session_dir, sessions.RAW),
-                header={"port": self.config.serial.port, "protocol": self.config.serial.protocol},
-            )
             self.sub_title = f"{self.mode} · {self.session_dir}"
-        if self.mode == "demo" and self.demo_skis:
-            self._annotate({"type": "metadata", "from": 1, "values": {"ski": self.demo_skis[0]}})
-        self.run_worker(self._fit_loop, thread=True, group="fit", exit_on_error=False)
         if self.mode == "replay":
-            self.run_worker(
-                self._replay_loop, thread=True, group="acquisition", exit_on_error=False
-            )
+            assert self.source is not None
+            self.acq.start_replay(self.source, self.speed)
+        elif self.mode == "demo":
+            self.run_worker(self._start_demo, thread=True, group="demo", exit_on_error=False)
         else:
-            self.run_worker(self._live_loop, thread=True, group="acquisition", exit_on_error=False)
+            self.acq.start_serial()
+
+    def _start_demo(self) -> None:
+        """In a worker thread: start the simulated timer, then read it."""
+        assert self.sim is not None and self.acq is not None
+        try:
+            port = self.sim.start()
+        except SimulatorError as exc:
+            self.post_message(ConnectionChanged("error", str(exc)))
+            return
+        serial = self.acq.config.serial
+        self.acq.start_serial(replace(serial, port=port))
 
     def on_resize(self, _event: object = None) -> None:
         """Called by the main screen when the terminal changes size."""
         self.set_class(self.size.width < 110, "narrow")
         self.call_after_refresh(self._draw_speed)
-
-    # ------------------------------------------------------------------ workers (threads)
-
-    def _after_feed(self, first_event: int, done: list) -> None:
-        """Called with the lock held: tell the UI what the chunk did, queue finished descents."""
-        proc = self.day.processor
-        new = proc.events[first_event:]
-        if new:
-            self.post_message(ImpulsesArrived(list(new), dict(proc.counts)))
-        if new or done:
-            cur = proc.assembler.current
-            if cur is not None and cur.number != self._announced:
-                self._announced: int | None = cur.number
-                self._new_descent(cur.number)
-            self.post_message(
-                DescentProgress(
-                    cur.number if cur else None,
-                    list(cur.photocells) if cur else [],
-                    list(cur.times_us) if cur else [],
-                )
-            )
-        for d in done:
-            self.jobs.put(("descent", d))
-
-    def _new_descent(self, number: int) -> None:
-        """A descent started: in the demo, the next pair of skis is already waiting."""
-        if self.mode == "demo" and self.demo_skis:
-            ski = self.demo_skis[number % len(self.demo_skis)]
-            self._annotate_locked({"type": "metadata", "from": number + 1, "values": {"ski": ski}})
-
-    def _feed(self, chunk: Chunk) -> None:
-        with self.lock:
-            n = len(self.day.processor.events)
-            done = self.day.processor.feed(chunk)
-            self._after_feed(n, done)
-
-    def _live_loop(self) -> None:
-        from station.session.serialport import SerialReader
-
-        cfg = self.config
-        if self.mode == "demo":
-            port = self._start_simulator()
-            if port is None:
-                return
-            cfg = replace(cfg, serial=replace(cfg.serial, port=port))
-
-        def on_chunk(t: float, data: bytes) -> None:
-            if self.rawlog is not None:
-                self.rawlog.write(t, data)  # first: on disk before it is parsed
-            self._feed(Chunk(t, data))
-
-        def on_event(t: float, event: str, detail: str) -> None:
-            if self.rawlog is not None:
-                self.rawlog.event(t, event, detail)
-            self._feed(Chunk(t, b"", event, detail))
-            self.post_message(ConnectionChanged(event, detail))
-
-        def on_idle(t: float) -> None:
-            with self.lock:
-                done = self.day.processor.tick(t)
-                if done:
-                    if self.rawlog is not None:
-                        self.rawlog.event(t, "timeout")
-                    self._after_feed(len(self.day.processor.events), done)
-            if self.stop_event.is_set():
-                reader.stop()
-
-        reader = SerialReader(cfg.serial, on_chunk, on_event, on_idle)
-        self.reader = reader
-        reader.run()
-        if reader.error is not None:
-            self.post_message(ConnectionChanged("error", str(reader.error)))
-
-    def _start_simulator(self) -> str | None:
-        assert self.sim_command is not None
-        try:
-            self.sim = subprocess.Popen(
-                self.sim_command, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True
-            )
-        except OSError as exc:
-            self.post_message(
-                ConnectionChanged("error", f"cannot start the simulated timer: {exc}")
-            )
-            return None
-        first = self.sim.stdout.readline() if self.sim.stdout else ""
-        if not first.startswith("PORT "):
-            self.post_message(ConnectionChanged("error", "the simulated timer did not start"))
-            return None
-        return first.split(" ", 1)[1].strip()
-
-    def _replay_loop(self) -> None:
-        assert self.source is not None
-        if sessions.is_session(self.source):
-            for record in sessions.read_annotations(self.source):
-                with self.lock:
-                    self.day.annotate(record)
-        self.post_message(
-            ConnectionChanged("replay", os.path.basename(os.path.normpath(self.source)))
-        )
-        for chunk in replay_chunks(self.source, self.speed, self.stop_event):
-            self._feed(chunk)
-        if self.stop_event.is_set():
-            return
-        with self.lock:
-            self._after_feed(len(self.day.processor.events), self.day.processor.finish())
-        self.jobs.put(("ended", None))
-
-    def _fit_loop(self) -> None:
-        while True:
-            kind, payload = self.jobs.get()
-            if kind == "stop":
-                return
-            if kind == "ended":
-                with self.lock:
-                    from station.session.recorder import Run
-
-                    summary = Run(self.day).summary()
-                self.post_message(SourceEnded(summary))
-                continue
-            from station.model.compare import collect
-
-            with self.lock:
-                res = self.day.analyse(payload) if kind == "descent" else self.day.annotate(payload)
-                self._write_results()
-                snapshot = collect(self.day)
-            if res is not None:
-                self.post_message(DescentFitted(res))
-            # the joint fit of the whole day runs outside the lock: the reader goes on meanwhile
-            self.post_message(ComparisonUpdated(self._comparison(*snapshot)))
-
-    def _comparison(self, data: list, excluded: list, windy: list) -> str:
-        """The joint fit of the session's valid descents, as text."""
-        from station.model.compare import CompareError, format_comparison, joint_fit
-
-        if len(data) < 2:
-            return "no comparison yet: it needs at least two fitted descents"
-        try:
-            res = joint_fit(self.track, data)
-        except CompareError as exc:
-            return f"no comparison yet: {exc}"
-        res.excluded, res.wind_flagged = excluded, windy
-        return format_comparison(res, len(data)) + "".join(f"\n! {w}" for w in res.warnings)
-
-    def _write_results(self) -> None:
-        """With the lock held: the session's results CSV, rewritten after every change."""
-        if self.session_dir is None:
-            return
-        header = sessions.results_header(self.config, self.track.name)
-        write_results(self.day.rows(), os.path.join(self.session_dir, sessions.RESULTS), header)
-
-    # ------------------------------------------------------------------ annotations
-
-    def _annotate_locked(self, record: dict[str, Any]) -> None:
-        """With the lock held (or from the acquisition thread): store and apply a metadata
-        annotation at once, so the descent it is for sees it."""
-        record = {"t": time.time(), **record}
-        if self.session_dir is not None:
-            sessions.append_annotation(self.session_dir, record)
-        self.day.annotate(record)
-
-    def _annotate(self, record: dict[str, Any]) -> None:
-        with self.lock:
-            self._annotate_locked(record)
-
-    def _queue_annotation(self, record: dict[str, Any]) -> None:
-        """Invalid marks and refits: stored now, applied (and refitted) by the fit worker."""
-        record = {"t": time.time(), **record}
-        if self.session_dir is not None:
-            sessions.append_annotation(self.session_dir, record)
-        self.jobs.put(("annotate", record))
 
     # ------------------------------------------------------------------ messages
 
@@ -350,10 +184,7 @@ class StationApp(App):
 
     def _update_status(self) -> None:
         c = self.counts
-        counts = (
-            f"{c.get('impulse', 0)} impulses · {c.get('edit', 0)} edits · "
-            f"{c.get('unparsed', 0)} unparsed"
-        )
+        counts = f"{c.impulses} impulses · {c.edits} edits · {c.unparsed} unparsed"
         self.main.query_one("#status", Static).update(f" {self.connection}  │  {counts}")
 
     def on_impulses_arrived(self, msg: ImpulsesArrived) -> None:
@@ -366,42 +197,40 @@ class StationApp(App):
             log.write(f"{format_tod(e.tod_us, 4)} {where:<8} {fate}")
 
     def on_descent_progress(self, msg: DescentProgress) -> None:
-        ids = self.track.photocell_ids
-        if msg.number is None:
+        p = self.progress = msg.progress
+        ids = self.photocell_ids
+        if p.number is None:
             text = "no descent running · waiting for the start photocell " + ids[0]
         else:
-            t0 = msg.times_us[0]
-            passed = dict(zip(msg.passed, msg.times_us, strict=True))
-            marks = " ".join(f"{'●' if p in passed else '○'}{p}" for p in ids)
-            last = msg.passed[-1]
+            t0 = p.times_us[0]
+            passed = dict(zip(p.passed, p.times_us, strict=True))
+            marks = " ".join(f"{'●' if pc in passed else '○'}{pc}" for pc in ids)
+            last = p.passed[-1]
             text = (
-                f"descent {msg.number} running: {len(msg.passed)}/{len(ids)} · "
+                f"descent {p.number} running: {len(p.passed)}/{len(ids)} · "
                 f"{last} +{(passed[last] - t0) / 1e6:.2f} s\n{marks}"
             )
         self.main.query_one("#progress", Static).update(text)
 
     def on_descent_fitted(self, msg: DescentFitted) -> None:
         res = msg.result
-        n = res.descent.number
+        n = res.number
+        self.results[n] = res
         row = res.row
-        ci = (
-            f"{_f(row['mu_lo'], '.5f')}–{_f(row['mu_hi'], '.5f')}"
-            if row.get("mu_lo") is not None
-            else "—"
-        )
-        status = row["status"] if not row.get("invalid_reason") else "INVALID"
+        ci = f"{_f(row.mu_lo, '.5f')}–{_f(row.mu_hi, '.5f')}" if row.mu_lo is not None else "—"
+        status = row.status.value if not row.invalid else "INVALID"
         values = [
             str(n),
             res.start_time[11:19] if "T" in res.start_time else res.start_time[:8],
-            row.get("ski") or "",
-            _f(row.get("mu"), ".5f"),
-            status + (" (v)" if row.get("model") == "velocity" else ""),
+            row.ski,
+            _f(row.mu, ".5f"),
+            status + (" (v)" if row.model == FitModel.VELOCITY else ""),
             ci,
-            _f(row.get("cda"), ".4f"),
-            _f(row.get("v0"), ".2f"),
-            _f(row.get("rms_residual_ms"), ".2f"),
-            row.get("wax") or "",
-            row.get("invalid_reason") or row.get("flags") or "",
+            _f(row.cda, ".4f"),
+            _f(row.v0, ".2f"),
+            _f(row.rms_residual_ms, ".2f"),
+            row.wax,
+            row.invalid_reason or "; ".join(row.flags),
         ]
         table = self.main.query_one("#table", DataTable)
         key = str(n)
@@ -421,7 +250,7 @@ class StationApp(App):
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
         if event.row_key is None or event.row_key.value is None:
             return
-        res = self.day.results.get(int(event.row_key.value))
+        res = self.results.get(int(event.row_key.value))
         if res is not None:
             self._show(res)
 
@@ -429,6 +258,10 @@ class StationApp(App):
         self.comparison_text = msg.text
         if isinstance(self.screen, ComparisonScreen):
             self.screen.update(msg.text)
+
+    def on_acquisition_warning(self, msg: AcquisitionWarning) -> None:
+        self.main.query_one("#log", RichLog).write(f"! {msg.text}")
+        self.notify(msg.text, title="the recording goes on", severity="error", timeout=10)
 
     def action_compare(self) -> None:
         self.push_screen(ComparisonScreen(self.comparison_text))
@@ -444,7 +277,7 @@ class StationApp(App):
         head = f"descent {d.number} · {res.start_time.replace('T', ' ')[:22]} · "
         if f is None:
             self.main.query_one("#result", Static).update(
-                head + f"{d.status}: {'; '.join(d.flags)}"
+                head + f"{row.status}: {'; '.join(row.flags)}"
             )
             self.main.query_one("#residuals", Static).update("")
             self.main.query_one("#speed", Static).update("")
@@ -461,9 +294,9 @@ class StationApp(App):
                 rng = "no interval"
             return f"{label:<4}{_f(e.get(key), spec):>9} {unit:<4} {rng}"
 
-        status = row["status"]
-        if row.get("invalid_reason"):
-            status = f"INVALID: {row['invalid_reason']} (fit {status})"
+        status = row.status.value
+        if row.invalid:
+            status = f"INVALID: {row.invalid_reason} (fit {status})"
         text = (
             head
             + f"{len(d.photocells)} photocells · {status}\n"
@@ -472,7 +305,7 @@ class StationApp(App):
             + line("CdA", "cda", ".4f", "m²")
             + "\n"
             + line("v0", "v0", ".3f", "m/s")
-            + f"   rms {_f(row.get('rms_residual_ms'), '.2f')} ms · {row.get('model')} model"
+            + f"   rms {_f(row.rms_residual_ms, '.2f')} ms · {row.model} model"
             + (f"\n{f.message}" if f.message else "")
         )
         self.main.query_one("#result", Static).update(text)
@@ -511,69 +344,66 @@ class StationApp(App):
         self.push_screen(HelpScreen())
 
     def action_metadata(self) -> None:
-        with self.lock:
-            nxt = self.day.next_number()
-            current = self.day.metadata_for(nxt)
+        p = self.progress
+        nxt = p.next_number if p is not None else 1
+        current = p.next_metadata.values() if p is not None else {}
 
         def done(values: dict[str, Any] | None) -> None:
-            if values is None:
+            if values is None or self.acq is None:
                 return
-            with self.lock:
-                start = self.day.next_number()
-                self._annotate_locked({"type": "metadata", "from": start, "values": values})
+            start = self.metadata_from = self.acq.add_metadata(values)
             self.notify(f"metadata applies from descent {start} on")
 
         self.push_screen(MetadataScreen(current, nxt), done)
 
     def action_invalid(self) -> None:
         n = self._selected()
-        if n is None:
+        if n is None or self.acq is None:
             return
-        if n in self.day.invalid:
-            self._queue_annotation({"type": "valid", "descent": n})
+        res = self.results.get(n)
+        if res is not None and res.row.invalid:
+            self.acq.annotate(ValidMark(n))
             self.notify(f"descent {n} valid again")
             return
 
         def done(reason: str | None) -> None:
-            if reason is not None:
-                self._queue_annotation({"type": "invalid", "descent": n, "reason": reason})
+            if reason is not None and self.acq is not None:
+                self.acq.annotate(InvalidMark(n, reason))
                 self.notify(f"descent {n} marked invalid: {reason}")
 
         self.push_screen(ReasonScreen(n), done)
 
     def action_refit(self) -> None:
         n = self._selected()
-        if n is None:
+        if n is None or self.acq is None:
             return
-        current = self.day.models.get(n, self.config.model)
-        model = "constant" if current == "velocity" else "velocity"
-        self._queue_annotation({"type": "model", "descent": n, "model": model})
+        res = self.results.get(n)
+        current = res.row.model if res is not None else FitModel(self.config.model)
+        model = FitModel.CONSTANT if current == FitModel.VELOCITY else FitModel.VELOCITY
+        self.acq.annotate(ModelChange(n, model))
         self.notify(f"refitting descent {n} with the {model} model")
 
     def action_export(self) -> None:
+        if self.acq is None:
+            return
         if self.session_dir is not None:
-            path = os.path.join(self.session_dir, sessions.RESULTS)
+            from station.session.store import RESULTS
+
+            path = os.path.join(self.session_dir, RESULTS)
         else:
             base = os.path.splitext(os.path.basename(os.path.normpath(self.source or "replay")))[0]
             path = os.path.abspath(f"{base}-results.csv")
-        with self.lock:
-            header = sessions.results_header(self.config, self.track.name)
-            write_results(self.day.rows(), path, header)
-            n = len(self.day.results)
-        self.notify(f"{n} descents exported to {path}")
+        try:
+            self.acq.write_csv(path)
+        except OSError as exc:
+            self.notify(f"{path} not written: {exc}", severity="error")
+            return
+        self.notify(f"{len(self.results)} descents exported to {path}")
 
     def on_unmount(self) -> None:
-        self.stop_event.set()
-        if self.reader is not None:
-            self.reader.stop()
-        self.jobs.put(("stop", None))
+        """Quitting ends the day as Ctrl-C ends ``station record``: the open descent is ended
+        and fitted, the results CSV written, the raw log closed."""
+        if self.acq is not None:
+            self.acq.close()
         if self.sim is not None:
-            self.sim.terminate()
-            try:
-                self.sim.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                self.sim.kill()
-        if self.rawlog is not None:
-            with self.lock:
-                self._write_results()
-            self.rawlog.close()
+            self.sim.stop()

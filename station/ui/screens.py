@@ -10,7 +10,7 @@ from textual.containers import Grid, Vertical, VerticalScroll
 from textual.screen import ModalScreen
 from textual.widgets import Button, Input, Label, Static
 
-from station.session.day import METADATA_FIELDS
+from station.session.records import METADATA_FIELDS
 
 HELP = """\
 [b]station[/b] — trackside measurement of ski friction
@@ -33,22 +33,13 @@ HELP = """\
 
 Every byte from the timer is recorded before it is parsed; a session replays with
 [i]station replay SESSION --ui[/i]. Statuses: ok, ill-conditioned (a parameter not
-identifiable: shown as —), lift-off, stopped, too-few-photocells, not-converged, aborted.
+identifiable: shown as —), lift-off, stopped, too-few-photocells, not-converged, aborted,
+error (the fit failed: the reason is in the notes; the recording goes on).
 """
 
-LABELS = {
-    "skier": "skier",
-    "mass_kg": "mass incl. equipment [kg]",
-    "ski": "ski / pair id",
-    "wax": "wax",
-    "air_temperature_c": "air temperature [°C]",
-    "snow_temperature_c": "snow temperature [°C]",
-    "pressure_hpa": "station pressure [hPa]",
-    "humidity_pct": "relative humidity [%]",
-    "wind_ms": "wind speed [m/s]",
-    "wind_from_deg": "wind from [° from north]",
-    "notes": "notes",
-}
+#: the form's labels, from the one table of metadata keys
+LABELS = {f.key: f.title for f in METADATA_FIELDS}
+KINDS = {f.key: f.kind for f in METADATA_FIELDS}
 
 
 class HelpScreen(ModalScreen[None]):
@@ -77,7 +68,7 @@ class MetadataScreen(ModalScreen[dict[str, Any] | None]):
         with VerticalScroll(id="form"):
             yield Label(f"Run metadata for descent {self.next_number} and after  (Enter saves)")
             with Grid(id="fields"):
-                for key in METADATA_FIELDS:
+                for key in KINDS:
                     yield Label(LABELS[key], markup=False)  # "[hPa]" is a unit, not markup
                     value = self.current.get(key)
                     yield Input(
@@ -87,7 +78,7 @@ class MetadataScreen(ModalScreen[dict[str, Any] | None]):
                         if isinstance(value, float)
                         else str(value),
                         id=f"f_{key}",
-                        type="number" if METADATA_FIELDS[key] is float else "text",
+                        type="number" if KINDS[key] is float else "text",
                         valid_empty=True,  # every field is optional
                     )
             yield Label("", id="error")
@@ -100,7 +91,7 @@ class MetadataScreen(ModalScreen[dict[str, Any] | None]):
 
     def _values(self) -> dict[str, Any] | None:
         out: dict[str, Any] = {}
-        for key, kind in METADATA_FIELDS.items():
+        for key, kind in KINDS.items():
             text = self.query_one(f"#f_{key}", Input).value.strip()
             if text == "":
                 continue
@@ -116,6 +107,9 @@ class MetadataScreen(ModalScreen[dict[str, Any] | None]):
                 out[key] = text
         if "mass_kg" in out and out["mass_kg"] <= 0:
             self.query_one("#error", Label).update("mass must be greater than 0")
+            return None
+        if out.get("wind_ms") and "wind_from_deg" not in out:
+            self.query_one("#error", Label).update("wind speed needs the direction it comes from")
             return None
         if "humidity_pct" in out and not 0 <= out["humidity_pct"] <= 100:
             self.query_one("#error", Label).update("humidity must lie between 0 and 100 %")

@@ -1,0 +1,48 @@
+"""``station import``: a timer's memory (plain capture or memory download) into a new session,
+or merged into an existing one without doubling impulses (station.session.memory_import)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from typing import Any
+
+
+def cmd_import(args: argparse.Namespace) -> int:
+    from station.session import memory_import
+    from station.session import store as sessions
+    from station.session.acquisition import replay
+    from station.session.config import load_config
+
+    if args.into:
+        report = memory_import.import_into(args.file, args.into)
+        config = sessions.load_session_config(args.into)
+        if config.serial.protocol != load_config(args.config).serial.protocol:
+            print("station: warning: --config names another protocol than the session's; "
+                  "the session's config was used", file=sys.stderr)  # fmt: skip
+    else:
+        config = load_config(args.config)
+        report = memory_import.import_new(args.file, config, args.session_dir)
+        config = sessions.load_session_config(args.session_dir)
+    run = replay(report.session, config, out=lambda _m: None)
+    run.write_csv(os.path.join(report.session, sessions.RESULTS))
+    print(
+        f"{report.impulses_in_file} impulses in {args.file}: {report.already_there} already in "
+        f"the session, {report.added} added; the file is kept as {report.kept_as}",
+        file=sys.stderr,
+    )
+    print(run.summary(), file=sys.stderr)
+    return 0
+
+
+def add_parsers(sub: Any) -> None:
+    p = sub.add_parser(
+        "import", help="a timer's memory download or a capture into a new or existing session"
+    )
+    p.add_argument("file", metavar="FILE", help="plain capture or memory download")
+    p.add_argument("--config", required=True, help="station config YAML")
+    where = p.add_mutually_exclusive_group(required=True)
+    where.add_argument("--session-dir", metavar="NEW", help="make a new session there")
+    where.add_argument("--into", metavar="SESSION", help="merge into this session")
+    p.set_defaults(func=cmd_import)

@@ -1,0 +1,189 @@
+"""``station sessions [DIR]``: the recorded test days in a folder, with their date, descents,
+test items and status, read from each session's results CSV (the csv module, not pandas: the
+list must come at once, even on a slow laptop in the cold).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import datetime as dt
+import json
+import os
+import time
+from dataclasses import asdict, dataclass
+from typing import Any
+
+from station.cli.common import _print_json
+from station.errors import InputError
+
+#: a raw log written to this recently belongs to a session being recorded now
+ACTIVE_S = 120.0
+
+
+@dataclass(frozen=True)
+class SessionSummary:
+    """One line of ``station sessions``."""
+
+    path: str
+    started: str  # local date and time of the first raw-log record, "" when unknown
+    descents: int
+    fitted: int  # descents with status ok
+    invalid: int  # marked invalid by the engineer
+    items: tuple[str, ...]
+    status: str  # recording | finished | no results
+
+
+def read_results_rows(session: str) -> list[dict[str, str]] | None:
+    """The rows of a session's results CSV as text, or None when it has none yet.
+
+    The ``#`` header lines are skipped only at the top, so a quoted note that spans lines and
+    begins one with ``#`` stays part of its row."""
+    from station.session import store as sessions
+
+    path = os.path.join(session, sessions.RESULTS)
+    try:
+        fh = open(path, encoding="utf-8", newline="")  # noqa: SIM115
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror}", path=path) from None
+    with fh:
+        pos = fh.tell()
+        line = fh.readline()
+        while line.startswith("#"):
+            pos = fh.tell()
+            line = fh.readline()
+        fh.seek(pos)
+        try:
+            return list(csv.DictReader(fh))
+        except (csv.Error, UnicodeDecodeError) as exc:
+            raise InputError(f"not a results CSV: {exc}", path=path) from None
+
+
+def session_descents(session: str) -> list[int]:
+    """The descent numbers a session has: from its results CSV, else by replaying it."""
+    rows = read_results_rows(session)
+    if rows is not None:
+        return [int(r["descent"]) for r in rows if (r.get("descent") or "").isdigit()]
+    from station.cli.recording import _replay_run
+
+    ns = argparse.Namespace(source=session, config=None, fast=True, date=None)
+    return [r.number for r in _replay_run(ns, quiet=True).results()]
+
+
+def _started(session: str) -> str:
+    from station.session import store as sessions
+
+    try:
+        with open(os.path.join(session, sessions.RAW), encoding="ascii", errors="replace") as fh:
+            first = json.loads(fh.readline())
+        t = float(first["t"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return ""
+    return dt.datetime.fromtimestamp(t).strftime("%Y-%m-%d %H:%M")
+
+
+def _annotated(session: str, rows: list[dict[str, str]]) -> list[dict[str, Any]]:
+    """The rows with the annotations entered since the CSV was written (``station annotate``
+    appends to annotations.jsonl and leaves results.csv as recorded): ski, wax and invalid
+    marks as a replay would give them, by the same :class:`Day` rules, without refitting."""
+    from station.session import store as sessions
+    from station.session.day import Day
+
+    records = sessions.read_annotations(session)
+    if not records:
+        return list(rows)
+    try:
+        cfg = sessions.load_session_config(session)
+    except InputError:
+        return list(rows)
+    day = Day(cfg, None, None, None)  # type: ignore[arg-type]  # metadata rules only
+    for rec in records:
+        day.annotate(rec)
+    out: list[dict[str, Any]] = []
+    for r in rows:
+        n = int(r["descent"]) if (r.get("descent") or "").isdigit() else 0
+        meta = day.metadata_for(n)
+        row: dict[str, Any] = {**r, "ski": meta.ski or "", "wax": meta.wax or ""}
+        row["invalid_reason"] = day.invalid.get(n, "")
+        out.append(row)
+    return out
+
+
+def summarise(session: str, now: float | None = None) -> SessionSummary:
+    from station.model.compare import item_name
+    from station.session import store as sessions
+
+    rows = _annotated(session, read_results_rows(session) or [])
+    items: list[str] = []
+    for r in rows:
+        it = item_name(r.get("ski"), r.get("wax"))
+        if r.get("descent_status") != "aborted" and it not in items:
+            items.append(it)
+    raw = os.path.join(session, sessions.RAW)
+    now = time.time() if now is None else now
+    if not os.path.exists(os.path.join(session, sessions.RESULTS)):
+        status = "no results (station export SESSION --csv …)"
+    elif now - os.path.getmtime(raw) < ACTIVE_S:
+        status = "recording"
+    else:
+        status = "finished"
+    return SessionSummary(
+        path=session,
+        started=_started(session),
+        descents=sum(r.get("descent_status") != "aborted" for r in rows),
+        fitted=sum(r.get("status") == "ok" and not r.get("invalid_reason") for r in rows),
+        invalid=sum(bool(r.get("invalid_reason")) for r in rows),
+        items=tuple(items),
+        status=status,
+    )
+
+
+def find_sessions(folder: str) -> list[str]:
+    """Sessions in ``folder`` (or ``folder`` itself when it is one), oldest first."""
+    from station.session import store as sessions
+
+    if not os.path.exists(folder):
+        raise InputError("no such folder", path=folder)
+    if not os.path.isdir(folder):
+        raise InputError("not a folder", path=folder)
+    if sessions.is_session(folder):
+        return [folder]
+    try:
+        names = sorted(os.listdir(folder))
+    except OSError as exc:
+        raise InputError(f"cannot list: {exc.strerror}", path=folder) from None
+    return [os.path.join(folder, n) for n in names if sessions.is_session(os.path.join(folder, n))]
+
+
+def cmd_sessions(args: argparse.Namespace) -> int:
+    found = [summarise(s) for s in find_sessions(args.folder)]
+    found.sort(key=lambda s: (s.started, s.path))
+    if args.json:
+        _print_json([asdict(s) | {"items": list(s.items)} for s in found])
+        return 0
+    if not found:
+        print(f"no sessions in {args.folder}")
+        return 0
+    width = max(len("session"), *(len(s.path) for s in found))
+    print(f"{'session':<{width}}  {'started':<16}  {'descents':>8}  {'ok':>3}  {'inval':>5}  "
+          "status     items")  # fmt: skip
+    for s in found:
+        items = "; ".join(s.items) or "—"
+        print(f"{s.path:<{width}}  {s.started or '—':<16}  {s.descents:>8}  {s.fitted:>3}  "
+              f"{s.invalid:>5}  {s.status:<9}  {items}")  # fmt: skip
+    return 0
+
+
+def add_parsers(sub: Any) -> None:
+    p = sub.add_parser("sessions", help="list the recorded sessions: date, descents, items, status")
+    p.add_argument(
+        "folder",
+        metavar="DIR",
+        nargs="?",
+        default="sessions",
+        help="folder holding the sessions (default: ./sessions), or one session",
+    )
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.set_defaults(func=cmd_sessions)

@@ -1,0 +1,56 @@
+"""Text for the terminal: one line per descent, and the summary of a recording or replay.
+
+Shared by ``station record``, ``station replay`` and the UI, so a descent reads the same
+wherever it is shown.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from station.session.analysis import DescentResult
+from station.session.records import LineCounts
+
+
+def num(v: float | None, spec: str) -> str:
+    """A number, or — where there is none (or it is NaN)."""
+    return "—" if v is None or v != v else format(v, spec)
+
+
+def describe(res: DescentResult) -> str:
+    """One line per descent, for the terminal."""
+    d, f, row = res.descent, res.fit, res.row
+    when = res.start_time.replace("T", " ")[:22]
+    used = f"{len(d.photocells)}/{len(d.photocells) + len(d.missing)}"
+    head = f"descent {d.number:>3}  {when}  {used} photocells"
+    if f is None:
+        return f"{head}  {row.status}: {'; '.join(row.flags)}"
+    e, ci = f.estimates, f.ci90
+
+    def part(name: str, key: str, spec: str) -> str:
+        if e.get(key) is None:
+            return f"{name} —"
+        c = ci.get(key)
+        rng = f" [{format(c[0], spec)}, {format(c[1], spec)}]" if c else ""
+        return f"{name} {format(e[key], spec)}{rng}"
+
+    text = (
+        f"{head}  {part('μ', 'mu', '.5f')}  {part('CdA', 'cda', '.4f')}  "
+        f"v0 {num(e.get('v0'), '.2f')}  rms {num(row.rms_residual_ms, '.2f')} ms  {row.status}"
+    )
+    if row.flags:
+        text += f"  ({'; '.join(row.flags)})"
+    return text
+
+
+def summary(counts: LineCounts, results: Sequence[DescentResult]) -> str:
+    """Lines by kind, descents by status."""
+    st: dict[str, int] = {}
+    for r in results:
+        st[r.row.status.value] = st.get(r.row.status.value, 0) + 1
+    parts = ", ".join(f"{v} {k}" for k, v in sorted(st.items()))
+    return (
+        f"{counts.lines} lines: {counts.impulses} impulses, {counts.edits} edits, "
+        f"{counts.skipped} other timer lines, {counts.unparsed} unparsed; "
+        f"{len(results)} descents" + (f" ({parts})" if parts else "")
+    )

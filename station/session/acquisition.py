@@ -1,0 +1,594 @@
+"""The one acquisition loop: what ``station record``, the UI's ``live`` and ``demo``, and every
+replay (CLI and UI) run.
+
+    source ──chunk──▶ raw log ──▶ processor ──finished descent──▶ queue ──▶ fit worker
+    (serial reader                (lines, impulses,                         fit, results CSV,
+     or replay)                    descents)                                listener
+
+- **Raw log first**: every chunk is on disk before the processor sees it; whatever happens
+  after, the day replays.
+- **Fitting and the results CSV are consumers**, isolated from the reader: a finished descent
+  goes on a queue; a fit worker fits it and rewrites the CSV. A fit that raises gives that
+  descent ``status: error`` with the reason (:mod:`station.session.analysis`); a CSV that cannot
+  be written is reported and tried again after the next descent; any other exception in a
+  consumer is reported and the worker goes on. Nothing a consumer does reaches the reader.
+- **One way to end**: :meth:`Acquisition.close` stops the source, ends the open descent as the
+  end of a capture does (the processor's ``finish``), waits for the fits and writes the CSV.
+  Quitting the UI, Ctrl-C or SIGTERM in ``record``, and the end of a replay all go through it,
+  so a session replays to the same CSV however it was ended.
+- **Snapshots only**: the outside world hears of the day through a :class:`Listener`, called
+  with immutable records (:mod:`station.session.records`), never with the day itself.
+
+Replays run the same loop without threads (``threaded=False``): the fits run in line, in order.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as dt
+import os
+import queue
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import IO, Any
+
+from station.errors import InputError
+from station.session import store as sessions
+from station.session.analysis import DescentResult
+from station.session.config import SerialConfig, StationConfig
+from station.session.day import Day, Effect
+from station.session.rawlog import Chunk, RawLogWriter
+from station.session.records import (
+    Annotation,
+    DescentStatus,
+    DescentTimes,
+    LineCounts,
+    Metadata,
+    MetadataAnnotation,
+    Progress,
+)
+from station.session.replay import replay_chunks, source_date
+from station.survey.load import load_survey
+from station.survey.track import Track, build_track
+from station.timing.assembly import ImpulseEvent, TimedDescent
+
+
+class Listener:
+    """What an acquisition tells the outside world. Called from the reader and the fit worker
+    threads, always with immutable records; the defaults do nothing."""
+
+    #: wants every impulse and the open descent's progress (the UI); a headless run does not
+    live_view = False
+
+    def connection(self, state: str, detail: str) -> None:
+        """The timer connected, disconnected, cannot be opened; a replay started; an error."""
+
+    def impulses(self, events: tuple[ImpulseEvent, ...], counts: LineCounts) -> None:
+        """Impulses parsed from the latest chunk, with what became of each."""
+
+    def progress(self, progress: Progress) -> None:
+        """The open descent, and the number and metadata the next one will get."""
+
+    def result(self, result: DescentResult) -> None:
+        """A descent was fitted, fitted again, or marked."""
+
+    def comparison(self, text: str) -> None:
+        """The day's comparison of items, recomputed (when asked for)."""
+
+    def warning(self, text: str) -> None:
+        """Something failed and the acquisition went on."""
+
+    def ended(self, summary: str) -> None:
+        """A replay reached its end and every descent is fitted."""
+
+
+def _print(text: str) -> None:
+    print(text, flush=True)  # a line per descent as it happens, also through a pipe (tee)
+
+
+class PrintListener(Listener):
+    """``station record`` and ``replay``: one line per descent and per connection change."""
+
+    def __init__(self, out: Callable[[str], None] = _print, port: str = "") -> None:
+        self.out = out
+        self.port = port
+
+    def connection(self, state: str, detail: str) -> None:
+        if state == "disconnected":
+            self.out(f"timer disconnected ({detail}); reconnecting")
+        elif state == "connected":
+            self.out(f"timer connected on {detail}")
+        elif state == "open-failed":
+            self.out(f"cannot open {self.port} ({detail}); retrying")
+        elif state == "error":
+            self.out(f"error: {detail}")
+
+    def result(self, result: DescentResult) -> None:
+        from station.report.text import describe
+
+        self.out(describe(result))
+
+    def warning(self, text: str) -> None:
+        self.out(f"warning: {text}")
+
+
+@dataclass(frozen=True)
+class _Fit:
+    descent: DescentTimes
+
+
+@dataclass(frozen=True)
+class _Annotate:
+    annotation: Annotation
+
+
+@dataclass(frozen=True)
+class _End:
+    """The source ended: tell the listener once every descent before it is fitted."""
+
+
+@dataclass(frozen=True)
+class _WriteResults:
+    """Write the session's results CSV (the empty one at the start: on the worker, so the
+    reader opens the port without waiting for the CSV writer to load)."""
+
+
+_STOP = object()
+_Job = _Fit | _Annotate | _End | _WriteResults
+
+
+class Acquisition:
+    """One test day being acquired from a source (serial port or replay)."""
+
+    def __init__(
+        self,
+        day: Day,
+        listener: Listener | None = None,
+        *,
+        session_dir: str | None = None,
+        rawlog: RawLogWriter | None = None,
+        threaded: bool = True,
+        compare: bool = False,
+        ski_rotation: Sequence[str] = (),
+    ) -> None:
+        self.day = day
+        self.listener = listener or Listener()
+        self.session_dir = session_dir
+        self.rawlog = rawlog
+        self.compare = compare
+        self.ski_rotation = tuple(ski_rotation)
+        self.lock = threading.Lock()  # guards the day: processor, results, annotations
+        self.finished_descents = 0  # descents the processor ended, aborted ones not counted
+        self.source_error: BaseException | None = None
+        self._stop = threading.Event()
+        self._source: threading.Thread | None = None
+        self._reader: Any = None
+        self._announced: int | None = None
+        self._closed = False
+        self._csv_problem: str | None = None  # said once, not after every descent
+        self._closing = False
+        self._jobs: queue.Queue[object] = queue.Queue()
+        self._worker: threading.Thread | None = None
+        if threaded:
+            self._worker = threading.Thread(target=self._work, name="fit-worker", daemon=True)
+            self._worker.start()
+
+    @classmethod
+    def open(
+        cls,
+        config: StationConfig,
+        listener: Listener | None = None,
+        *,
+        session_dir: str | None = None,
+        date: dt.date | None = None,
+        threaded: bool = True,
+        compare: bool = False,
+        ski_rotation: Sequence[str] = (),
+    ) -> Acquisition:
+        """A new day. With ``session_dir`` the session folder is created (config and survey
+        copied into it), the day runs from that copy as its replay will, and the raw log and
+        the results CSV are written there."""
+        rawlog = None
+        if session_dir is not None:
+            sessions.create(config, session_dir)
+            config = sessions.load_session_config(session_dir)
+        day = Day.start(config, build_track(load_survey(config.survey_path)), date)
+        if session_dir is not None:
+            rawlog = RawLogWriter(
+                os.path.join(session_dir, sessions.RAW),
+                header={"port": config.serial.port, "protocol": config.serial.protocol},
+            )
+        acq = cls(
+            day,
+            listener,
+            session_dir=session_dir,
+            rawlog=rawlog,
+            threaded=threaded,
+            compare=compare,
+            ski_rotation=ski_rotation,
+        )
+        if session_dir is not None:
+            acq._submit(_WriteResults())
+        if ski_rotation:
+            acq.add_metadata({"ski": ski_rotation[0]}, from_descent=1)
+        return acq
+
+    @property
+    def config(self) -> StationConfig:
+        return self.day.config
+
+    @property
+    def track(self) -> Track:
+        return self.day.track
+
+    # ------------------------------------------------------------------ sources
+
+    def start_serial(self, serial: SerialConfig | None = None) -> None:
+        """Read the timer in a thread of its own until :meth:`stop` or :meth:`close`."""
+        from station.session.serialport import SerialReader
+
+        cfg = serial or self.config.serial
+
+        def on_chunk(t: float, data: bytes) -> None:
+            self.receive(Chunk(t, data))
+
+        def on_event(t: float, event: str, detail: str) -> None:
+            self.receive(Chunk(t, b"", event, detail))
+            self._tell(self.listener.connection, event, detail)
+
+        self._reader = SerialReader(cfg, on_chunk, on_event, self.idle)
+
+        def read() -> None:
+            self._reader.run()  # in this thread: the reader ends when stopped
+            if self._reader.error is not None:
+                self.source_error = self._reader.error
+                self._tell(self.listener.connection, "error", str(self._reader.error))
+
+        self._start_source(read, "serial-reader")
+
+    def start_replay(
+        self, source: str, speed: float | None = None, warnings: list[str] | None = None
+    ) -> None:
+        """Replay a session or a capture in a thread, paced at ``speed`` (the UI)."""
+        self._start_source(lambda: self.replay(source, speed, warnings), "replay")
+
+    def replay(
+        self, source: str, speed: float | None = None, warnings: list[str] | None = None
+    ) -> None:
+        """Feed a session (its annotations first) or a plain capture through the loop, in
+        this thread; at its end, end the open descent and tell the listener when all is fitted."""
+        try:
+            if sessions.is_session(source):
+                for a in sessions.read_annotations(source):
+                    with self.lock:
+                        self.day.apply(a)
+            name = os.path.basename(os.path.normpath(source))
+            self._tell(self.listener.connection, "replay", name)
+            for chunk in replay_chunks(source, speed, self._stop, warnings):
+                self.receive(chunk)
+        except BaseException as exc:
+            if self._worker is None:
+                raise  # a replay on the command line: its InputError is the command's
+            self.source_error = exc
+            self._tell(self.listener.connection, "error", str(exc))
+            return
+        if self._stop.is_set():
+            return
+        self.end_of_input()
+        self._submit(_End())
+
+    def _start_source(self, target: Callable[[], None], name: str) -> None:
+        self._source = threading.Thread(target=target, name=name, daemon=True)
+        self._source.start()
+
+    @property
+    def reading(self) -> bool:
+        """The source is still running."""
+        return self._source is not None and self._source.is_alive()
+
+    # ------------------------------------------------------------------ the loop
+
+    def receive(self, chunk: Chunk) -> None:
+        """A chunk from the source: raw log first, then the processor."""
+        if self.rawlog is not None:
+            if chunk.event:
+                self.rawlog.event(chunk.t, chunk.event, chunk.detail)
+            else:
+                self.rawlog.write(chunk.t, chunk.data)  # on disk before anything parses it
+        with self.lock:
+            n = len(self.day.processor.events)
+            try:
+                done = self.day.processor.feed(chunk)
+            except Exception as exc:  # noqa: BLE001 - the bytes are logged; go on reading
+                done = []
+                self._tell(self.listener.warning, f"a chunk could not be processed: {exc!r}")
+            jobs = self._after(n, done)
+        self._submit_all(jobs)
+
+    def idle(self, t: float) -> None:
+        """After every read: end a descent whose time-out passed (logged, so replay ends it too)."""
+        with self.lock:
+            done = self.day.processor.tick(t)
+            if done and self.rawlog is not None:
+                self.rawlog.event(t, "timeout")
+            jobs = self._after(len(self.day.processor.events), done) if done else []
+        self._submit_all(jobs)
+
+    def end_of_input(self) -> None:
+        """The source ended: its unfinished last line, then the open descent."""
+        with self.lock:
+            n = len(self.day.processor.events)
+            jobs = self._after(n, self.day.processor.finish())
+        self._submit_all(jobs)
+
+    def _after(self, first_event: int, done: list[TimedDescent]) -> list[_Job]:
+        """With the lock held: what the chunk did, for the listener; the finished descents."""
+        proc = self.day.processor
+        new = tuple(proc.events[first_event:])
+        cur = proc.assembler.current
+        if cur is not None and cur.number != self._announced:
+            self._announced = cur.number
+            self._descent_started(cur.number)
+        if self.listener.live_view:
+            if new:
+                self._tell(self.listener.impulses, new, proc.line_counts())
+            if new or done:
+                self._tell(self.listener.progress, self.day.progress())
+        jobs: list[_Job] = []
+        for d in done:
+            times = DescentTimes.of(d)
+            if times.status != DescentStatus.ABORTED:
+                self.finished_descents += 1
+            jobs.append(_Fit(times))
+        return jobs
+
+    def _descent_started(self, number: int) -> None:
+        """The demo's skis: when a descent starts, the next pair is already waiting."""
+        if self.ski_rotation:
+            ski = self.ski_rotation[number % len(self.ski_rotation)]
+            self._add_metadata_locked({"ski": ski}, number + 1)
+
+    # ------------------------------------------------------------------ annotations
+
+    def add_metadata(self, values: Mapping[str, Any], from_descent: int | None = None) -> int:
+        """Metadata for the next descent on (or from ``from_descent``), stored and applied at
+        once, so the descent it is for sees it; returns the number it applies from."""
+        with self.lock:
+            start = self._add_metadata_locked(values, from_descent)
+            progress = self.day.progress()
+        if self.listener.live_view:
+            self._tell(self.listener.progress, progress)
+        return start
+
+    def _add_metadata_locked(self, values: Mapping[str, Any], from_descent: int | None) -> int:
+        start = from_descent if from_descent is not None else self.day.next_number()
+        a = MetadataAnnotation(Metadata.from_values(values), from_descent=start, t=time.time())
+        if self.session_dir is not None:
+            sessions.append_annotation(self.session_dir, a)
+        self.day.annotate(a)
+        return start
+
+    def annotate(self, a: Annotation) -> None:
+        """An invalid mark, a valid mark or a refit: stored now, applied by the fit worker after
+        the descents already queued."""
+        if self.session_dir is not None:
+            sessions.append_annotation(self.session_dir, a)
+        self._submit(_Annotate(a))
+
+    # ------------------------------------------------------------------ consumers
+
+    def _submit(self, job: _Job) -> None:
+        if self._worker is None:
+            self._run(job)
+        else:
+            self._jobs.put(job)
+
+    def _submit_all(self, jobs: Iterable[_Job]) -> None:
+        for job in jobs:
+            self._submit(job)
+
+    def _work(self) -> None:
+        while True:
+            job = self._jobs.get()
+            if job is _STOP:
+                return
+            self._run(job)  # type: ignore[arg-type]
+            if self.compare and self._jobs.empty() and not self._closing:
+                self._compare()
+
+    def _run(self, job: _Job) -> None:
+        """One job; whatever it raises is reported, never passed to the reader."""
+        try:
+            self._handle(job)
+        except Exception as exc:  # noqa: BLE001 - the day goes on
+            self._tell(self.listener.warning, f"{type(job).__name__.strip('_').lower()} "
+                       f"failed: {type(exc).__name__}: {exc}")  # fmt: skip
+
+    def _handle(self, job: _Job) -> None:
+        day = self.day
+        if isinstance(job, _WriteResults):
+            with self.lock:
+                snapshot = day.snapshot()
+            self._write_session_csv(snapshot)
+            return
+        if isinstance(job, _End):
+            with self.lock:
+                from station.report.text import summary
+
+                text = summary(day.processor.line_counts(), day.snapshot())
+            self._tell(self.listener.ended, text)
+            return
+        with self.lock:
+            if isinstance(job, _Fit):
+                effect = Effect(refit=(job.descent.number,))
+                fit_jobs = [day.fit_job(job.descent)]
+            else:
+                effect = day.annotate(job.annotation)
+                fit_jobs = [day.fit_job(day.results[n].descent) for n in effect.refit]
+        fitted = [day.analyser.run(j) for j in fit_jobs]  # outside the lock: the reader goes on
+        with self.lock:
+            views = [day.store(r) for r in fitted] + [day.view(n) for n in effect.changed]
+            snapshot = day.snapshot() if self.session_dir is not None and views else None
+        if snapshot is not None:
+            self._write_session_csv(snapshot)
+        for v in views:
+            self._tell(self.listener.result, v)
+
+    def _compare(self) -> None:
+        with self.lock:
+            snapshot = self.day.snapshot()
+        self._tell(self.listener.comparison, comparison_text(self.day.track, snapshot))
+
+    def _write_session_csv(self, snapshot: Sequence[DescentResult]) -> None:
+        """The session's results CSV; one that cannot be written is said once, and written
+        again after the next descent (the raw log, written first, is not affected)."""
+        if self.session_dir is None:
+            return
+        path = os.path.join(self.session_dir, sessions.RESULTS)
+        problem = sessions.save_results(path, lambda p: self._write(snapshot, p))
+        if problem is not None and problem != self._csv_problem:
+            self._tell(self.listener.warning, problem)
+        self._csv_problem = problem
+
+    def _write(self, snapshot: Sequence[DescentResult], path: str) -> None:
+        from station.session.results import write_result_rows
+
+        header = sessions.results_header(self.config, self.day.track.name)
+        write_result_rows([r.row for r in snapshot], path, header)
+
+    def _tell(self, fn: Callable[..., None], *args: Any) -> None:
+        """Call the listener; what it raises stays with it."""
+        with contextlib.suppress(Exception):  # a listener must never stop the loop
+            fn(*args)
+
+    # ------------------------------------------------------------------ ending
+
+    def stop(self) -> None:
+        """Stop reading (from any thread); the day is not ended yet: see :meth:`close`."""
+        self._stop.set()
+        if self._reader is not None:
+            self._reader.stop()
+        src = self._source
+        if src is not None and src is not threading.current_thread():
+            src.join(timeout=10)
+
+    def close(self) -> None:
+        """End the day as the end of a capture would: stop the source, end the open descent,
+        fit what is left, write the results CSV, close the raw log. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self.stop()
+        self.end_of_input()
+        self._closing = True
+        if self._worker is not None:
+            self._jobs.put(_STOP)
+            self._worker.join()
+        with self.lock:
+            snapshot = self.day.snapshot()
+        self._write_session_csv(snapshot)
+        if self.rawlog is not None:
+            self.rawlog.close()
+
+    # ------------------------------------------------------------------ views
+
+    def results(self) -> tuple[DescentResult, ...]:
+        """Every descent as the results show it."""
+        with self.lock:
+            return self.day.snapshot()
+
+    def summary(self) -> str:
+        from station.report.text import summary
+
+        with self.lock:
+            return summary(self.day.processor.line_counts(), self.day.snapshot())
+
+    def write_csv(self, path: str) -> None:
+        """The results CSV at ``path`` (export, ``replay --csv``, the UI's ``e``)."""
+        self._write(self.results(), path)
+
+    def write_csv_to(self, fh: IO[str]) -> None:
+        """The results CSV into an open text file: ``--csv -`` writes to standard output."""
+        from station.session.results import write_result_rows_to
+
+        header = sessions.results_header(self.config, self.day.track.name)
+        write_result_rows_to(fh, [r.row for r in self.results()], header)
+
+
+def comparison_text(track: Any, results: Sequence[DescentResult]) -> str:
+    """The joint fit of the day's valid descents, as the UI shows it."""
+    from station.model.compare import CompareError, collect, format_comparison, joint_fit
+
+    data, excluded, windy = collect(results)
+    if len(data) < 2:
+        return "no comparison yet: it needs at least two fitted descents"
+    try:
+        res = joint_fit(track, data)
+    except CompareError as exc:
+        return f"no comparison yet: {exc}"
+    res.excluded, res.wind_flagged = excluded, windy
+    return format_comparison(res, len(data)) + "".join(f"\n! {w}" for w in res.warnings)
+
+
+# ----------------------------------------------------------------------------- commands
+
+
+def record(
+    config: StationConfig,
+    session_dir: str,
+    out: Callable[[str], None] = _print,
+    max_descents: int | None = None,
+    duration_s: float | None = None,
+) -> Acquisition:
+    """Record headless until SIGINT/SIGTERM, ``max_descents`` or ``duration_s``; any of them
+    ends the open descent the same way (:meth:`Acquisition.close`)."""
+    from station.session.serialport import ensure_port_free
+
+    ensure_port_free(config.serial)  # a second recorder on the port: one line, no session made
+    acq = Acquisition.open(config, PrintListener(out, config.serial.port), session_dir=session_dir)
+    stop = threading.Event()
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        previous[sig] = signal.signal(sig, lambda *_: stop.set())
+    t_end = None if duration_s is None else time.monotonic() + duration_s
+    try:
+        acq.start_serial()
+        while not stop.is_set() and acq.reading:
+            if t_end is not None and time.monotonic() >= t_end:
+                break
+            if max_descents is not None and acq.finished_descents >= max_descents:
+                break
+            stop.wait(0.1)
+    finally:
+        acq.close()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if isinstance(acq.source_error, OSError):  # the raw log could not be written: disk full
+        why = acq.source_error.strerror or str(acq.source_error)
+        raise InputError(
+            f"cannot write the raw log: {why}; recording stopped",
+            path=os.path.join(session_dir, sessions.RAW),
+        )
+    if acq.source_error is not None:
+        raise acq.source_error
+    return acq
+
+
+def replay(
+    source: str,
+    config: StationConfig,
+    out: Callable[[str], None] = print,
+    speed: float | None = None,
+    date: dt.date | None = None,
+    warnings: list[str] | None = None,
+) -> Acquisition:
+    """Feed a session (with its annotations) or a plain capture through the loop, in line."""
+    acq = Acquisition.open(
+        config, PrintListener(out), date=source_date(source, date), threaded=False
+    )
+    acq.replay(source, speed, warnings)
+    acq.close()
+    return acq

@@ -1,0 +1,51 @@
+"""Crossing times out (issue 11): one row per impulse kept in a descent, the times the fits
+were made from, so a day's timing can be checked or refitted elsewhere.
+
+    descent,bib,photocell,channel,time_of_day,t_s,residual_ms
+    3,12,PC1,C0,10:15:02.1234,0.0000,
+    3,12,PC2,C1,10:15:04.9876,2.8642,0.12
+
+``t_s`` counts from the descent's first photocell; ``residual_ms`` is measured − fitted where
+the descent was fitted (blank otherwise, and at the first photocell, which the fit takes as
+its origin). Pure formatting plus one writer; no state.
+"""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Iterable
+
+from station.errors import InputError
+from station.session.analysis import DescentResult
+from station.timing.impulses import DAY_US, format_tod
+
+TIMES_COLUMNS = ["descent", "bib", "photocell", "channel", "time_of_day", "t_s", "residual_ms"]
+
+
+def crossing_rows(results: Iterable[DescentResult]) -> list[list[str]]:
+    """The rows, by descent number, photocells in order down the run."""
+    rows: list[list[str]] = []
+    for res in sorted(results, key=lambda r: r.descent.number):
+        d = res.descent
+        resid = res.fit.residuals_s if res.fit is not None else {}
+        for i, (pc, t) in enumerate(zip(d.photocells, d.times_us, strict=True)):
+            ch = d.channels[i] if i < len(d.channels) else ""
+            r = resid.get(pc) if i > 0 else None
+            rows.append([
+                str(d.number), d.bib, pc, ch, format_tod(t % DAY_US, 4),
+                f"{(t - d.times_us[0]) / 1e6:.4f}", "" if r is None else f"{r * 1000:.3f}",
+            ])  # fmt: skip
+    return rows
+
+
+def write_times(results: Iterable[DescentResult], path: str) -> int:
+    """Write the crossing times CSV; returns the number of rows."""
+    rows = crossing_rows(results)
+    try:
+        with open(path, "w", newline="", encoding="utf-8") as fh:
+            w = csv.writer(fh)
+            w.writerow(TIMES_COLUMNS)
+            w.writerows(rows)
+    except OSError as exc:
+        raise InputError(f"cannot write the crossing times: {exc.strerror}", path=path) from None
+    return len(rows)

@@ -1,0 +1,132 @@
+"""Memory import (issue 11): the timer still holds every impulse when the laptop was off or the
+cable out. A plain capture or a memory download (ALGE ``RSM`` print-out, TAG ``#DL``: ``DS`` …
+``AN`` … ``DE``) becomes a new session, or is merged into an existing one.
+
+- **new session**: the file's bytes are the session's raw log, as if received; results follow.
+- **merge** (``into``): impulses the session already has (same channel, same time of day) are
+  not doubled; the missing ones are appended to the raw log as one chunk after an ``import``
+  event, so that a replay of the session reproduces the merged results; the session's
+  results are rewritten.
+- either way the file's own bytes are kept in ``SESSION/imports/`` (never overwritten).
+
+Known limit: impulses appended by a merge form descents of their own; a descent of which the
+live recording holds some impulses and the download the rest is not joined into one.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+
+from station.errors import InputError
+from station.session import store as sessions
+from station.session.config import StationConfig
+from station.session.rawlog import RawLogWriter, read_rawlog
+from station.timing.framing import LineFramer
+from station.timing.impulses import DAY_US, Impulse
+from station.timing.wireformats import make_parser
+
+IMPORTS = "imports"
+MAX_IMPORT_BYTES = 64 * 1024 * 1024
+LINE_END = {"alge": b"\r", "tag": b"\r\n", "microgate": b"\r"}
+
+
+@dataclass(frozen=True)
+class ImportReport:
+    session: str
+    impulses_in_file: int
+    already_there: int
+    added: int
+    kept_as: str
+
+
+def read_import(path: str) -> bytes:
+    """The file's bytes; a folder, special file, unreadable or huge file is one clear line."""
+    if os.path.isdir(path):
+        raise InputError("is a folder, not a capture or memory download", path=path)
+    if os.path.exists(path) and not os.path.isfile(path):
+        raise InputError("not a regular file", path=path)
+    try:
+        size = os.path.getsize(path)
+        if size > MAX_IMPORT_BYTES:
+            raise InputError(f"larger than {MAX_IMPORT_BYTES >> 20} MiB", path=path)
+        with open(path, "rb") as fh:
+            return fh.read()
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror}", path=path) from None
+
+
+def _identities(data: bytes, protocol: str) -> list[tuple[str, tuple[str, int], int | None]]:
+    """(line text, (channel, time of day), device day) of every impulse line in the bytes."""
+    framer = LineFramer()
+    parser = make_parser(protocol)
+    out = []
+    for line in framer.feed(data) + framer.flush():
+        p = parser.parse(line)
+        if isinstance(p, Impulse):
+            out.append((line, (p.channel, p.tod_us % DAY_US), p.day))
+    return out
+
+
+def _keep_bytes(session: str, src: str, data: bytes) -> str:
+    folder = os.path.join(session, IMPORTS)
+    os.makedirs(folder, exist_ok=True)
+    base = os.path.basename(src) or "import"
+    name, n = base, 1
+    while os.path.exists(os.path.join(folder, name)):
+        n += 1
+        name = f"{base}.{n}"
+    with open(os.path.join(folder, name), "wb") as fh:
+        fh.write(data)
+    return os.path.join(IMPORTS, name)
+
+
+def import_new(path: str, config: StationConfig, session: str) -> ImportReport:
+    """A new session whose raw log is the file's bytes."""
+    data = read_import(path)
+    sessions.create(config, session)
+    kept = _keep_bytes(session, path, data)
+    log = RawLogWriter(
+        os.path.join(session, sessions.RAW),
+        header={"port": f"import {os.path.basename(path)}", "protocol": config.serial.protocol},
+    )
+    try:
+        log.event(time.time(), "import", kept)
+        log.write(time.time(), data)
+    finally:
+        log.close()
+    n = len(_identities(data, config.serial.protocol))
+    return ImportReport(session, n, 0, n, kept)
+
+
+def import_into(path: str, session: str) -> ImportReport:
+    """Merge a memory download into a session: only impulses it does not have yet."""
+    if not sessions.is_session(session):
+        raise InputError("not a session directory (no raw.jsonl)", path=session)
+    config = sessions.load_session_config(session)
+    protocol = config.serial.protocol
+    data = read_import(path)
+    have: set[tuple[str, int]] = set()
+    framer = LineFramer()
+    parser = make_parser(protocol)
+    for chunk in read_rawlog(os.path.join(session, sessions.RAW)):
+        if chunk.event:
+            continue
+        for line in framer.feed(chunk.data):
+            p = parser.parse(line)
+            if isinstance(p, Impulse):
+                have.add((p.channel, p.tod_us % DAY_US))
+    found = _identities(data, protocol)
+    missing = [line for line, ident, _day in found if ident not in have]
+    kept = _keep_bytes(session, path, data)
+    log = RawLogWriter(os.path.join(session, sessions.RAW))
+    try:
+        log.event(time.time(), "import", f"{kept}: {len(missing)} of {len(found)} impulses added")
+        if missing:
+            # a line end first: a live line cut off at the end of the log stays cut off
+            end = LINE_END[protocol]
+            log.write(time.time(), end + b"".join(s.encode("latin-1") + end for s in missing))
+    finally:
+        log.close()
+    return ImportReport(session, len(found), len(found) - len(missing), len(missing), kept)

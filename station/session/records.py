@@ -1,0 +1,403 @@
+"""The typed records of a test day: statuses, fit models, run metadata, annotations, the
+finished descent as fitted, and the row of the results CSV.
+
+They are frozen, so one can be handed from the fit worker to the UI thread without a lock: a
+change is a new record, never an edit of one someone else holds. The results CSV and
+``annotations.jsonl`` are views of them, each written by one function here
+(:func:`csv_record`, :func:`annotation_to_json`) and the annotations read back by one
+(:func:`annotation_from_json`). Pure: no I/O, no threads.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from enum import StrEnum
+from typing import Any
+
+from station.errors import InputError
+from station.timing.assembly import TimedDescent
+
+
+class Status(StrEnum):
+    """The status column of the results: the fit's verdict, or why there is no fit. The values
+    are the strings earlier versions wrote, so existing results files read the same."""
+
+    OK = "ok"
+    ILL_CONDITIONED = "ill-conditioned"
+    LIFT_OFF = "lift-off"
+    STOPPED = "stopped"
+    TOO_FEW_PHOTOCELLS = "too-few-photocells"
+    NOT_CONVERGED = "not-converged"
+    ABORTED = "aborted"  # a lone start impulse: nothing to fit
+    ERROR = "error"  # the fit raised: the reason is in the flags
+
+
+class DescentStatus(StrEnum):
+    """How a descent ended: at the last photocell, short of it, or a lone start impulse."""
+
+    OPEN = "open"
+    COMPLETE = "complete"
+    INCOMPLETE = "incomplete"
+    ABORTED = "aborted"
+
+
+class FitModel(StrEnum):
+    """Constant friction μ, or μ + μ1·v."""
+
+    CONSTANT = "constant"
+    VELOCITY = "velocity"
+
+
+def fit_status(text: str) -> tuple[Status, str]:
+    """The fit's status string as a :class:`Status`; one this version does not know is an error
+    with a reason, never passed over."""
+    try:
+        return Status(text), ""
+    except ValueError:
+        return Status.ERROR, f"unknown fit status {text!r}"
+
+
+# ----------------------------------------------------------------------------- metadata
+
+
+@dataclass(frozen=True)
+class MetadataField:
+    """One key of the run metadata: its type, unit and label, the ``station annotate`` option,
+    the check of its value (a name the CLI maps to its number parser) and whether it is a
+    column of the results CSV as entered (mass and wind enter the fit and have columns of their
+    own: the mass used and the wind along the track)."""
+
+    key: str
+    kind: type
+    label: str
+    unit: str = ""
+    option: str = ""
+    check: str = "text"  # text | number | positive | nonnegative | percent | celsius
+    column: bool = True
+    help: str | None = None
+
+    @property
+    def title(self) -> str:
+        return f"{self.label} [{self.unit}]" if self.unit else self.label
+
+
+def _meta(label: str, kind: type = float, unit: str = "", **kw: Any) -> Any:
+    return field(default=None, metadata={"spec": (kind, label, unit, kw)})
+
+
+@dataclass(frozen=True)
+class Metadata:
+    """What the engineer says about the descents that follow: the one declaration of the keys.
+
+    ``None`` is "not given": a change of metadata names only the keys it changes, and the
+    values in force for a descent are the config's overlaid by the changes in order.
+    """
+
+    skier: str | None = _meta("skier", str)
+    mass_kg: float | None = _meta(
+        "mass incl. equipment", unit="kg", option="--mass", check="positive", column=False
+    )
+    ski: str | None = _meta("ski / pair id", str, help="ski or pair id")
+    wax: str | None = _meta("wax", str)
+    air_temperature_c: float | None = _meta("air temperature", unit="°C", check="celsius")
+    snow_temperature_c: float | None = _meta("snow temperature", unit="°C", check="celsius")
+    pressure_hpa: float | None = _meta("station pressure", unit="hPa", check="positive")
+    humidity_pct: float | None = _meta("relative humidity", unit="%", check="percent")
+    wind_ms: float | None = _meta(
+        "wind speed", unit="m/s", check="nonnegative", column=False, help="wind speed"
+    )
+    wind_from_deg: float | None = _meta(
+        "wind from",
+        unit="° from north",
+        check="number",
+        column=False,
+        help="direction the wind comes from",
+    )
+    notes: str | None = _meta("notes", str)
+
+    @classmethod
+    def from_values(cls, values: Mapping[str, Any], where: str = "") -> Metadata:
+        """Typed metadata from a mapping of keys to values (a form, a JSON record); keys that
+        are not metadata are passed over, as earlier versions did."""
+        out: dict[str, Any] = {}
+        for f in METADATA_FIELDS:
+            v = values.get(f.key)
+            if v is None:
+                continue
+            if f.kind is float:
+                try:
+                    number = float(v)
+                except (TypeError, ValueError):
+                    raise InputError(f"{v!r} is not a number", field=where + f.key) from None
+                if not math.isfinite(number) or isinstance(v, bool):
+                    raise InputError(f"{v!r} is not a finite number", field=where + f.key)
+                out[f.key] = number
+            else:
+                out[f.key] = str(v)
+        return cls(**out)
+
+    def values(self) -> dict[str, Any]:
+        """The keys that are given, in the order of the declaration."""
+        out = {f.key: getattr(self, f.key) for f in METADATA_FIELDS}
+        return {k: v for k, v in out.items() if v is not None}
+
+    def overlay(self, other: Metadata) -> Metadata:
+        """These values, with those ``other`` gives in their place."""
+        return dataclasses.replace(self, **other.values())
+
+
+def _fields() -> tuple[MetadataField, ...]:
+    out = []
+    for f in fields(Metadata):
+        kind, label, unit, kw = f.metadata["spec"]
+        option = kw.pop("option", "--" + f.name.replace("_", "-"))
+        out.append(MetadataField(f.name, kind, label, unit, option, **kw))
+    return tuple(out)
+
+
+#: the metadata keys in the order the form shows them: the one table the UI form, ``station
+#: annotate``, the results CSV and the day read
+METADATA_FIELDS: tuple[MetadataField, ...] = _fields()
+
+
+# ----------------------------------------------------------------------------- annotations
+
+
+@dataclass(frozen=True)
+class MetadataAnnotation:
+    """Metadata for the descents from ``from_descent`` on, or for the listed ``descents``."""
+
+    values: Metadata
+    from_descent: int | None = None
+    descents: tuple[int, ...] | None = None
+    t: float | None = None
+
+
+@dataclass(frozen=True)
+class InvalidMark:
+    descent: int
+    reason: str = "marked invalid"
+    t: float | None = None
+
+
+@dataclass(frozen=True)
+class ValidMark:
+    descent: int
+    t: float | None = None
+
+
+@dataclass(frozen=True)
+class ModelChange:
+    descent: int
+    model: FitModel
+    t: float | None = None
+
+
+Annotation = MetadataAnnotation | InvalidMark | ValidMark | ModelChange
+
+
+def annotation_to_json(a: Annotation) -> dict[str, Any]:
+    """The record of ``annotations.jsonl`` (the format earlier versions wrote)."""
+    rec: dict[str, Any] = {} if a.t is None else {"t": a.t}
+    if isinstance(a, MetadataAnnotation):
+        rec |= {"type": "metadata", "values": a.values.values()}
+        if a.descents is not None:
+            rec["descents"] = list(a.descents)
+        else:
+            rec["from"] = a.from_descent
+    elif isinstance(a, InvalidMark):
+        rec |= {"type": "invalid", "descent": a.descent, "reason": a.reason}
+    elif isinstance(a, ValidMark):
+        rec |= {"type": "valid", "descent": a.descent}
+    else:
+        rec |= {"type": "model", "descent": a.descent, "model": a.model.value}
+    return rec
+
+
+def annotation_from_json(rec: Mapping[str, Any]) -> Annotation | None:
+    """One record of ``annotations.jsonl``; ``None`` for a kind this version does not know.
+    A bad value raises :class:`InputError` naming the field (the caller adds file and line)."""
+
+    def number(key: str) -> int:
+        return _descent_number(rec.get(key), key)
+
+    t = rec.get("t")
+    t = float(t) if isinstance(t, (int, float)) and not isinstance(t, bool) else None
+    kind = rec.get("type")
+    if kind == "metadata":
+        values = rec.get("values", {})
+        if not isinstance(values, Mapping):
+            raise InputError("expected a mapping of metadata", field="values")
+        meta = Metadata.from_values(values, "values.")
+        if "descents" in rec:
+            key = "descents"
+            ds = rec[key]
+            if not isinstance(ds, list):
+                raise InputError(f"expected a list of descent numbers, got {ds!r}", field=key)
+            nums = tuple(_descent_number(x, "descents") for x in ds)
+            return MetadataAnnotation(meta, descents=nums, t=t)
+        return MetadataAnnotation(meta, from_descent=number("from"), t=t)
+    if kind == "invalid":
+        return InvalidMark(number("descent"), str(rec.get("reason", "")) or "marked invalid", t)
+    if kind == "valid":
+        return ValidMark(number("descent"), t)
+    if kind == "model":
+        try:
+            model = FitModel(str(rec.get("model", "constant")))
+        except ValueError:
+            raise InputError(f"unknown model {rec.get('model')!r}", field="model") from None
+        return ModelChange(number("descent"), model, t)
+    return None
+
+
+def _descent_number(v: Any, key: str) -> int:
+    if isinstance(v, bool) or not isinstance(v, (int, float, str)):
+        raise InputError(f"expected a descent number, got {v!r}", field=key)
+    try:
+        return int(v)
+    except (ValueError, OverflowError):
+        raise InputError(f"expected a descent number, got {v!r}", field=key) from None
+
+
+# ----------------------------------------------------------------------------- descents
+
+
+@dataclass(frozen=True)
+class DescentTimes:
+    """A finished descent as the fit and the results see it: a frozen copy of the assembler's
+    :class:`TimedDescent`, so nothing the UI holds can change under it."""
+
+    number: int
+    photocells: tuple[str, ...]
+    times_us: tuple[int, ...]
+    status: DescentStatus
+    flags: tuple[str, ...] = ()
+    missing: tuple[str, ...] = ()
+    bib: str = ""  # the start's bib, where the timer sends bibs (not a counter)
+    channels: tuple[str, ...] = ()  # the timer channel of each time
+    day: int | None = None  # days since 2000-01-01 of the start, where the device says (TAG)
+    first_us: int | None = None  # the first time it had (its times may all have been cleared)
+
+    @classmethod
+    def of(cls, d: TimedDescent) -> DescentTimes:
+        return cls(
+            d.number,
+            tuple(d.photocells),
+            tuple(d.times_us),
+            DescentStatus(d.status),
+            tuple(d.flags),
+            tuple(d.missing),
+            d.bib,
+            tuple(d.channels),
+            d.day,
+            d.first_us,
+        )
+
+    @property
+    def start_us(self) -> int:
+        return self.times_us[0] if self.times_us else (self.first_us or 0)
+
+
+@dataclass(frozen=True)
+class LineCounts:
+    """What the timer sent so far, by kind of line."""
+
+    lines: int = 0
+    impulses: int = 0
+    edits: int = 0
+    skipped: int = 0
+    unparsed: int = 0
+
+
+@dataclass(frozen=True)
+class Progress:
+    """The open descent (``number`` None: none open), and what the next descent will get: its
+    number and the metadata in force for it (what the metadata form starts from)."""
+
+    number: int | None
+    passed: tuple[str, ...]
+    times_us: tuple[int, ...]
+    next_number: int
+    next_metadata: Metadata
+
+
+# ----------------------------------------------------------------------------- results row
+
+
+@dataclass(frozen=True)
+class ResultRow:
+    """One descent in the results: the row of the results CSV, read by attribute."""
+
+    descent: int
+    start_time: str
+    photocells_used: int
+    missing: tuple[str, ...]
+    v0: float | None
+    cda: float | None
+    cda_lo: float | None
+    cda_hi: float | None
+    mu: float | None
+    mu_lo: float | None
+    mu_hi: float | None
+    mu1: float | None
+    sigma_s2: float | None
+    rms_residual_ms: float | None
+    status: Status
+    descent_status: DescentStatus
+    flags: tuple[str, ...]
+    model: FitModel
+    mass_kg: float
+    air_density: float
+    wind_ms: float
+    metadata: Metadata
+    invalid_reason: str = ""
+
+    @property
+    def skier(self) -> str:
+        return self.metadata.skier or ""
+
+    @property
+    def ski(self) -> str:
+        return self.metadata.ski or ""
+
+    @property
+    def wax(self) -> str:
+        return self.metadata.wax or ""
+
+    @property
+    def notes(self) -> str:
+        return self.metadata.notes or ""
+
+    @property
+    def invalid(self) -> bool:
+        return bool(self.invalid_reason)
+
+
+#: where the metadata columns go among the others (the order of earlier versions' files)
+_BEFORE_META = (
+    "descent", "start_time", "photocells_used", "missing", "v0", "cda", "cda_lo", "cda_hi",
+    "mu", "mu_lo", "mu_hi", "mu1", "sigma_s2", "rms_residual_ms", "status", "descent_status",
+    "flags", "model", "mass_kg", "air_density", "wind_ms",
+)  # fmt: skip
+
+
+def csv_record(row: ResultRow) -> dict[str, Any]:
+    """The row as the results CSV writes it: text joined, enums as their strings, metadata
+    columns from the one table (text "" and numbers None when not given)."""
+    out: dict[str, Any] = {}
+    for key in _BEFORE_META:
+        v = getattr(row, key)
+        if key in ("missing", "flags"):
+            v = (" " if key == "missing" else "; ").join(v)
+        elif isinstance(v, StrEnum):
+            v = v.value
+        out[key] = v
+    for f in METADATA_FIELDS:
+        if f.column:
+            v = getattr(row.metadata, f.key)
+            out[f.key] = ("" if v is None else v) if f.kind is str else v
+    out["invalid_reason"] = row.invalid_reason
+    return out

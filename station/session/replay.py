@@ -1,0 +1,84 @@
+"""Replay sources: a session's raw log or a plain capture of a timer's output, as chunks paced
+at a chosen speed; and the list of every parsed impulse with its fate.
+
+The acquisition loop (:mod:`station.session.acquisition`) feeds these chunks through the same
+processor as a live recording, so a replay reproduces the live results.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import os
+import threading
+import time
+from collections.abc import Iterator
+from typing import IO
+
+from station.session import store as sessions
+from station.session.processor import Processor
+from station.session.rawlog import Chunk, read_rawlog
+from station.timing.impulses import format_tod
+
+CAPTURE_CHUNK = 4096
+
+
+def capture_chunks(path: str) -> Iterator[Chunk]:
+    """A plain capture of a timer's output: bytes without host times."""
+    from station.files import MAX_CAPTURE, open_regular
+
+    with open_regular(path, MAX_CAPTURE, "capture") as fh:
+        while data := fh.read(CAPTURE_CHUNK):
+            yield Chunk(float("nan"), data)
+
+
+def source_date(source: str, date: dt.date | None) -> dt.date | None:
+    """The date of a replay: given, else a plain capture's file date (a session's raw log has
+    host times of its own)."""
+    if date is None and not sessions.is_session(source):
+        return dt.date.fromtimestamp(os.path.getmtime(source))
+    return date
+
+
+def replay_chunks(
+    source: str,
+    speed: float | None = None,
+    stop: threading.Event | None = None,
+    warnings: list[str] | None = None,
+) -> Iterator[Chunk]:
+    """The chunks of a session's raw log or of a plain capture, paced at ``speed`` times the
+    recorded host time (as fast as possible without), until ``stop`` is set. A plain capture
+    has no host times: its chunks come with ``t = None``."""
+    if sessions.is_session(source):
+        chunks: Iterator[Chunk] = read_rawlog(os.path.join(source, sessions.RAW), warnings)
+    else:
+        chunks = capture_chunks(source)
+    first_t = None
+    m0 = time.monotonic()
+    for chunk in chunks:
+        if stop is not None and stop.is_set():
+            return
+        has_time = chunk.t == chunk.t  # not NaN
+        if speed and has_time:
+            first_t = chunk.t if first_t is None else first_t
+            delay = (chunk.t - first_t) / speed - (time.monotonic() - m0)
+            if delay > 0:
+                if stop is None:
+                    time.sleep(delay)
+                elif stop.wait(delay):
+                    return
+        yield chunk if has_time else Chunk(None, chunk.data)  # type: ignore[arg-type]
+
+
+def write_events(processor: Processor, fh: IO[str]) -> None:
+    """The parsed impulses into an open text file (``newline=""``): line, channel, photocell,
+    time, flag, kept or why not."""
+    w = csv.writer(fh)
+    w.writerow(["line", "channel", "photocell", "time", "flag", "kept", "reason", "descent"])
+    for e in processor.events:
+        w.writerow(
+            [e.line, e.channel, e.photocell or "", format_tod(e.tod_us, 4), e.flag,
+             "yes" if e.kept else "no", e.reason, e.descent or ""]
+        )  # fmt: skip
+    for line, reason, text in processor.unparsed:
+        w.writerow([line, "", "", "", "", "no", f"unparsed: {reason}: {text!r}", ""])

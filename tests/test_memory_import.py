@@ -1,0 +1,79 @@
+"""``station import``: a timer's memory into a new session, or merged into one (issue 11)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from station.model.physics import Conditions, Params, StraightRun
+from station.timing.wireformats import format_tag, tag_cs16
+from tests.timing_helpers import write_config
+
+TAG_CHANNELS = {str(i + 1): f"PC{i + 1}" for i in range(9)}
+DAY = 9500  # 2026-01-04
+
+
+def _frame(data: str) -> str:
+    return f"{data}\t{tag_cs16(data)}\r\n"
+
+
+def _descent_lines(demo_track, start_s: float, bib: int, kind: str, seq0: int) -> list[str]:
+    xs = np.array([pc.x for pc in demo_track.photocells])
+    run = StraightRun(demo_track.profile, xs)
+    t = run.solve(Params(0.22, 0.0085, 3.4), Conditions(88, 1.079)).t
+    return [
+        format_tag(str(i + 1), int((start_s + ti) * 1e6), seq0 + i, bib, DAY, kind) + "\r\n"
+        for i, ti in enumerate(t)
+    ]
+
+
+def _download(demo_track, n: int) -> str:
+    lines = [_frame("DS 01  00 START - FINISH     ")]
+    for k in range(n):
+        body = _descent_lines(demo_track, 36_000 + 120 * k, k + 1, "AN", 9 * k + 1)
+        lines += [_frame(s.split("\t")[0]) for s in body]
+    return "".join(lines) + _frame("DE 01")
+
+
+def test_a_download_becomes_a_session_and_merges_without_doubling(
+    tmp_path, demo_track, run_station
+):
+    cfg = write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)
+    live = tmp_path / "live.txt"  # what the station got before the cable came out
+    live.write_text("".join(_descent_lines(demo_track, 36_000, 1, "TN", 1)), newline="")
+    session = tmp_path / "s"
+    r = run_station("import", live, "--config", cfg, "--session-dir", session)
+    assert r.returncode == 0, r.stderr
+    assert "9 impulses" in r.stderr and "9 added" in r.stderr
+    df = pd.read_csv(session / "results.csv", comment="#")
+    assert list(df["status"]) == ["ok"]
+    assert df.loc[0, "start_time"].startswith("2026-01-04T10:00:00")  # the TAG day counter
+
+    memory = tmp_path / "download.txt"
+    memory.write_text(_download(demo_track, 3), newline="")
+    r = run_station("import", memory, "--config", cfg, "--into", session)
+    assert r.returncode == 0, r.stderr
+    assert "27 impulses" in r.stderr and "9 already in the session, 18 added" in r.stderr
+    df = pd.read_csv(session / "results.csv", comment="#")
+    assert list(df["status"]) == ["ok", "ok", "ok"] and list(df["photocells_used"]) == [9] * 3
+    # the raw bytes of both imports are kept; a second merge adds nothing
+    kept = sorted(p.name for p in (session / "imports").iterdir())
+    assert kept == ["download.txt", "live.txt"]
+    assert (session / "imports" / "download.txt").read_bytes() == memory.read_bytes()
+    r = run_station("import", memory, "--config", cfg, "--into", session)
+    assert "27 already in the session, 0 added" in r.stderr
+    assert len(pd.read_csv(session / "results.csv", comment="#")) == 3
+    # the session replays to the same results
+    out = tmp_path / "replay.csv"
+    assert run_station("replay", session, "--csv", out).returncode == 0
+    assert out.read_bytes() == (session / "results.csv").read_bytes()
+
+
+def test_import_bad_paths_are_one_line(tmp_path, run_station):
+    cfg = write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)
+    r = run_station("import", tmp_path, "--config", cfg, "--session-dir", tmp_path / "n")
+    assert r.returncode == 2 and "folder" in r.stderr and "Traceback" not in r.stderr
+    r = run_station("import", tmp_path / "nope", "--config", cfg, "--session-dir", tmp_path / "n")
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    r = run_station("import", cfg, "--config", cfg, "--into", tmp_path / "nosession")
+    assert r.returncode == 2 and "not a session" in r.stderr

@@ -1,0 +1,81 @@
+"""The simulated timer's field quirks of issue 11, recorded over a real pty: several skiers on
+the run at once (counter mode and bibs), operator edits, a TAG memory download."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+
+import pandas as pd
+
+from tests.conftest import station_cmd
+from tests.timing_helpers import sim_cmd, start_sim, write_config
+
+FAST = ["--speed", "20", "--first-after", "1", "--hold", "1"]
+TAG = {str(i + 1): f"PC{i + 1}" for i in range(9)}
+
+
+def _record(tmp_path, cfg, n: int) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [*station_cmd(), "record", "--config", str(cfg), "--session-dir", str(tmp_path / "s"),
+         "--max-descents", str(n)],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+
+
+def test_version():
+    r = subprocess.run([*sim_cmd(), "--version"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and r.stdout.startswith("station-sim ")
+
+
+def test_overlapping_skiers_in_counter_mode_with_edits(tmp_path):
+    """Skiers 7 s apart on a run that takes ~20 s: three on it at once; ALGE numbers every
+    impulse; false starts cleared (c) and missed photocells typed in (i)."""
+    sim, port, truth = start_sim(
+        tmp_path, *FAST, "--descents", "5", "--overlap", "7", "--clear", "0.5",
+        "--insert", "0.5", "--seed", "3", "--noise-ms", "0.3",
+    )  # fmt: skip
+    cfg = write_config(tmp_path, port)
+    try:
+        r = _record(tmp_path, cfg, 5)
+    finally:
+        sim.wait(timeout=60)
+    assert r.returncode == 0, r.stderr
+    truths = [json.loads(s) for s in truth.read_text().splitlines()]
+    assert any(t["inserted"] for t in truths) and any(t["false_start_cleared"] for t in truths)
+    df = pd.read_csv(tmp_path / "s" / "results.csv", comment="#")
+    ok = df[df["status"] == "ok"]
+    assert len(ok) == 5 and (ok["photocells_used"] == 9).all()
+    # every fit holds its skier's true friction: no impulse went to the wrong skier
+    for row, tr in zip(ok.itertuples(), sorted(truths, key=lambda t: t["start_tod_us"]),
+                       strict=True):  # fmt: skip
+        assert row.mu_lo <= tr["mu"] <= row.mu_hi
+    # the cleared false starts left descents with no time, said so
+    assert (df["status"] == "aborted").sum() == sum(t["false_start_cleared"] for t in truths)
+
+
+def test_tag_bibs_and_a_memory_download_are_not_doubled(tmp_path):
+    sim, port, truth = start_sim(
+        tmp_path, *FAST, "--protocol", "tag", "--descents", "3", "--overlap", "8", "--bibs",
+        "--download", "--seed", "5",
+    )  # fmt: skip
+    cfg = write_config(tmp_path, port, "tag", TAG, extra="descent: {pairing: bib}\n")
+    try:
+        r = subprocess.run(
+            [*station_cmd(), "record", "--config", str(cfg), "--session-dir",
+             str(tmp_path / "s"), "--duration", "6"],
+            capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+    finally:
+        sim.wait(timeout=60)
+    assert r.returncode == 0, r.stderr
+    raw = (tmp_path / "s" / "raw.jsonl").read_text()
+    assert "AN " in raw and "DE 01" in raw
+    df = pd.read_csv(tmp_path / "s" / "results.csv", comment="#")
+    assert list(df["status"]) == ["ok"] * 3
+    ev = tmp_path / "ev.csv"
+    rr = subprocess.run([*station_cmd(), "replay", str(tmp_path / "s"), "--events", str(ev)],
+                        capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert rr.returncode == 0, rr.stderr
+    events = pd.read_csv(ev)
+    assert (events["reason"].str.contains("not doubled", na=False)).sum() == 27
