@@ -293,3 +293,14 @@ def test_alge_memory_lines_are_impulses_and_repeats_are_not_doubled():
         (2, "complete", 5),
     ]
     assert sum("not doubled" in e.reason for e in asm.events) == 5
+
+
+def test_a_start_typed_in_without_a_bib_starts_a_descent_and_does_not_replace_one():
+    asm = DescentAssembler(PCS, CH, positions_m=POS, min_speed_ms=2.0, pairing="order")
+    parser = AlgeParser()
+    lines = _counter_lines([100.0, 200.0])
+    run_lines(asm, parser, lines[:5])  # descent 1 complete
+    asm.edit(parser.parse("i" + lines[5][1:]), 6)  # descent 2's start, typed in
+    assert asm.open and asm.open[0].number == 2 and asm.finished[0].times_us[0] == 100 * S
+    done = run_lines(asm, parser, lines[6:])
+    assert [(d.number, d.status) for d in done] == [(2, "complete")]

@@ -529,9 +529,15 @@ class DescentAssembler:
         for d in [*reversed(self.open), *reversed(self.finished)]:
             if not d.times_us or (bib and d.bib != bib):
                 continue
-            if not bib and not (d.times_us[0] <= t or k == 0):
-                continue
-            if t - d.times_us[0] > max(self.timeout_us) * len(self.photocells):
+            if not bib:  # without a bib: the descent whose times it falls among
+                if k == 0:  # a start typed in for a descent that has none
+                    if d.photocells[0] == pc or not 0 < d.times_us[0] - t <= self.timeout_us[0]:
+                        continue
+                else:
+                    j = self.order[d.photocells[-1]]
+                    if not d.times_us[0] <= t <= d.times_us[-1] + self.timeout_us[j]:
+                        continue
+            if abs(t - d.times_us[0]) > max(self.timeout_us) * len(self.photocells):
                 continue
             target = d
             break
