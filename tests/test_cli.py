@@ -1,4 +1,5 @@
-"""The ``station`` command as a user runs it: real files, real processes, exit codes."""
+"""The ``station`` command as a user runs it: real files, exit codes, what it prints. The
+commands run in this process (``run_station``); the installed command runs as a process once."""
 
 from __future__ import annotations
 
@@ -198,3 +199,16 @@ def test_velocity_model_reports_mu1_or_says_it_is_not_identifiable(run_station):
     # nine photocells at 0.5 ms cannot separate μ1 from μ and CdA: it must say so
     assert d["status"] == "ill-conditioned" and "mu1" in d["not_identifiable"]
     assert d["mu1"] is None
+
+
+def test_the_installed_command_runs_as_a_process(run_station_process, tmp_path):
+    """The console script, its exit status and its streams, in a real process: the README's
+    worked example, and bad input as one line on stderr with exit status 2."""
+    times = DEMO_SURVEY.parent / "demo_descent.csv"
+    r = run_station_process("fit", "--survey", DEMO_SURVEY, "--times", times, "--mass", "88", *AIR)
+    assert r.returncode == 0, r.stderr
+    assert "status  ok" in r.stdout and "μ       0.00831" in r.stdout
+    r = run_station_process("fit", "--survey", DEMO_SURVEY, "--times", tmp_path / "nope.csv",
+                            "--mass", "88")  # fmt: skip
+    assert r.returncode == 2 and r.stdout == ""
+    assert len(r.stderr.strip().splitlines()) == 1 and "cannot read times file" in r.stderr

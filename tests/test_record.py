@@ -26,6 +26,7 @@ def record(cfg, session, *extra, timeout=90) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.slow  # a simulated timer on a pty, in real time
 def test_record_gets_the_true_parameters_back_and_replay_reproduces_it(tmp_path, run_station):
     r, session, truth = record_with_sim(
         tmp_path,
@@ -61,6 +62,7 @@ def test_record_gets_the_true_parameters_back_and_replay_reproduces_it(tmp_path,
     assert (session / "config.yaml").exists() and (session / "raw.jsonl").exists()
 
 
+@pytest.mark.slow  # a simulated timer on a pty, in real time
 def test_sigkill_mid_descent_loses_nothing_that_was_flushed(tmp_path, run_station):
     sim, port, _ = start_sim(tmp_path, *SIM_FAST, "--descents", "4", "--seed", "3")
     cfg = write_config(tmp_path, port)
@@ -97,6 +99,7 @@ def test_sigkill_mid_descent_loses_nothing_that_was_flushed(tmp_path, run_statio
     assert "the recording ended" in replayed.loc[2, "flags"]
 
 
+@pytest.mark.slow  # a simulated timer on a pty, in real time
 def test_an_unplugged_timer_is_reported_and_reconnected(tmp_path):
     r, session, _ = record_with_sim(
         tmp_path,
@@ -111,6 +114,7 @@ def test_an_unplugged_timer_is_reported_and_reconnected(tmp_path):
     assert list(df["status"]) == ["ok", "ok", "ok"]
 
 
+@pytest.mark.slow  # a simulated timer on a pty, in real time
 @pytest.mark.parametrize(
     ("protocol", "channels"),
     [
@@ -154,6 +158,7 @@ def test_replay_of_the_real_tdc_capture(tmp_path, real, run_station):
     assert (ev["reason"].str.contains("not a photocell", na=False)).sum() == 2  # the keypad
 
 
+@pytest.mark.slow  # station record for 1.5 s of real time
 def test_record_against_a_missing_port_keeps_retrying(tmp_path):
     cfg = write_config(tmp_path, str(tmp_path / "no-such-tty"))
     r = record(cfg, tmp_path / "s", "--duration", "1.5", timeout=30)
