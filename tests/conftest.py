@@ -11,6 +11,7 @@ import shutil
 import subprocess
 import sys
 import traceback
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -63,16 +64,27 @@ def station_cmd() -> list[str]:
 @pytest.fixture
 def run_station(capsys, monkeypatch):
     """Run ``station`` in this process, ``station.cli.main.main(args)``, as the command would:
-    returns a CompletedProcess with the exit status and what it printed. An exception that
-    escapes becomes exit status 1 and a traceback on stderr, as in a real process; tests of
-    the installed command itself use ``run_station_process``."""
+    returns a CompletedProcess with the exit status and what it printed. As in a real process,
+    an exception that escapes becomes exit status 1 and a traceback on stderr, and a Python
+    warning is printed on stderr (so "one line on stderr" still fails on a stray warning);
+    tests of the installed command itself use ``run_station_process``."""
 
     def run(*args: str, cwd: str | Path | None = None) -> subprocess.CompletedProcess:
         from station.cli.main import main
 
         argv = list(map(str, args))
         capsys.readouterr()  # what the test printed before is not the command's output
-        with monkeypatch.context() as m:
+        with monkeypatch.context() as m, warnings.catch_warnings(record=True) as caught:
+            # Python's default filters for a script: each warning once, no deprecations
+            warnings.resetwarnings()
+            warnings.simplefilter("default")
+            for category in (
+                DeprecationWarning,
+                PendingDeprecationWarning,
+                ImportWarning,
+                ResourceWarning,
+            ):
+                warnings.simplefilter("ignore", category)
             if cwd is not None:
                 m.chdir(cwd)
             try:
@@ -88,7 +100,10 @@ def run_station(capsys, monkeypatch):
             print(code, file=sys.stderr)
             code = 1
         out = capsys.readouterr()
-        return subprocess.CompletedProcess(["station", *argv], code, out.out, out.err)
+        err = out.err + "".join(
+            warnings.formatwarning(w.message, w.category, w.filename, w.lineno) for w in caught
+        )
+        return subprocess.CompletedProcess(["station", *argv], code, out.out, err)
 
     return run
 
