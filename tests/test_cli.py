@@ -1,4 +1,5 @@
-"""The ``station`` command as a user runs it: real files, real processes, exit codes."""
+"""The ``station`` command as a user runs it: real files, exit codes, what it prints. The
+commands run in this process (``run_station``); the installed command runs as a process once."""
 
 from __future__ import annotations
 
@@ -201,3 +202,16 @@ def test_velocity_model_always_reports_mu1_with_its_interval(run_station):
     assert d["mu1"] is not None and lo <= d["mu1"] <= hi
     assert "mu1" not in d["not_identifiable"]
     assert ("mu1" in d["consistent_with_zero"]) == (lo <= 0.0)
+
+
+def test_the_installed_command_runs_as_a_process(run_station_process, tmp_path):
+    """The console script, its exit status and its streams, in a real process: the README's
+    worked example, and bad input as one line on stderr with exit status 2."""
+    times = DEMO_SURVEY.parent / "demo_descent.csv"
+    r = run_station_process("fit", "--survey", DEMO_SURVEY, "--times", times, "--mass", "88", *AIR)
+    assert r.returncode == 0, r.stderr
+    assert "status  ok" in r.stdout and "μ       0.00831" in r.stdout
+    r = run_station_process("fit", "--survey", DEMO_SURVEY, "--times", tmp_path / "nope.csv",
+                            "--mass", "88")  # fmt: skip
+    assert r.returncode == 2 and r.stdout == ""
+    assert len(r.stderr.strip().splitlines()) == 1 and "cannot read times file" in r.stderr

@@ -26,6 +26,7 @@ def record(cfg, session, *extra, timeout=90) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.slow  # a simulated timer on a pty, in real time
 def test_record_gets_the_true_parameters_back_and_replay_reproduces_it(tmp_path, run_station):
     r, session, truth = record_with_sim(
         tmp_path,
@@ -61,6 +62,7 @@ def test_record_gets_the_true_parameters_back_and_replay_reproduces_it(tmp_path,
     assert (session / "config.yaml").exists() and (session / "raw.jsonl").exists()
 
 
+@pytest.mark.slow  # a simulated timer on a pty, in real time
 def test_sigkill_mid_descent_loses_nothing_that_was_flushed(tmp_path, run_station):
     sim, port, _ = start_sim(tmp_path, *SIM_FAST, "--descents", "4", "--seed", "3")
     cfg = write_config(tmp_path, port)
@@ -97,6 +99,7 @@ def test_sigkill_mid_descent_loses_nothing_that_was_flushed(tmp_path, run_statio
     assert "the recording ended" in replayed.loc[2, "flags"]
 
 
+@pytest.mark.slow  # a simulated timer on a pty, in real time
 def test_an_unplugged_timer_is_reported_and_reconnected(tmp_path):
     r, session, _ = record_with_sim(
         tmp_path,
@@ -114,6 +117,7 @@ def test_an_unplugged_timer_is_reported_and_reconnected(tmp_path):
     assert list(df["status"]) == ["ok", "ok", "ok"]
 
 
+@pytest.mark.slow  # a simulated timer on a pty, in real time
 @pytest.mark.parametrize(
     ("protocol", "channels"),
     [
@@ -178,6 +182,7 @@ def raw_lines(session) -> int:
     return sum(json.loads(x).get("rx", "").count("\r") for x in text.splitlines() if x.strip())
 
 
+@pytest.mark.slow  # the simulated timer on a pty, in real time
 def test_sigterm_mid_descent_ends_it_as_the_end_of_a_capture_and_replays_the_same(
     tmp_path, run_station
 ):

@@ -69,6 +69,7 @@ def replay_app(tmp_path, demo_track) -> StationApp:
     return StationApp(cfg, mode="replay", source=str(cap), date=dt.date(2026, 2, 2))
 
 
+@pytest.mark.slow  # a simulated timer on a pty, in real time
 @run_async
 async def test_live_ui_against_the_simulated_timer(tmp_path, run_station):
     sim, port, truth = start_sim(
@@ -125,6 +126,7 @@ async def test_live_ui_against_the_simulated_timer(tmp_path, run_station):
     assert out.read_bytes() == (session / "results.csv").read_bytes()
 
 
+@pytest.mark.slow  # a simulated timer on a pty, in real time
 @run_async
 async def test_ui_shows_an_unplugged_timer_and_goes_on(tmp_path):
     sim, port, _ = start_sim(
@@ -173,6 +175,7 @@ def test_main_screen_snapshot(snap_compare, tmp_path, demo_track, size):
     assert snap_compare(app, terminal_size=size, run_before=finished)
 
 
+@pytest.mark.slow  # station demo in tmux, in real time
 @pytest.mark.skipif(not shutil.which("tmux") and not os.environ.get("CI"), reason="needs tmux")
 def test_station_demo_in_tmux_shows_a_fitted_row(tmp_path):
     assert shutil.which("tmux"), "tmux must be installed in CI (.ci/run installs it)"

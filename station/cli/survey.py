@@ -7,8 +7,6 @@ import csv
 import math
 from typing import Any
 
-import numpy as np
-
 from station.cli.common import (
     _add_air,
     _density,
@@ -93,6 +91,8 @@ def cmd_survey_points(args: argparse.Namespace) -> int:
 
 
 def cmd_survey(args: argparse.Namespace) -> int:
+    import numpy as np  # here, not at the top: `station --help` and other commands need no numpy
+
     output_path(args.csv, "--csv")
     if args.survey.lower().endswith(".gsi"):
         return cmd_survey_points(args)
@@ -180,6 +180,8 @@ def cmd_survey(args: argparse.Namespace) -> int:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from station.model.physics import Conditions, Params, StraightRun
 
     output_path(args.csv, "--csv")
@@ -252,6 +254,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from station.model.fit import CI_METHOD, fit_descent
     from station.model.physics import Conditions
     from station.timing.timesfile import read_times
