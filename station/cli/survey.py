@@ -113,6 +113,10 @@ def cmd_survey(args: argparse.Namespace) -> int:
                 "drop_m": track.drop_m,
                 "residual_rms_m": track.residual_rms_m,
                 "expected_sigma_m": sig,
+                "scatter_m": track.scatter_m,
+                "declared_sigma_m": track.declared_sigma_m,
+                "spline_edf": track.spline_edf,
+                "points_left_out": [p.id for p in track.points if not p.used],
                 "azimuth_deg": track.azimuth_deg,
                 "photocells": [
                     {
@@ -158,10 +162,15 @@ def cmd_survey(args: argparse.Namespace) -> int:
             f"axis azimuth {track.azimuth_deg:.2f}°, largest lateral offset {max(lat):.2f} m"
         )
         print(
-            f"spline   residual RMS {track.residual_rms_m * 1000:.1f} mm "
-            f"(point σ {sig * 1000:.1f} mm), "
-            f"curvature {kg.min():+.5f} .. {kg.max():+.5f} 1/m"
+            f"spline   points scatter {track.scatter_m * 1000:.1f} mm about the profile "
+            f"(estimated from the points; declared σ {sig * 1000:.1f} mm), "
+            f"residual RMS {track.residual_rms_m * 1000:.1f} mm, "
+            f"{track.spline_edf:.0f} effective parameters"
         )
+        left_out = [p.id for p in track.points if not p.used]
+        if left_out:
+            print(f"left out {len(left_out)} point(s): {', '.join(left_out)} (see warnings)")
+        print(f"curvature {kg.min():+.5f} .. {kg.max():+.5f} 1/m")
         if track.photocells:
             print()
             print(
