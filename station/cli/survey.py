@@ -11,6 +11,7 @@ import numpy as np
 
 from station.cli.common import (
     _add_air,
+    _add_gravity,
     _density,
     _fmt,
     _load_track,
@@ -91,9 +92,12 @@ def cmd_survey_points(args: argparse.Namespace) -> int:
 
 
 def cmd_survey(args: argparse.Namespace) -> int:
+    from station.model.physics import gravity_for
+
     if args.survey.lower().endswith(".gsi"):
         return cmd_survey_points(args)
     track = _load_track(args.survey)
+    grav = gravity_for(track)
     prof = track.profile
     xg = np.arange(math.ceil(prof.x_min), math.floor(prof.x_max) + 1e-9, 1.0)
     yg, sg, kg = prof.h(xg), prof.slope_deg(xg), prof.curvature(xg)
@@ -118,6 +122,9 @@ def cmd_survey(args: argparse.Namespace) -> int:
                 "spline_edf": track.spline_edf,
                 "points_left_out": [p.id for p in track.points if not p.used],
                 "azimuth_deg": track.azimuth_deg,
+                "gravity_ms2": grav.value,
+                "gravity_source": grav.source,
+                "latitude_deg": track.latitude_deg,
                 "photocells": [
                     {
                         "id": pc.id,
@@ -171,6 +178,7 @@ def cmd_survey(args: argparse.Namespace) -> int:
         if left_out:
             print(f"left out {len(left_out)} point(s): {', '.join(left_out)} (see warnings)")
         print(f"curvature {kg.min():+.5f} .. {kg.max():+.5f} 1/m")
+        print(f"gravity  {grav.describe()}")
         if track.photocells:
             print()
             print(
@@ -186,15 +194,16 @@ def cmd_survey(args: argparse.Namespace) -> int:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    from station.model.physics import Conditions, Params, StraightRun
+    from station.model.physics import Conditions, Params, StraightRun, gravity_for
 
     track = _load_track(args.survey)
     if len(track.photocells) < 2:
         raise InputError("the survey needs at least two photocells", path=args.survey)
     rho = _density(args)
+    grav = gravity_for(track, args.gravity)
     xs = np.array([pc.x for pc in track.photocells])
     run = StraightRun(track.profile, xs)
-    cond = Conditions(mass_kg=args.mass, air_density=rho, wind_ms=args.wind_ms)
+    cond = Conditions(mass_kg=args.mass, air_density=rho, wind_ms=args.wind_ms, g=grav.value)
     d = run.solve(Params(args.cda, args.mu, args.v0, args.mu1), cond, sensitivities=False)
     t = d.t.copy()
     if args.noise_ms:
@@ -229,6 +238,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
                 ],
                 "min_normal_force_n": d.min_normal_force_n,
                 "air_density": rho,
+                "gravity_ms2": grav.value,
+                "gravity_source": grav.source,
                 "status": status,
                 "liftoff_x": d.liftoff_x,
                 "stopped_x": d.stopped_x,
@@ -242,6 +253,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             + (f", wind {args.wind_ms:+g} m/s" if args.wind_ms else "")
             + (f", timing noise {args.noise_ms:g} ms (seed {args.seed})" if args.noise_ms else "")
         )
+        print(f"          {grav.describe()}")
         print(f"{'photocell':<10}{'x [m]':>9}{'t [s]':>11}{'v [m/s]':>10}{'v [km/h]':>10}")
         for pc, ti, vi, ok in zip(track.photocells, t, d.v, reached, strict=True):
             if ok:
@@ -258,19 +270,21 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 def cmd_fit(args: argparse.Namespace) -> int:
     from station.model.fit import CI_METHOD, fit_descent
-    from station.model.physics import Conditions
+    from station.model.physics import Conditions, gravity_for
     from station.timing.timesfile import read_times
 
     track = _load_track(args.survey)
     times = read_times(args.times, track.photocell_ids)
     rho = _density(args)
     xs = np.array([track.photocell(p).x for p in times.photocells])
-    cond = Conditions(mass_kg=args.mass, air_density=rho, wind_ms=args.wind_ms)
+    grav = gravity_for(track, args.gravity)
+    cond = Conditions(mass_kg=args.mass, air_density=rho, wind_ms=args.wind_ms, g=grav.value)
     res = fit_descent(track.profile, xs, np.array(times.times), cond, times.photocells, args.model)
     missing = [p for p in track.photocell_ids if p not in times.photocells]
     if args.json:
         out = res.to_dict()
         out.update({"missing": missing, "air_density": rho, "mass_kg": args.mass})
+        out.update({"gravity_ms2": grav.value, "gravity_source": grav.source})
         out["warnings"] = track.warnings
         _print_json(out)
         return 0
@@ -281,6 +295,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
         + f", {args.model} model, m {args.mass:g} kg, ρ {rho:.3f} kg/m³"
         + (f", wind {args.wind_ms:+g} m/s" if args.wind_ms else "")
     )
+    print(f"        {grav.describe()}")
     print(f"status  {res.status}" + (f": {res.message}" if res.message else ""))
 
     def line(label: str, key: str, unit: str, spec: str) -> None:
@@ -361,6 +376,7 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--csv", metavar="OUT", help="write the times as a fit input (photocell,time)")
     p.add_argument("--json", action="store_true")
     _add_air(p)
+    _add_gravity(p)
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("fit", help="fit μ, CdA and v0 to the photocell times of one descent")
@@ -371,6 +387,7 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--wind-ms", type=_number, default=0.0, help="along-track wind, + = tailwind")
     p.add_argument("--json", action="store_true")
     _add_air(p)
+    _add_gravity(p)
     p.set_defaults(func=cmd_fit)
 
     p = sub.add_parser("fit-traverse", help="fit μ and CdA to (t, s) data of a traverse")

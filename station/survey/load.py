@@ -67,6 +67,11 @@ class Survey:
     setups: list[Setup] = field(default_factory=list)
     refraction_k: float | None = 0.13
     warnings: list[str] = field(default_factory=list)
+    #: geodetic latitude of the run (degrees, + north), for local gravity; None: not given
+    latitude_deg: float | None = None
+    #: altitude of the run above sea level (m) when the survey's heights are local; None: the
+    #: survey's own heights are above sea level
+    altitude_m: float | None = None
 
 
 def parse_angle(value: object, unit: str, where: Section, key: str) -> float:
@@ -225,6 +230,9 @@ _TOP_KEYS = {
     "exclude",
     "profile_pattern",
     "notes",
+    "latitude_deg",
+    "altitude_m",
+    "points",
 }
 
 
@@ -321,6 +329,12 @@ def load_survey(path: str) -> Survey:
             pattern = re.compile(top.get("profile_pattern", str))
         except re.error as exc:
             raise top.error("profile_pattern", f"not a regular expression: {exc}") from None
+    latitude = top.get("latitude_deg", float)
+    if latitude is not None and not (math.isfinite(latitude) and -90.0 <= latitude <= 90.0):
+        raise top.error("latitude_deg", f"must lie between -90 and 90 degrees, got {latitude!r}")
+    altitude = top.get("altitude_m", float)
+    if altitude is not None and not (math.isfinite(altitude) and -500.0 <= altitude <= 9000.0):
+        raise top.error("altitude_m", f"must lie between -500 and 9000 m, got {altitude!r}")
     survey = _assemble(
         path,
         top.get("name", str, os.path.basename(path)),
@@ -341,6 +355,8 @@ def load_survey(path: str) -> Survey:
                     line=pc.line,
                     field=f"photocells {pc.id}",
                 )
+    survey.latitude_deg = latitude
+    survey.altitude_m = altitude
     return survey
 
 

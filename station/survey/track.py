@@ -156,6 +156,18 @@ class Track:
     spline_edf: float = 0.0
     #: the profile's uncertainty, for intervals that carry the survey; None for closed forms
     uncertainty: ProfileUncertainty | None = None
+    #: geodetic latitude (degrees) and altitude above sea level (m, None: the profile's own
+    #: heights are above sea level), for local gravity
+    latitude_deg: float | None = None
+    altitude_m: float | None = None
+
+    @property
+    def mean_height_m(self) -> float:
+        """Mean height of the timed section: the altitude for gravity."""
+        if self.altitude_m is not None:
+            return self.altitude_m
+        a, b = self.timed_section()
+        return float(np.mean(self.profile.h(np.linspace(a, b, 21))))
 
     def photocell(self, pid: str) -> TrackPhotocell:
         for pc in self.photocells:
@@ -422,4 +434,6 @@ def build_track(survey: Survey) -> Track:
         declared_sigma_m=fit.sigma_ref,
         spline_edf=fit.edf,
         uncertainty=uncertainty,
+        latitude_deg=survey.latitude_deg,
+        altitude_m=survey.altitude_m,
     )

@@ -1,0 +1,65 @@
+"""``station survey`` / ``simulate`` / ``fit``: what issue 10 added to their output and options."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from conftest import DEMO_SURVEY
+
+from station.model.physics import local_gravity
+
+AIR = ["--air-density", "1.04"]
+
+
+def _with_latitude(tmp_path, latitude: float = 47.0) -> str:
+    text = DEMO_SURVEY.read_text().replace(
+        "observations: demo_run.gsi", f"observations: {DEMO_SURVEY.parent / 'demo_run.gsi'}"
+    )
+    path = tmp_path / "lat.yaml"
+    path.write_text(text + f"latitude_deg: {latitude}\n")
+    return str(path)
+
+
+def test_survey_reports_scatter_and_local_gravity(run_station, tmp_path):
+    r = run_station("survey", _with_latitude(tmp_path), "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert 0.003 < out["scatter_m"] < 0.007  # the demo's 5 mm roughness, estimated
+    assert out["points_left_out"] == []
+    mean_h = sum(pc["y"] for pc in out["photocells"]) / len(out["photocells"])
+    assert out["gravity_ms2"] == pytest.approx(local_gravity(47.0, mean_h), abs=2e-5)
+    assert "GRS80" in out["gravity_source"]
+    r = run_station("survey", DEMO_SURVEY)
+    assert "points scatter" in r.stdout and "standard gravity" in r.stdout
+
+
+def test_gravity_override_and_report(run_station, tmp_path):
+    sim = tmp_path / "t.csv"
+    survey = _with_latitude(tmp_path)
+    args = ["--survey", survey, "--mass", "88", *AIR]
+    r = run_station("simulate", *args, "--cda", "0.22", "--mu", "0.0085", "--v0", "3.4",
+                    "--csv", sim, "--json")  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    g_site = json.loads(r.stdout)["gravity_ms2"]
+    assert g_site == pytest.approx(9.8031, abs=3e-4)
+    r = run_station("fit", *args, "--times", sim, "--json")
+    fit = json.loads(r.stdout)
+    assert fit["gravity_ms2"] == g_site and fit["mu"] == pytest.approx(0.0085, abs=2e-5)
+    # the same times read with standard gravity: μ moves by about g's relative error
+    r = run_station("fit", *args, "--times", sim, "--json", "--gravity", "9.80665")
+    fit_std = json.loads(r.stdout)
+    assert fit_std["gravity_source"] == "given"
+    assert fit_std["mu"] - fit["mu"] > 1e-4
+    r = run_station("fit", *args, "--times", sim, "--gravity", "98.1")
+    assert r.returncode == 2 and "--gravity" in r.stderr and "Traceback" not in r.stderr
+
+
+@pytest.mark.parametrize("bad", ["91", "-95", ".nan", "north"])
+def test_bad_latitude_is_located(run_station, tmp_path, bad):
+    path = tmp_path / "s.yaml"
+    path.write_text(_with_latitude(tmp_path) and (tmp_path / "lat.yaml").read_text().replace(
+        "latitude_deg: 47.0", f"latitude_deg: {bad}"))  # fmt: skip
+    r = run_station("survey", path)
+    assert r.returncode == 2
+    assert f"{path}:" in r.stderr and "field latitude_deg" in r.stderr
