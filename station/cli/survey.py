@@ -271,6 +271,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 def cmd_fit(args: argparse.Namespace) -> int:
     from station.model.fit import CI_METHOD, fit_descent
     from station.model.physics import Conditions, gravity_for
+    from station.model.track_error import survey_error
     from station.timing.timesfile import read_times
 
     track = _load_track(args.survey)
@@ -279,7 +280,16 @@ def cmd_fit(args: argparse.Namespace) -> int:
     xs = np.array([track.photocell(p).x for p in times.photocells])
     grav = gravity_for(track, args.gravity)
     cond = Conditions(mass_kg=args.mass, air_density=rho, wind_ms=args.wind_ms, g=grav.value)
-    res = fit_descent(track.profile, xs, np.array(times.times), cond, times.photocells, args.model)
+    res = fit_descent(
+        track.profile,
+        xs,
+        np.array(times.times),
+        cond,
+        times.photocells,
+        args.model,
+        timer_precision_s=args.timer_precision_ms * 1e-3,
+        survey=None if args.timing_only else survey_error(track, times.photocells),
+    )
     missing = [p for p in track.photocell_ids if p not in times.photocells]
     if args.json:
         out = res.to_dict()
@@ -303,7 +313,15 @@ def cmd_fit(args: argparse.Namespace) -> int:
             return
         c = ci.get(key)
         rng = f"[{format(c[0], spec)}, {format(c[1], spec)}]" if c else "—"
-        print(f"  {label:<5}{_fmt(e[key], spec):>10} {unit:<5} 90 % CI {rng}")
+        extra = ""
+        if res.ci90_timing is not None and c:
+            ct = res.ci90_timing.get(key)
+            share = (res.survey_share or {}).get(key)
+            if ct:
+                extra = f"   timing only [{format(ct[0], spec)}, {format(ct[1], spec)}]"
+            if share is not None:
+                extra += f", survey {share * 100:.0f} % of the variance"
+        print(f"  {label:<5}{_fmt(e[key], spec):>10} {unit:<5} 90 % CI {rng}{extra}")
 
     line("μ", "mu", "", ".5f")
     line("μ1", "mu1", "s/m", ".2e")
@@ -316,6 +334,18 @@ def cmd_fit(args: argparse.Namespace) -> int:
             f"dof {res.dof}   v0 at {res.photocells[0]}"
         )
         print(f"  intervals: {CI_METHOD}")
+        if res.ci90_timing is not None:
+            print(
+                "  the 90 % CI carries the survey (profile spline and photocell positions, "
+                "linearised); 'timing only' leaves it out"
+            )
+        elif not args.timing_only:
+            print("  the survey's uncertainty is not in these intervals (no profile uncertainty)")
+        if res.chi2_p is not None:
+            print(
+                f"  goodness of fit: χ² {res.chi2:.1f} on {res.dof} dof against a timer "
+                f"precision of {args.timer_precision_ms:g} ms, p = {res.chi2_p:.2g}"
+            )
         print(f"{'photocell':<10}{'residual [ms]':>15}{'v [m/s]':>10}")
         for pid, r in res.residuals_s.items():
             print(f"{pid:<10}{r * 1000:>15.3f}{res.speeds_ms.get(pid, float('nan')):>10.2f}")
@@ -385,6 +415,19 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--mass", type=_positive, required=True, metavar="KG")
     p.add_argument("--model", choices=["constant", "velocity"], default="constant")
     p.add_argument("--wind-ms", type=_number, default=0.0, help="along-track wind, + = tailwind")
+    p.add_argument(
+        "--timer-precision-ms",
+        type=_positive,
+        default=0.5,
+        metavar="MS",
+        help="standard deviation of one crossing time, for the goodness-of-fit test (default "
+        "0.5: a 1 ms timer resolution and typical photocell jitter)",
+    )
+    p.add_argument(
+        "--timing-only",
+        action="store_true",
+        help="leave the survey's uncertainty out of the intervals",
+    )
     p.add_argument("--json", action="store_true")
     _add_air(p)
     _add_gravity(p)
