@@ -16,6 +16,7 @@ import argparse
 import math
 import os
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -47,13 +48,18 @@ class TrueRun:
         )
         return np.radians(deg)
 
-    def h(self, x: np.ndarray) -> np.ndarray:
-        """Height: integral of −tan(slope), by fine quadrature (the truth for the tests)."""
-        x = np.atleast_1d(np.asarray(x, dtype=float))
+    @cached_property
+    def _height_table(self) -> tuple[np.ndarray, np.ndarray]:
         fine = np.linspace(-50.0, 450.0, 50001)
         dy = -np.tan(self.slope(fine))
         y = np.concatenate([[0.0], np.cumsum(0.5 * (dy[1:] + dy[:-1]) * np.diff(fine))])
         y -= np.interp(0.0, fine, y)
+        return fine, y
+
+    def h(self, x: np.ndarray) -> np.ndarray:
+        """Height: integral of −tan(slope), by fine quadrature (the truth for the tests)."""
+        x = np.atleast_1d(np.asarray(x, dtype=float))
+        fine, y = self._height_table
         return self.h0 + np.interp(x, fine, y)
 
     def dslope(self, x: np.ndarray) -> np.ndarray:

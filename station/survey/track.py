@@ -111,7 +111,7 @@ class ProfileUncertainty:
     """The profile's uncertainty as perturbations of its spline coefficients.
 
     Cov(coefficients) = L Lᵀ, L = ``factor`` (m × r): each column is one independent standard
-    perturbation of the profile (Bayesian posterior of the smoothing spline at the scatter
+    perturbation of the profile (the smoothing spline's sampling covariance at the scatter
     ``sigma_m``, floored at the declared precision).
     """
 
