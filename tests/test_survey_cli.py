@@ -63,3 +63,36 @@ def test_bad_latitude_is_located(run_station, tmp_path, bad):
     r = run_station("survey", path)
     assert r.returncode == 2
     assert f"{path}:" in r.stderr and "field latitude_deg" in r.stderr
+
+
+@pytest.mark.parametrize("ext", ["png", "svg"])
+def test_survey_plot(run_station, tmp_path, ext):
+    out = tmp_path / f"track.{ext}"
+    r = run_station("survey", DEMO_SURVEY, "--plot", out)
+    assert r.returncode == 0, r.stderr
+    data = out.read_bytes()
+    assert data.startswith(b"\x89PNG") if ext == "png" else b"<svg" in data[:2000]
+
+
+def test_plot_shows_left_out_points(tmp_path):
+    from simulators.survey_sim import write_demo
+    from station.report.track_plot import plot_track
+    from station.survey.load import load_survey
+    from station.survey.track import build_track
+
+    _, y = write_demo(
+        str(tmp_path), seed=5, stem="s", spacing=2.5, roughness=0.015, blunders={"P061": 0.25}
+    )
+    track = build_track(load_survey(y))
+    svg = tmp_path / "t.svg"
+    plot_track(track, str(svg))
+    text = svg.read_text()
+    assert "P061" in text and "left out (1)" in text
+
+
+@pytest.mark.parametrize(
+    ("name", "expect"), [("t.jpg", "must be .png or .svg"), ("nowhere/t.png", "folder does not")]
+)
+def test_bad_plot_path(run_station, tmp_path, name, expect):
+    r = run_station("survey", DEMO_SURVEY, "--plot", tmp_path / name)
+    assert r.returncode == 2 and expect in r.stderr and "Traceback" not in r.stderr

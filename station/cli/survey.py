@@ -103,6 +103,10 @@ def cmd_survey(args: argparse.Namespace) -> int:
     yg, sg, kg = prof.h(xg), prof.slope_deg(xg), prof.curvature(xg)
     used = [p for p in track.points if p.used]
     sig = float(np.sqrt(np.mean([p.sigma**2 for p in used])))
+    if args.plot:
+        from station.report.track_plot import plot_track
+
+        plot_track(track, args.plot)
     if args.csv:
         with open(args.csv, "w", newline="", encoding="utf-8") as fh:
             w = csv.writer(fh)
@@ -390,6 +394,12 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("survey", help="survey YAML (or a bare .gsi file)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--csv", metavar="OUT", help="write the profile (every metre) as CSV")
+    p.add_argument(
+        "--plot",
+        metavar="FILE",
+        help="draw the points (used and left out), profile, slope, curvature and photocells "
+        "into FILE (.png or .svg)",
+    )
     p.set_defaults(func=cmd_survey)
 
     p = sub.add_parser("simulate", help="times and speeds of a skier with given μ and CdA")
