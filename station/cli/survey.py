@@ -363,16 +363,33 @@ def cmd_fit_traverse(args: argparse.Namespace) -> int:
 
     t, s = read_traverse_data(args.data)
     rho = _density(args)
-    res = fit_traverse(t, s, args.slope_deg, args.traverse_deg, args.mass, rho)
+    if args.traverse_deg is not None:
+        beta = args.traverse_deg
+        given = f"traverse {beta:g}° from the fall line"
+    else:
+        beta = 90.0 - args.traverse_from_horizontal_deg
+        given = (
+            f"traverse {beta:g}° from the fall line "
+            f"(given as {args.traverse_from_horizontal_deg:g}° from the horizontal)"
+        )
+    res = fit_traverse(t, s, args.slope_deg, beta, args.mass, rho)
     if args.json:
         out = res.to_dict()
         out.update({"air_density": rho, "mass_kg": args.mass})
+        out.update(
+            {
+                "traverse_from_fall_line_deg": beta,
+                "traverse_given_as": (
+                    "from the fall line" if args.traverse_deg is not None else "from the horizontal"
+                ),
+            }
+        )
         _print_json(out)
         return 0
     e, ci = res.estimates, res.ci90
     print(
         f"traverse  {args.data}: {len(t)} positions, plane {args.slope_deg:g}°, "
-        f"traverse {args.traverse_deg:g}° to the fall line, m {args.mass:g} kg, ρ {rho:.3f} kg/m³"
+        f"{given}, m {args.mass:g} kg, ρ {rho:.3f} kg/m³"
     )
     print(f"status  {res.status}" + (f": {res.message}" if res.message else ""))
     for label, key, unit, spec in (
@@ -387,6 +404,20 @@ def cmd_fit_traverse(args: argparse.Namespace) -> int:
     rms = math.sqrt(res.sigma_m2 / len(t))
     print(f"  final speed {res.v_final:.2f} m/s   residual RMS {rms * 100:.1f} cm   dof {res.dof}")
     return 0
+
+
+def _angle_below_90(text: str) -> float:
+    value = _nonnegative(text)
+    if value >= 90:
+        raise argparse.ArgumentTypeError(f"must lie between 0 and 90 degrees, got {text!r}")
+    return value
+
+
+def _angle_above_0(text: str) -> float:
+    value = _number(text)
+    if not 0 < value <= 90:
+        raise argparse.ArgumentTypeError(f"must lie above 0 and up to 90 degrees, got {text!r}")
+    return value
 
 
 def add_parsers(sub: Any) -> None:
@@ -446,7 +477,21 @@ def add_parsers(sub: Any) -> None:
     p = sub.add_parser("fit-traverse", help="fit μ and CdA to (t, s) data of a traverse")
     p.add_argument("--data", required=True, help="CSV with columns t,s")
     p.add_argument("--slope-deg", type=_positive, required=True, metavar="A")
-    p.add_argument("--traverse-deg", type=_nonnegative, required=True, metavar="B")
+    angle = p.add_mutually_exclusive_group(required=True)
+    angle.add_argument(
+        "--traverse-deg",
+        type=_angle_below_90,
+        metavar="B",
+        help="direction of travel, degrees measured from the fall line (0 = straight down, as "
+        "the paper's β)",
+    )
+    angle.add_argument(
+        "--traverse-from-horizontal-deg",
+        type=_angle_above_0,
+        metavar="H",
+        help="direction of travel, degrees measured from the horizontal (the paper's '40° to "
+        "the horizontal' is B = 50°)",
+    )
     p.add_argument("--mass", type=_positive, required=True, metavar="KG")
     p.add_argument("--json", action="store_true")
     _add_air(p)
