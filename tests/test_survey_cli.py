@@ -96,3 +96,27 @@ def test_plot_shows_left_out_points(tmp_path):
 def test_bad_plot_path(run_station, tmp_path, name, expect):
     r = run_station("survey", DEMO_SURVEY, "--plot", tmp_path / name)
     assert r.returncode == 2 and expect in r.stderr and "Traceback" not in r.stderr
+
+
+def test_fit_reports_timing_only_and_total_intervals(run_station, tmp_path):
+    sim = tmp_path / "t.csv"
+    args = ["--survey", DEMO_SURVEY, "--mass", "88", *AIR]
+    r = run_station("simulate", *args, "--cda", "0.22", "--mu", "0.0085", "--v0", "3.4",
+                    "--noise-ms", "0.2", "--seed", "3", "--csv", sim)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    fit = json.loads(run_station("fit", *args, "--times", sim, "--json").stdout)
+    for k in ("mu", "cda", "v0"):
+        lo, hi = fit["ci90"][k]
+        tlo, thi = fit["ci90_timing"][k]
+        assert hi - lo >= thi - tlo and 0 < fit["survey_share"][k] < 1
+    assert fit["timer_precision_s"] == 0.5e-3 and fit["status"] == "ok"
+    text = run_station("fit", *args, "--times", sim).stdout
+    assert "timing only [" in text and "% of the variance" in text and "goodness of fit" in text
+    plain = json.loads(run_station("fit", *args, "--times", sim, "--json", "--timing-only").stdout)
+    assert plain["ci90_timing"] is None and plain["ci90"]["mu"] == fit["ci90_timing"]["mu"]
+    # the same times judged against a 0.02 ms timer and an exact track: far above them
+    tight = json.loads(
+        run_station("fit", *args, "--times", sim, "--json", "--timer-precision-ms", "0.02",
+                    "--timing-only").stdout
+    )  # fmt: skip
+    assert tight["status"] == "poor-fit" and tight["chi2_p"] < 1e-3

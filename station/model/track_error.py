@@ -13,8 +13,8 @@ by 1e-4 and more. Here both enter the fit's intervals by linearised propagation:
   least-squares estimate maps any error in the times: Cov_p += G S Gᵀ, G = (JᵀJ)⁻¹Jᵀ.
 
 The total interval uses Student's t with the Welch–Satterthwaite degrees of freedom (the
-timing variance is estimated from dof residuals, the survey's is known). Both intervals are
-reported, and the survey's share of the variance.
+timing variance is estimated from dof residuals, the survey's is known), and is never narrower
+than the timing-only one. Both intervals are reported, and the survey's share of the variance.
 
 Goodness of fit: the residuals against the timer's precision (χ² on the residual degrees of
 freedom, with the first photocell's error common to every time difference). A fit far above
@@ -149,11 +149,13 @@ def add_survey_uncertainty(
         dof_eff = result.dof * (vtot / vt) ** 2 if vt > 0 else math.inf
         q = float(student_t.ppf(0.95, min(dof_eff, 1e6)))
         sd = math.sqrt(vtot)
-        lo = est - q * sd
+        lo, hi = est - q * sd, est + q * sd
         if k in ("cda", "mu", "v0", "mu1"):
             lo = max(lo, 0.0)
-        result.ci90[k] = (float(lo), float(est + q * sd))
-        result.stderr[k] = sd
+        # never narrower than the timing-only interval: the survey cannot make a fit surer
+        tlo, thi = result.ci90_timing[k] or (lo, hi)
+        result.ci90[k] = (float(min(lo, tlo)), float(max(hi, thi)))
+        result.stderr[k] = max(sd, result.stderr_timing.get(k) or 0.0)
 
 
 def judge_goodness(
