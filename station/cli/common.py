@@ -157,6 +157,25 @@ def _density(args: argparse.Namespace) -> float:
         raise InputError(str(exc), field="air") from None
 
 
+def _gravity_ms2(text: str) -> float:
+    value = _number(text)
+    if not 9.7 <= value <= 9.9:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} m/s² is not gravity on the earth's surface (9.7 .. 9.9)"
+        )
+    return value
+
+
+def _add_gravity(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--gravity",
+        type=_gravity_ms2,
+        metavar="G",
+        help="m/s²; default: normal gravity at the survey's latitude_deg and height, "
+        "else standard gravity 9.80665",
+    )
+
+
 def _load_track(path: str):
     from station.survey.load import load_survey
     from station.survey.track import build_track
