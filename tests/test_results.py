@@ -171,3 +171,23 @@ def test_results_are_written_with_the_users_umask(tmp_path):
         assert os.stat(path).st_mode & 0o777 == 0o664
     finally:
         os.umask(old)
+
+
+def test_the_air_header_says_the_density_once(tmp_path):
+    from station.session.config import load_config
+    from station.session.store import results_header
+    from tests.timing_helpers import write_config
+
+    given = results_header(load_config(str(write_config(tmp_path, "loop://"))), "Demo run")
+    assert given["air"] == "density 1.0790 kg/m3"
+    cfg = (
+        write_config(tmp_path, "loop://")
+        .read_text()
+        .replace(
+            "air: {density: 1.079}", "air: {pressure_hpa: 835, temperature_c: -4, humidity_pct: 70}"
+        )
+    )
+    (tmp_path / "station.yaml").write_text(cfg)
+    air = results_header(load_config(str(tmp_path / "station.yaml")), "Demo run")["air"]
+    assert air.startswith("pressure_hpa 835 | temperature_c -4 | humidity_pct 70 | density 1.")
+    assert air.count("density") == 1

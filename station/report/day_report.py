@@ -1,9 +1,10 @@
 """The day report: one self-contained HTML page with the pictures of a test day, for the coach
 and the ski maker who were not at the trackside.
 
-Sections, each with one picture: the track profile with its photocells; every descent's
-residuals and speed; μ and CdA of every descent over the time of day with their 90 % intervals;
-the comparison of the items (joint fit: μ per item, Δμ to the reference, drift, ranking). Then
+Sections, each with one picture: the track profile with its photocells (the survey's own
+picture, :mod:`station.report.track_plot`); every descent's residuals and speed; μ and CdA of
+every descent over the time of day with their 90 % intervals; the comparison of the items
+(joint fit: μ per item, Δμ to the reference, drift, ranking). Then
 the session's metadata and provenance: station version, config and survey with their digests,
 what the timer sent, every descent in a table, and the warnings.
 
@@ -161,39 +162,18 @@ def item_colours(items: Sequence[str]) -> dict[str, str]:
 
 
 def profile_figure(track) -> str:
-    """Height along the run with the surveyed points and the photocells; slope below."""
-    prof = track.profile
-    x = np.linspace(prof.x_min, prof.x_max, 600)
-    fig = _figure(4.6)
-    ax, sx = fig.subplots(2, 1, sharex=True, height_ratios=[3, 1])
-    ax.plot(x, prof.h(x), color="#333333", linewidth=1.6, label="profile (spline)")
-    used = [p for p in track.points if p.used]
-    dropped = [p for p in track.points if not p.used]
-    if used:
-        ax.plot([p.x for p in used], [p.y for p in used], "o", ms=3, color="#6b8fb5",
-                label="surveyed points")  # fmt: skip
-    if dropped:
-        ax.plot([p.x for p in dropped], [p.y for p in dropped], "x", ms=6, color="#d62728",
-                label="points left out")  # fmt: skip
-    span = float(np.ptp(prof.h(x))) or 1.0
-    for pc in track.photocells:
-        ax.plot([pc.x, pc.x], [pc.y, pc.y + 0.08 * span], color="#d62728", linewidth=1.2)
-        ax.plot(pc.x, pc.y, marker="v", color="#d62728", ms=7)
-        ax.annotate(pc.id, (pc.x, pc.y + 0.08 * span), textcoords="offset points",
-                    xytext=(0, 3), ha="center", fontsize=8, color="#d62728")  # fmt: skip
-    ax.plot([], [], "v", color="#d62728", label="photocells")
-    ax.set_ylabel("height [m]")
-    ax.legend(loc="upper right", frameon=False, fontsize=9)
-    ax.set_title(f"{track.name}: {track.length_m:.1f} m timed, {track.drop_m:.1f} m drop",
-                 loc="left", fontsize=11)  # fmt: skip
-    sx.plot(x, prof.slope_deg(x), color="#333333", linewidth=1.2)
-    for pc in track.photocells:
-        sx.axvline(pc.x, color="#d62728", linewidth=0.6, alpha=0.5)
-    sx.set_ylabel("slope [°]")
-    sx.set_xlabel("x along the run [m]")
-    for a in (ax, sx):
-        _style(a)
-    return _png(fig)
+    """The survey's own picture of the track (:func:`station.report.track_plot.plot_track`:
+    heights with the points used and left out and the photocells, the points' residuals,
+    slope and curvature), drawn once for ``station survey --plot`` and for this page."""
+    import tempfile
+
+    from station.report.track_plot import plot_track
+
+    with tempfile.TemporaryDirectory(prefix="station-report-") as tmp:
+        path = plot_track(track, os.path.join(tmp, "track.png"))
+        with open(path, "rb") as fh:
+            data = fh.read()
+    return "data:image/png;base64," + base64.b64encode(data).decode("ascii")
 
 
 def descents_figure(
