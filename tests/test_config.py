@@ -89,6 +89,7 @@ BAD_NUMBERS = [
     ("debounce_s: 0.3", "min_speed_ms: 1e-9", "descent.min_speed_ms: must lie between 0.1"),
     ("baudrate: 9600", "baudrate: 10000000000000000", "serial.baudrate: must lie between 50"),
     ("'C1': PC2", "'C1': PC1", ":3: field photocells.C1: photocell PC1 is already on channel C0"),
+    ("port: loop://", "port: ''", ":1: field serial.port: not a port name: ''"),
 ]
 
 

@@ -134,8 +134,9 @@ def _write_compare_csv(res, path: str, run) -> None:
     import csv as _csv
 
     with open_output(path, "--csv") as fh:
-        fh.write(f"# station {__version__} comparison; reference {res.reference}; "
-                 f"drift {'on' if res.drift_per_hour else 'off'}\n")  # fmt: skip
+        head = f"station {__version__} comparison; reference {res.reference}; " \
+               f"drift {'on' if res.drift_per_hour else 'off'}"  # fmt: skip
+        fh.write(f"# {head.replace(',', ';')}\n")  # no comma: a spreadsheet keeps the line whole
         w = _csv.writer(fh, quoting=_csv.QUOTE_NONNUMERIC, lineterminator="\n")
         w.writerow(["rank", "item", "descents", "mu", "mu_lo", "mu_hi", "delta_mu_vs_reference",
                     "delta_lo", "delta_hi", "p_faster_than_reference", "delta_t_s"])  # fmt: skip
@@ -197,7 +198,7 @@ def add_parsers(sub: Any) -> None:
         help="fit a linear drift of μ per hour of the day (auto: when an item recurs)",
     )
     p.add_argument("--timer-ms", type=_positive, default=0.5, metavar="MS",
-                   help="the timer's precision (SD of one time), against which the residuals "
+                   help="the timer's precision (SD of one time, ms), against which the residuals "
                         "are judged (default 0.5)")  # fmt: skip
     p.add_argument("--wind-limit", type=_positive, default=1.0, metavar="MS",
                    help="flag descents with more along-track wind (m/s)")  # fmt: skip

@@ -126,8 +126,11 @@ def load_config(path: str) -> StationConfig:
     if bytesize not in (5, 6, 7, 8):
         raise ser.error("bytesize", f"byte size must be 5..8, got {bytesize!r}")
     baud = _ranged(ser, "baudrate", 9600, kind=int)
+    port = ser.get("port", str, required=True)
+    if not port.strip() or "\0" in port or len(port) > 4096:
+        raise ser.error("port", f"not a port name: {port[:40]!r}")
     serial = SerialConfig(
-        port=ser.get("port", str, required=True),
+        port=port,
         protocol=protocol,
         baudrate=baud,
         bytesize=bytesize,

@@ -73,6 +73,7 @@ class Day:
     metadata_for_descents: list[tuple[frozenset[int], Metadata]] = field(default_factory=list)
     invalid: dict[int, str] = field(default_factory=dict)
     models: dict[int, FitModel] = field(default_factory=dict)
+    _base: Metadata | None = field(default=None, repr=False)  # the config's, built once
 
     @classmethod
     def start(cls, config: StationConfig, track: Track, date: dt.date | None = None) -> Day:
@@ -81,6 +82,11 @@ class Day:
     # -- metadata
 
     def base_metadata(self) -> Metadata:
+        if self._base is None:
+            self._base = self._config_metadata()
+        return self._base
+
+    def _config_metadata(self) -> Metadata:
         cfg = self.config
         values: dict[str, object] = {"mass_kg": cfg.mass_kg, **cfg.metadata}
         if "pressure_hpa" in cfg.air:
@@ -104,14 +110,14 @@ class Day:
     def wind_for(self, meta: Metadata) -> float:
         if meta.wind_ms is None:
             return 0.0
-        if meta.wind_from_deg is None:
-            if meta.wind_ms == 0.0:
-                return 0.0
+        if meta.wind_from_deg is None and meta.wind_ms != 0.0:
             raise InputError(
                 f"wind {meta.wind_ms:g} m/s without a direction: give the direction it comes "
                 "from (wind_from_deg), or no wind",
                 field="wind_from_deg",
             )
+        if meta.wind_from_deg is None:
+            return 0.0
         return along_track_wind(meta.wind_ms, meta.wind_from_deg, self.track.azimuth_deg)
 
     def next_number(self) -> int:
@@ -152,6 +158,10 @@ class Day:
         item = self.config.items.get(d.bib) if d.bib else None
         if item:
             meta = meta.overlay(Metadata.from_values(item, f"items.{d.bib}."))
+        try:
+            wind, problem = self.wind_for(meta), ""
+        except InputError as exc:  # the descent gets status error with the reason, the day goes on
+            wind, problem = 0.0, str(exc)
         return FitJob(
             descent=d,
             start_time=start_time(d, self.processor.start_host.get(d.number), self.date),
@@ -159,7 +169,8 @@ class Day:
             model=self.models.get(d.number, FitModel(self.config.model)),
             mass_kg=float(meta.mass_kg if meta.mass_kg is not None else self.config.mass_kg),
             air_density=self.density_for(meta),
-            wind_ms=self.wind_for(meta),
+            wind_ms=wind,
+            problem=problem,
         )
 
     def store(self, res: DescentResult) -> DescentResult:

@@ -22,6 +22,10 @@ from station.timing.framing import LineFramer
 from station.timing.impulses import Edit, Impulse, Skip, Unparsed
 from station.timing.wireformats import make_parser
 
+#: unparsed lines listed (line, reason, first 100 characters): a day of line noise stays within
+#: tens of MB; beyond it one entry says that more were not listed
+MAX_UNPARSED = 100_000
+
 
 class Processor:
     """Bytes in, finished descents out; counts every kind of line on the way."""
@@ -101,8 +105,12 @@ class Processor:
             self.counts["skipped"] += 1
         elif isinstance(parsed, Unparsed):
             self.counts["unparsed"] += 1
-            if len(self.unparsed) < 1000:
+            if len(self.unparsed) < MAX_UNPARSED:
                 self.unparsed.append((self.lines, parsed.reason, line[:100]))
+            elif len(self.unparsed) == MAX_UNPARSED:  # said once, in the list itself
+                self.unparsed.append(
+                    (self.lines, "this and later unparsed lines not listed; see the raw log", "")
+                )
         return []
 
     def tick(self, host_t: float) -> list[TimedDescent]:

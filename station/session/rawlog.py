@@ -50,7 +50,12 @@ class RawLogWriter:
     ) -> None:
         self.path = path
         new = not os.path.exists(path) or os.path.getsize(path) == 0
-        self._fh = open(path, "a", encoding="ascii", newline="\n")  # noqa: SIM115
+        try:
+            self._fh = open(path, "a", encoding="ascii", newline="\n")  # noqa: SIM115
+        except OSError as exc:
+            raise InputError(
+                f"cannot write the raw log: {exc.strerror or exc}", path=path
+            ) from None
         self._lock = threading.Lock()
         self._dirty = False
         self._closed = threading.Event()

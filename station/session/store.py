@@ -182,10 +182,13 @@ def append_annotation(session: str, annotation: Annotation) -> None:
     """Append one annotation (flushed and fsync'd: it is the engineer's word)."""
     path = os.path.join(session, ANNOTATIONS)
     record = annotation_to_json(annotation)
-    with open(path, "a", encoding="utf-8") as fh:
-        fh.write(json.dumps(record, ensure_ascii=False, sort_keys=True) + "\n")
-        fh.flush()
-        os.fsync(fh.fileno())
+    try:
+        with open(path, "a", encoding="utf-8") as fh:
+            fh.write(json.dumps(record, ensure_ascii=False, sort_keys=True) + "\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+    except OSError as exc:
+        raise InputError(f"cannot write the annotation: {exc.strerror or exc}", path=path) from None
 
 
 def read_annotations(session: str) -> list[Annotation]:
