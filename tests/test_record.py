@@ -14,7 +14,10 @@ import pytest
 from tests.conftest import station_cmd
 from tests.timing_helpers import record_with_sim, start_sim, write_config
 
-SIM_FAST = ["--speed", "10", "--first-after", "2", "--hold", "1"]
+# The first descent 4 s after the simulator opens its port: `station record`, a new process, must
+# have opened the port by then, or that descent's first impulses are lost and it waits for a
+# descent that never comes; on a loaded machine its start-up alone takes over 2 s.
+SIM_FAST = ["--speed", "10", "--first-after", "4", "--hold", "1"]
 
 
 def record(cfg, session, *extra, timeout=90) -> subprocess.CompletedProcess:
@@ -103,7 +106,7 @@ def test_sigkill_mid_descent_loses_nothing_that_was_flushed(tmp_path, run_statio
 def test_an_unplugged_timer_is_reported_and_reconnected(tmp_path):
     r, session, _ = record_with_sim(
         tmp_path,
-        ["--speed", "20", "--first-after", "2", "--hold", "1", "--descents", "3",
+        ["--speed", "20", "--first-after", "4", "--hold", "1", "--descents", "3",
          "--interval", "80", "--disconnect-after", "1", "--disconnect-s", "1", "--seed", "2"],
         max_descents=3,
     )  # fmt: skip
