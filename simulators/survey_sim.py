@@ -16,6 +16,7 @@ import argparse
 import math
 import os
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -47,14 +48,47 @@ class TrueRun:
         )
         return np.radians(deg)
 
-    def h(self, x: np.ndarray) -> np.ndarray:
-        """Height: integral of −tan(slope), by fine quadrature (the truth for the tests)."""
-        x = np.atleast_1d(np.asarray(x, dtype=float))
+    @cached_property
+    def _height_table(self) -> tuple[np.ndarray, np.ndarray]:
         fine = np.linspace(-50.0, 450.0, 50001)
         dy = -np.tan(self.slope(fine))
         y = np.concatenate([[0.0], np.cumsum(0.5 * (dy[1:] + dy[:-1]) * np.diff(fine))])
         y -= np.interp(0.0, fine, y)
+        return fine, y
+
+    def h(self, x: np.ndarray) -> np.ndarray:
+        """Height: integral of −tan(slope), by fine quadrature (the truth for the tests)."""
+        x = np.atleast_1d(np.asarray(x, dtype=float))
+        fine, y = self._height_table
         return self.h0 + np.interp(x, fine, y)
+
+    def dslope(self, x: np.ndarray) -> np.ndarray:
+        """d(slope)/dx in radians per metre (closed form of :meth:`slope`, inside 0..400 m)."""
+        x = np.asarray(x, dtype=float)
+        ddeg = -4.5 * math.pi / 400.0 * np.sin(math.pi * x / 400.0) + 1.2 * (
+            2 * math.pi / 160.0
+        ) * np.cos(2 * math.pi * x / 160.0)
+        return np.radians(ddeg)
+
+    def profile(self, x_offset: float = 0.0):
+        """The true profile as a :class:`station.survey.track.Profile` in a frame whose x is the
+        true x minus ``x_offset`` (a surveyed track's origin lies ``x_offset`` down the run)."""
+        from station.survey.track import Profile
+
+        def dh(x):
+            return -np.tan(self.slope(np.asarray(x, float) + x_offset))
+
+        def d2h(x):
+            xt = np.asarray(x, float) + x_offset
+            return -self.dslope(xt) / np.cos(self.slope(xt)) ** 2
+
+        return Profile(
+            h=lambda x: self.h(np.asarray(x, float) + x_offset),
+            dh=dh,
+            d2h=d2h,
+            x_min=-x_offset,
+            x_max=self.x_end - x_offset,
+        )
 
     @property
     def cell_x(self) -> np.ndarray:
@@ -79,8 +113,23 @@ def _word16(wi: str, info: str, value: int | str) -> str:
     return f"{wi}{info}{sign}{data}"
 
 
-def simulate_survey(run: TrueRun, seed: int = 7) -> tuple[str, list[str]]:
-    """Observe the run; return the GSI-16 text and the photocell ids."""
+def simulate_survey(
+    run: TrueRun,
+    seed: int = 7,
+    spacing: float = 5.0,
+    roughness: float = 0.005,
+    blunders: dict[str, float] | None = None,
+    post_sd: float = 0.01,
+) -> tuple[str, list[str]]:
+    """Observe the run; return the GSI-16 text and the photocell ids.
+
+    ``spacing``: metres between centre-line points; ``roughness``: standard deviation (m) of
+    their heights about the true profile (snow, pole tilt); ``blunders``: point id -> error (m)
+    of the reflector height *booked* for it (the prism stood at 2.0 m, the book says 2.0 + e),
+    so that point comes out e too low; ``post_sd``: standard deviation (m) of each photocell
+    post's position along the run about the beam's true x.
+    """
+    blunders = blunders or {}
     rng = np.random.default_rng(seed)
     sigma_angle = 1.5 / 3600.0 * math.pi / 180.0  # 1.5" instrument
     lines: list[str] = []
@@ -92,7 +141,7 @@ def simulate_survey(run: TrueRun, seed: int = 7) -> tuple[str, list[str]]:
 
     def obs(
         pid: str, e: float, n: float, h: float, st: tuple[float, float, float, float], hr: float
-    ):
+    ):  # fmt: skip
         se, sn, sh, hi = st
         de, dn = e - se, n - sn
         hd = math.hypot(de, dn)
@@ -111,7 +160,7 @@ def simulate_survey(run: TrueRun, seed: int = 7) -> tuple[str, list[str]]:
                 _word16("21", ".322", round((az % (2 * math.pi)) / GON * 1e5)),
                 _word16("22", ".322", round(zen / GON * 1e5)),
                 _word16("31", "..06", round(sd * 1e4)),
-                _word16("87", "..16", round(hr * 1e4)),
+                _word16("87", "..16", round((hr + blunders.get(pid, 0.0)) * 1e4)),
             ]
         )
 
@@ -126,16 +175,16 @@ def simulate_survey(run: TrueRun, seed: int = 7) -> tuple[str, list[str]]:
 
     # the true points, placed once: centre-line points with lateral jitter and snow roughness,
     # and both posts of each photocell, ±4 m beside the track with a beam across the run
-    profile_x = np.arange(0.0, run.x_end + 1e-9, 5.0)
+    profile_x = np.arange(0.0, run.x_end + 1e-9, spacing)
     cell_ids = [f"PC{i + 1}" for i in range(run.n_cells)]
     targets: list[tuple[str, float, float, float, float, float]] = []  # id, x, E, N, H, hr
     for j, px in enumerate(profile_x):
         e, n = run.to_en(np.array([px]), np.array([rng.normal(0.0, 0.3)]))
-        h = float(run.h(np.array([px]))[0]) + rng.normal(0.0, 0.005)
+        h = float(run.h(np.array([px]))[0]) + rng.normal(0.0, roughness)
         targets.append((f"P{j:03d}", float(px), float(e[0]), float(n[0]), h, 2.0))
     for cid, cx in zip(cell_ids, run.cell_x, strict=True):
         for side, lat in (("L", 4.0), ("R", -4.0)):
-            e, n = run.to_en(np.array([cx + rng.normal(0, 0.01)]), np.array([lat]))
+            e, n = run.to_en(np.array([cx + rng.normal(0, post_sd)]), np.array([lat]))
             h = float(run.h(np.array([cx]))[0]) + rng.normal(0.0, 0.02)
             targets.append((f"{cid}{side}", float(cx), float(e[0]), float(n[0]), h, 1.3))
     for sid, se, sn, sh, hi in stations:
@@ -174,18 +223,21 @@ photocells:
 """
 
 
-def write_demo(outdir: str, seed: int = 7) -> tuple[str, str]:
-    """Write demo_run.gsi and demo_run.yaml into ``outdir``."""
+def write_demo(
+    outdir: str, seed: int = 7, stem: str = "demo_run", **survey: object
+) -> tuple[str, str]:
+    """Write ``stem``.gsi and ``stem``.yaml into ``outdir``; ``survey`` goes to
+    :func:`simulate_survey` (spacing, roughness, blunders)."""
     run = TrueRun()
-    gsi, cells = simulate_survey(run, seed)
+    gsi, cells = simulate_survey(run, seed, **survey)  # type: ignore[arg-type]
     os.makedirs(outdir, exist_ok=True)
-    gsi_path = os.path.join(outdir, "demo_run.gsi")
-    yaml_path = os.path.join(outdir, "demo_run.yaml")
+    gsi_path = os.path.join(outdir, f"{stem}.gsi")
+    yaml_path = os.path.join(outdir, f"{stem}.yaml")
     with open(gsi_path, "w", encoding="ascii", newline="") as fh:
         fh.write(gsi)
     cell_lines = "\n".join(f"  - {{id: {c}, points: [{c}L, {c}R]}}" for c in cells)
     with open(yaml_path, "w", encoding="utf-8") as fh:
-        fh.write(SURVEY_YAML.format(cells=cell_lines))
+        fh.write(SURVEY_YAML.format(cells=cell_lines).replace("demo_run.gsi", f"{stem}.gsi"))
     return gsi_path, yaml_path
 
 

@@ -92,17 +92,24 @@ class PtyPort:
         self.slave = os.open(self.name, os.O_RDWR | os.O_NOCTTY)
         return found
 
-    def drain(self, timeout_s: float = 3.0) -> None:
-        """Wait until the reader has taken every byte written (before an 'unplug')."""
+    def drain(self, timeout_s: float = 3.0, settle_s: float = 0.3) -> None:
+        """Wait until the reader has taken every byte written (before an 'unplug'). Bytes written
+        to the master reach the slave's input queue a moment later, and a reader takes a moment
+        to pass on what it read, so the queue must stay empty for ``settle_s``."""
         end = time.monotonic() + timeout_s
+        empty_since = None
         while self.slave >= 0 and time.monotonic() < end:
+            time.sleep(0.02)
             try:
                 pending = struct.unpack("i", fcntl.ioctl(self.slave, termios.FIONREAD, b"\0" * 4))
             except OSError:
                 return
-            if pending[0] == 0:
+            if pending[0]:
+                empty_since = None
+            elif empty_since is None:
+                empty_since = time.monotonic()
+            elif time.monotonic() - empty_since >= settle_s:
                 return
-            time.sleep(0.01)
 
     def unplug(self) -> None:
         for fd in (self.master, self.slave):
@@ -358,8 +365,10 @@ def run(args: argparse.Namespace) -> int:
                 if truth is not None:
                     truth.write(json.dumps(truths.pop(ev.k)) + "\n")
                     truth.flush()
-                if args.disconnect_after and ev.k + 1 == args.disconnect_after \
-                        and ev.k not in unplugged_after:  # fmt: skip
+                due = (args.disconnect_after and ev.k + 1 == args.disconnect_after) or (
+                    args.disconnect_every and (ev.k + 1) % args.disconnect_every == 0
+                )
+                if due and ev.k not in unplugged_after:
                     unplugged_after.add(ev.k)
                     port.drain()  # what was written is read before the cable comes out
                     port.unplug()
@@ -458,6 +467,13 @@ def build_parser() -> argparse.ArgumentParser:
         "starts (0: do not wait)",
     )
     ap.add_argument("--disconnect-after", type=int, default=0, metavar="K")
+    ap.add_argument(
+        "--disconnect-every",
+        type=int,
+        default=0,
+        metavar="K",
+        help="unplug after every K-th descent (soak test of reconnects)",
+    )
     ap.add_argument("--disconnect-s", type=float, default=2.0)
     ap.add_argument(
         "--hold", type=float, default=2.0, help="seconds to keep the port after the end"

@@ -1,4 +1,8 @@
-"""Shared fixtures: the real instrument files, the demo track, and a runner for the CLI."""
+"""Shared fixtures: the real instrument files, the demo track, and runners for the CLI (in this
+process, and as a separate process).
+
+Tests that need a pseudo-terminal, tmux or real time are marked ``slow``; ``pytest -m "not slow"``
+runs the rest in about a minute. CI runs them all."""
 
 from __future__ import annotations
 
@@ -6,6 +10,8 @@ import os
 import shutil
 import subprocess
 import sys
+import traceback
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -56,8 +62,56 @@ def station_cmd() -> list[str]:
 
 
 @pytest.fixture
-def run_station():
-    """Run the real ``station`` command; returns the CompletedProcess."""
+def run_station(capsys, monkeypatch):
+    """Run ``station`` in this process, ``station.cli.main.main(args)``, as the command would:
+    returns a CompletedProcess with the exit status and what it printed. As in a real process,
+    an exception that escapes becomes exit status 1 and a traceback on stderr, and a Python
+    warning is printed on stderr (so "one line on stderr" still fails on a stray warning);
+    tests of the installed command itself use ``run_station_process``."""
+
+    def run(*args: str, cwd: str | Path | None = None) -> subprocess.CompletedProcess:
+        from station.cli.main import main
+
+        argv = list(map(str, args))
+        capsys.readouterr()  # what the test printed before is not the command's output
+        with monkeypatch.context() as m, warnings.catch_warnings(record=True) as caught:
+            # Python's default filters for a script: each warning once, no deprecations
+            warnings.resetwarnings()
+            warnings.simplefilter("default")
+            for category in (
+                DeprecationWarning,
+                PendingDeprecationWarning,
+                ImportWarning,
+                ResourceWarning,
+            ):
+                warnings.simplefilter("ignore", category)
+            if cwd is not None:
+                m.chdir(cwd)
+            try:
+                code: object = main(argv)
+            except SystemExit as exc:  # argparse: --help, --version, usage errors
+                code = exc.code
+            except Exception:
+                traceback.print_exc()
+                code = 1
+        if code is None:
+            code = 0
+        elif not isinstance(code, int):  # sys.exit("message"): printed, status 1
+            print(code, file=sys.stderr)
+            code = 1
+        out = capsys.readouterr()
+        err = out.err + "".join(
+            warnings.formatwarning(w.message, w.category, w.filename, w.lineno) for w in caught
+        )
+        return subprocess.CompletedProcess(["station", *argv], code, out.out, err)
+
+    return run
+
+
+@pytest.fixture
+def run_station_process():
+    """Run the installed ``station`` command as a separate process; returns the
+    CompletedProcess. For what only a real process shows: the console script, exit status."""
 
     def run(*args: str, cwd: str | Path | None = None) -> subprocess.CompletedProcess:
         return subprocess.run(

@@ -159,6 +159,7 @@ def test_a_results_csv_that_cannot_be_written_is_reported_and_recording_goes_on(
     assert any(
         "No space left on device" in w and "raw log keeps recording" in w for w in seen.warnings
     )
+    assert "written again: it is complete" in seen.warnings[-1]
     assert len([c for c in read_rawlog(str(session / "raw.jsonl")) if c.data]) == n_chunks
     df = pd.read_csv(session / "results.csv", comment="#")
     assert list(df["descent"]) == [1, 2, 3] and (df["status"] == "ok").all()

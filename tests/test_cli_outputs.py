@@ -171,3 +171,11 @@ def test_reference_item_by_an_unambiguous_beginning(run_station, session):
     assert json.loads(r.stdout)["reference"] == "pair B / blue"
     _one_line(run_station("compare", session, "--reference", "pair"), "could be", "pair A / blue")
     _one_line(run_station("compare", session, "--reference", "C"), "no item 'C'")
+
+
+def test_a_decimal_comma_in_a_number_option(run_station):
+    point = run_station(*SIM, "--json")
+    comma = run_station(*[a.replace("0.0085", "0,0085") for a in map(str, SIM)], "--json")
+    assert comma.returncode == 0, comma.stderr
+    assert json.loads(comma.stdout) == json.loads(point.stdout)
+    _one_line(run_station(*SIM, "--noise-ms", "1,2.5"), "has both a decimal point and a comma")

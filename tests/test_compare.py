@@ -123,7 +123,7 @@ def _record_day(tmp_path, skis: str, seed: int):
     """Eight descents in ABBAABBA on a drifting track, recorded from the simulated timer."""
     _, session, _ = record_with_sim(
         tmp_path,
-        ["--speed", "20", "--first-after", "2", "--hold", "1", "--descents", "8",
+        ["--speed", "20", "--first-after", "4", "--hold", "1", "--descents", "8",
          "--interval", "60", "--skis", skis, "--order", "ABBAABBA", "--noise-ms", "0.5",
          "--mu-drift-per-hour", "0.02", "--seed", str(seed)],
         max_descents=8,
@@ -131,6 +131,7 @@ def _record_day(tmp_path, skis: str, seed: int):
     return session
 
 
+@pytest.mark.slow  # a simulated timer on a pty, in real time
 @pytest.mark.parametrize(
     ("skis", "differ", "seed"), [("0.0085,0.0095", True, 3), ("0.0090,0.0090", False, 4)]
 )
@@ -162,6 +163,7 @@ def test_proof_with_the_simulated_timer(tmp_path, run_station, skis, differ, see
     assert list(df["item"]) == res["ranking"]
 
 
+@pytest.mark.slow  # a simulated timer on a pty, in real time
 def test_compare_flags_windy_descents_and_leaves_out_invalid_ones(tmp_path, run_station):
     session = _record_day(tmp_path, "0.0085,0.0095", seed=5)
     run_station("annotate", session, "--descents", "1,4,5,8", "--ski", "A")

@@ -278,3 +278,29 @@ def test_garbage_between_impulses_loses_nothing():
     asm = DescentAssembler(PCS, CH, positions_m=POS, min_speed_ms=2.0)
     done = run_lines(asm, make_parser("alge"), mixed)
     assert [d.status for d in done] == ["complete"] * 30
+
+
+def test_alge_memory_lines_are_impulses_and_repeats_are_not_doubled():
+    """A Timy memory dump (flag m) after the live stream: the descent the station already has is
+    not doubled, the one it missed (cable out) is recovered."""
+    lines = _counter_lines([100.0, 130.0])
+    live = lines[:5]
+    memory = ["m" + s[1:] for s in lines]
+    asm = DescentAssembler(PCS, CH, positions_m=POS, min_speed_ms=2.0)
+    done = run_lines(asm, AlgeParser(), live + memory)
+    assert [(d.number, d.status, len(d.photocells)) for d in done] == [
+        (1, "complete", 5),
+        (2, "complete", 5),
+    ]
+    assert sum("not doubled" in e.reason for e in asm.events) == 5
+
+
+def test_a_start_typed_in_without_a_bib_starts_a_descent_and_does_not_replace_one():
+    asm = DescentAssembler(PCS, CH, positions_m=POS, min_speed_ms=2.0, pairing="order")
+    parser = AlgeParser()
+    lines = _counter_lines([100.0, 200.0])
+    run_lines(asm, parser, lines[:5])  # descent 1 complete
+    asm.edit(parser.parse("i" + lines[5][1:]), 6)  # descent 2's start, typed in
+    assert asm.open and asm.open[0].number == 2 and asm.finished[0].times_us[0] == 100 * S
+    done = run_lines(asm, parser, lines[6:])
+    assert [(d.number, d.status) for d in done] == [(2, "complete")]

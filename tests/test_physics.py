@@ -190,3 +190,20 @@ def test_air_density_table(p_hpa, t_c, rh, rho):
 def test_isa_pressure():
     assert isa_pressure_hpa(0.0) == pytest.approx(1013.25)
     assert air_density(isa_pressure_hpa(2000.0), -5, 80) == pytest.approx(1.031, abs=1e-3)
+
+
+def test_local_gravity_matches_published_normal_gravity():
+    """GRS80 normal gravity (Moritz, Geodetic Reference System 1980, table): equator
+    9.7803267715, pole 9.8321863685, 45° 9.8061992; free air −0.3086 mGal/m."""
+    from station.model.physics import local_gravity
+
+    assert local_gravity(0.0) == pytest.approx(9.7803267715, abs=1e-9)
+    assert local_gravity(90.0) == pytest.approx(9.8321863685, abs=1e-9)
+    assert local_gravity(-90.0) == pytest.approx(9.8321863685, abs=1e-9)
+    assert local_gravity(45.0) == pytest.approx(9.80620, abs=5e-6)
+    # an alpine site: 47° N, 1700 m
+    assert local_gravity(47.0, 1700.0) == pytest.approx(9.80799 - 3.086e-6 * 1700, abs=2e-5)
+    assert local_gravity(45.0, 1000.0) - local_gravity(45.0) == pytest.approx(-3.086e-3)
+    for bad in (91.0, float("nan")):
+        with pytest.raises(ValueError):
+            local_gravity(bad)

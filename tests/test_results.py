@@ -35,6 +35,52 @@ def test_results_csv_round_trip_and_spreadsheet_safety(tmp_path):
     assert pd.isna(df.loc[1, "mu"]) and df["mu"].dtype == float
 
 
+def test_header_lines_have_no_commas_and_name_the_units(tmp_path):
+    from station.session.results import UNITS
+
+    rows = [{c: None for c in COLUMNS} | {"descent": 1, "start_time": "2026-02-02T10:41:07+01:00",
+                                           "photocells_used": 9, "mass_kg": 88.0}]  # fmt: skip
+    path = tmp_path / "results.csv"
+    header = {"survey": "Run, lower part (run.yaml, sha256 0e94)", "notes": "a\nb, c"}
+    write_results(rows, str(path), header)
+    heads = [ln for ln in path.read_text().splitlines() if ln.startswith("#")]
+    assert heads[1] == "# survey: Run | lower part (run.yaml | sha256 0e94)"
+    assert heads[2] == "# notes: a b | c"
+    assert all("," not in ln and ";" not in ln for ln in heads), heads
+    units = dict(part.split(" ", 1) for part in heads[-1].removeprefix("# units: ").split(" | "))
+    numeric = [c for c in COLUMNS if c not in ("missing", "status", "descent_status", "flags",
+               "model", "skier", "ski", "wax", "notes", "invalid_reason")]  # fmt: skip
+    assert set(numeric) <= set(units) and units["cda"] == "m2" and units["v0"] == "m/s"
+    assert set(UNITS) <= set(COLUMNS)
+    df = pd.read_csv(path, comment="#")
+    assert list(df.columns) == COLUMNS and df.loc[0, "start_time"] == "2026-02-02T10:41:07+01:00"
+
+
+def test_start_time_carries_the_local_offset_of_its_date(monkeypatch):
+    """The timer sends local time of day: the offset is the host's for that date (winter and
+    summer time differ), so the instant is known wherever the file is read."""
+    import datetime as dt
+    import time
+    from types import SimpleNamespace
+
+    from station.session.analysis import start_time
+
+    monkeypatch.setenv("TZ", "Europe/Zurich")
+    time.tzset()
+    try:
+        d = SimpleNamespace(start_us=(10 * 3600 + 41 * 60 + 7) * 10**6 + 234500, day=None)
+        winter = start_time(d, None, dt.date(2026, 2, 2))
+        summer = start_time(d, None, dt.date(2026, 7, 2))
+        host = start_time(d, dt.datetime(2026, 2, 2, 10, 41, 9).timestamp(), None)
+    finally:
+        monkeypatch.delenv("TZ")
+        time.tzset()
+    assert winter == "2026-02-02T10:41:07.234500+01:00"
+    assert summer == "2026-07-02T10:41:07.234500+02:00"
+    assert host == winter
+    assert dt.datetime.fromisoformat(winter).utcoffset() == dt.timedelta(hours=1)
+
+
 def test_read_results_without_pandas_gives_what_was_written(tmp_path):
     rows = [
         {"descent": 1, "photocells_used": 9, "mu": 0.008452428372456, "status": "ok",
@@ -106,7 +152,7 @@ def test_hostile_header_values_never_break_read_csv(tmp_path):
     write_results([_row(1, notes="x")], str(path), header)
     lines = path.read_text(encoding="utf-8").split("\n")
     comments = [ln for ln in lines if ln.startswith("#")]
-    assert len(comments) == 1 + len(header)
+    assert len(comments) == 1 + len(header) + 1  # the title, the header, the units
     assert not any(ch in ln for ln in comments for ch in ",;\r\t\x00\u2028")
     df = pd.read_csv(path, comment="#")
     assert list(df.columns) == COLUMNS and len(df) == 1 and df.loc[0, "notes"] == "x"
@@ -125,3 +171,23 @@ def test_results_are_written_with_the_users_umask(tmp_path):
         assert os.stat(path).st_mode & 0o777 == 0o664
     finally:
         os.umask(old)
+
+
+def test_the_air_header_says_the_density_once(tmp_path):
+    from station.session.config import load_config
+    from station.session.store import results_header
+    from tests.timing_helpers import write_config
+
+    given = results_header(load_config(str(write_config(tmp_path, "loop://"))), "Demo run")
+    assert given["air"] == "density 1.0790 kg/m3"
+    cfg = (
+        write_config(tmp_path, "loop://")
+        .read_text()
+        .replace(
+            "air: {density: 1.079}", "air: {pressure_hpa: 835, temperature_c: -4, humidity_pct: 70}"
+        )
+    )
+    (tmp_path / "station.yaml").write_text(cfg)
+    air = results_header(load_config(str(tmp_path / "station.yaml")), "Demo run")["air"]
+    assert air.startswith("pressure_hpa 835 | temperature_c -4 | humidity_pct 70 | density 1.")
+    assert air.count("density") == 1

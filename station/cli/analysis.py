@@ -134,8 +134,9 @@ def _write_compare_csv(res, path: str, run) -> None:
     import csv as _csv
 
     with open_output(path, "--csv") as fh:
-        fh.write(f"# station {__version__} comparison; reference {res.reference}; "
-                 f"drift {'on' if res.drift_per_hour else 'off'}\n")  # fmt: skip
+        head = f"station {__version__} comparison; reference {res.reference}; " \
+               f"drift {'on' if res.drift_per_hour else 'off'}"  # fmt: skip
+        fh.write(f"# {head.replace(',', ';')}\n")  # no comma: a spreadsheet keeps the line whole
         w = _csv.writer(fh, quoting=_csv.QUOTE_NONNUMERIC, lineterminator="\n")
         w.writerow(["rank", "item", "descents", "mu", "mu_lo", "mu_hi", "delta_mu_vs_reference",
                     "delta_lo", "delta_hi", "p_faster_than_reference", "delta_t_s"])  # fmt: skip

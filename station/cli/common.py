@@ -8,7 +8,6 @@ import argparse
 import contextlib
 import datetime as dt
 import json
-import math
 import os
 import stat
 import sys
@@ -23,6 +22,7 @@ from station.model.air import (
     DEFAULT_TEMPERATURE_C,
     air_density,
 )
+from station.numbers import parse_number
 
 EXIT_BAD_INPUT = 2
 
@@ -103,13 +103,11 @@ def _celsius(text: str) -> float:
 
 
 def _number(text: str) -> float:
+    """A finite number with a decimal point or a decimal comma (``--mass 72,5``)."""
     try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
-    return value
+        return parse_number(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _warn(message: str) -> None:
@@ -157,6 +155,25 @@ def _density(args: argparse.Namespace) -> float:
         return air_density(p, t, h)
     except ValueError as exc:
         raise InputError(str(exc), field="air") from None
+
+
+def _gravity_ms2(text: str) -> float:
+    value = _number(text)
+    if not 9.7 <= value <= 9.9:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} m/s² is not gravity on the earth's surface (9.7 .. 9.9)"
+        )
+    return value
+
+
+def _add_gravity(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--gravity",
+        type=_gravity_ms2,
+        metavar="G",
+        help="m/s²; default: normal gravity at the survey's latitude_deg and height, "
+        "else standard gravity 9.80665",
+    )
 
 
 def _load_track(path: str):
@@ -289,24 +306,18 @@ def output_dir(arg: str, option: str) -> str:
 
 
 @contextlib.contextmanager
-def open_output(arg: str, option: str) -> Iterator[IO[str]]:
-    """The checked output as a text file: ``-`` is standard output (left open); a path is
-    written to a temporary file beside it and renamed over it only when the writing succeeded,
+def _staged(arg: str, option: str) -> Iterator[str]:
+    """A temporary file beside the output, renamed over it only when the writing succeeded,
     so a failed command leaves the previous file intact and never half a file."""
-    if arg == STDOUT:
-        out = _data_stdout or sys.stdout
-        yield out
-        out.flush()
-        return
     output_path(arg, option)
     folder = os.path.dirname(os.path.abspath(arg))
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(arg)}-", dir=folder)
+        os.close(fd)
     except OSError as exc:
         raise InputError(f"cannot write: {exc.strerror}", path=arg, field=option) from None
     try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            yield fh
+        yield tmp
         if os.path.abspath(arg) == os.devnull:
             os.unlink(tmp)
             return
@@ -318,6 +329,19 @@ def open_output(arg: str, option: str) -> Iterator[IO[str]]:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+@contextlib.contextmanager
+def open_output(arg: str, option: str) -> Iterator[IO[str]]:
+    """The checked output as a text file: ``-`` is standard output (left open); a path is
+    written to a temporary file beside it and renamed over it when done (:func:`_staged`)."""
+    if arg == STDOUT:
+        out = _data_stdout or sys.stdout
+        yield out
+        out.flush()
+        return
+    with _staged(arg, option) as tmp, open(tmp, "w", encoding="utf-8", newline="") as fh:
+        yield fh
 
 
 def dispatch(args: argparse.Namespace) -> int:

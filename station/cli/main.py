@@ -13,7 +13,17 @@ import os
 import sys
 
 from station import __version__
-from station.cli import analysis, common, memory, ports, recording, sessions, survey, terminal
+from station.cli import (
+    analysis,
+    common,
+    memory,
+    ports,
+    recording,
+    report,
+    sessions,
+    survey,
+    terminal,
+)
 from station.errors import InputError
 
 
@@ -25,7 +35,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ap.add_argument("--version", action="version", version=f"station {__version__}")
     sub = ap.add_subparsers(dest="command", required=True, parser_class=common._Parser)
-    for group in (survey, recording, analysis, terminal, sessions, ports, memory):
+    for group in (survey, recording, analysis, terminal, sessions, ports, memory, report):
         group.add_parsers(sub)
     return ap
 

@@ -1,7 +1,6 @@
 """``station sessions [DIR]``: the recorded test days in a folder, with their date, descents,
-test items and status, read from each session's results CSV (the csv module, not pandas: the
-list must come at once, even on a slow laptop in the cold).
-"""
+test items and status, read from each session's results CSV and annotations without
+replaying or fitting anything (the csv module, not pandas)."""
 
 from __future__ import annotations
 
@@ -72,7 +71,8 @@ def session_descents(session: str) -> list[int]:
     return [r.number for r in _replay_run(ns, quiet=True).results()]
 
 
-def _started(session: str) -> str:
+def recording_started(session: str) -> str:
+    """Local date and time of the first raw-log record ("" when unreadable)."""
     from station.session import store as sessions
 
     try:
@@ -131,7 +131,7 @@ def summarise(session: str, now: float | None = None) -> SessionSummary:
         status = "finished"
     return SessionSummary(
         path=session,
-        started=_started(session),
+        started=recording_started(session),
         descents=sum(r.get("descent_status") != "aborted" for r in rows),
         fitted=sum(r.get("status") == "ok" and not r.get("invalid_reason") for r in rows),
         invalid=sum(bool(r.get("invalid_reason")) for r in rows),

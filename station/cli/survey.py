@@ -7,10 +7,9 @@ import csv
 import math
 from typing import Any
 
-import numpy as np
-
 from station.cli.common import (
     _add_air,
+    _add_gravity,
     _density,
     _fmt,
     _load_track,
@@ -33,7 +32,7 @@ def cmd_survey_points(args: argparse.Namespace) -> int:
     pts = list(survey.points.values())
     if args.csv:
         with open_output(args.csv, "--csv") as fh:
-            w = csv.writer(fh)
+            w = csv.writer(fh, lineterminator="\n")
             w.writerow(["point", "e", "n", "h", "sigma_h_m", "setup", "line"])
             for p in pts:
                 w.writerow([p.point, f"{p.e:.4f}", f"{p.n:.4f}", f"{p.h:.4f}", f"{p.sigma_h:.4f}",
@@ -93,18 +92,27 @@ def cmd_survey_points(args: argparse.Namespace) -> int:
 
 
 def cmd_survey(args: argparse.Namespace) -> int:
+    import numpy as np  # here, not at the top: `station --help` and other commands need no numpy
+
     output_path(args.csv, "--csv")
+    from station.model.physics import gravity_for
+
     if args.survey.lower().endswith(".gsi"):
         return cmd_survey_points(args)
     track = _load_track(args.survey)
+    grav = gravity_for(track)
     prof = track.profile
     xg = np.arange(math.ceil(prof.x_min), math.floor(prof.x_max) + 1e-9, 1.0)
     yg, sg, kg = prof.h(xg), prof.slope_deg(xg), prof.curvature(xg)
     used = [p for p in track.points if p.used]
     sig = float(np.sqrt(np.mean([p.sigma**2 for p in used])))
+    if args.plot:
+        from station.report.track_plot import plot_track
+
+        plot_track(track, args.plot)
     if args.csv:
         with open_output(args.csv, "--csv") as fh:
-            w = csv.writer(fh)
+            w = csv.writer(fh, lineterminator="\n")
             w.writerow(["x_m", "y_m", "slope_deg", "curvature_1_per_m"])
             for row in zip(xg, yg, sg, kg, strict=True):
                 w.writerow([f"{row[0]:.3f}", f"{row[1]:.4f}", f"{row[2]:.4f}", f"{row[3]:.6f}"])
@@ -116,7 +124,14 @@ def cmd_survey(args: argparse.Namespace) -> int:
                 "drop_m": track.drop_m,
                 "residual_rms_m": track.residual_rms_m,
                 "expected_sigma_m": sig,
+                "scatter_m": track.scatter_m,
+                "declared_sigma_m": track.declared_sigma_m,
+                "spline_edf": track.spline_edf,
+                "points_left_out": [p.id for p in track.points if not p.used],
                 "azimuth_deg": track.azimuth_deg,
+                "gravity_ms2": grav.value,
+                "gravity_source": grav.source,
+                "latitude_deg": track.latitude_deg,
                 "photocells": [
                     {
                         "id": pc.id,
@@ -161,10 +176,16 @@ def cmd_survey(args: argparse.Namespace) -> int:
             f"axis azimuth {track.azimuth_deg:.2f}°, largest lateral offset {max(lat):.2f} m"
         )
         print(
-            f"spline   residual RMS {track.residual_rms_m * 1000:.1f} mm "
-            f"(point σ {sig * 1000:.1f} mm), "
-            f"curvature {kg.min():+.5f} .. {kg.max():+.5f} 1/m"
+            f"spline   points scatter {track.scatter_m * 1000:.1f} mm about the profile "
+            f"(estimated from the points; declared σ {sig * 1000:.1f} mm), "
+            f"residual RMS {track.residual_rms_m * 1000:.1f} mm, "
+            f"{track.spline_edf:.0f} effective parameters"
         )
+        left_out = [p.id for p in track.points if not p.used]
+        if left_out:
+            print(f"left out {len(left_out)} point(s): {', '.join(left_out)} (see warnings)")
+        print(f"curvature {kg.min():+.5f} .. {kg.max():+.5f} 1/m")
+        print(f"gravity  {grav.describe()}")
         if track.photocells:
             print()
             print(
@@ -180,16 +201,19 @@ def cmd_survey(args: argparse.Namespace) -> int:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    from station.model.physics import Conditions, Params, StraightRun
+    import numpy as np
+
+    from station.model.physics import Conditions, Params, StraightRun, gravity_for
 
     output_path(args.csv, "--csv")
     track = _load_track(args.survey)
     if len(track.photocells) < 2:
         raise InputError("the survey needs at least two photocells", path=args.survey)
     rho = _density(args)
+    grav = gravity_for(track, args.gravity)
     xs = np.array([pc.x for pc in track.photocells])
     run = StraightRun(track.profile, xs)
-    cond = Conditions(mass_kg=args.mass, air_density=rho, wind_ms=args.wind_ms)
+    cond = Conditions(mass_kg=args.mass, air_density=rho, wind_ms=args.wind_ms, g=grav.value)
     d = run.solve(Params(args.cda, args.mu, args.v0, args.mu1), cond, sensitivities=False)
     t = d.t.copy()
     if args.noise_ms:
@@ -200,7 +224,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         reached = xs < d.stopped_x
     if args.csv:
         with open_output(args.csv, "--csv") as fh:
-            w = csv.writer(fh)
+            w = csv.writer(fh, lineterminator="\n")
             w.writerow(["photocell", "time"])
             for pc, ti, ok in zip(track.photocells, t, reached, strict=True):
                 if ok:
@@ -224,6 +248,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
                 ],
                 "min_normal_force_n": d.min_normal_force_n,
                 "air_density": rho,
+                "gravity_ms2": grav.value,
+                "gravity_source": grav.source,
                 "status": status,
                 "liftoff_x": d.liftoff_x,
                 "stopped_x": d.stopped_x,
@@ -237,6 +263,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             + (f", wind {args.wind_ms:+g} m/s" if args.wind_ms else "")
             + (f", timing noise {args.noise_ms:g} ms (seed {args.seed})" if args.noise_ms else "")
         )
+        print(f"          {grav.describe()}")
         print(f"{'photocell':<10}{'x [m]':>9}{'t [s]':>11}{'v [m/s]':>10}{'v [km/h]':>10}")
         for pc, ti, vi, ok in zip(track.photocells, t, d.v, reached, strict=True):
             if ok:
@@ -252,20 +279,34 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from station.model.fit import CI_METHOD, fit_descent
-    from station.model.physics import Conditions
+    from station.model.physics import Conditions, gravity_for
+    from station.model.track_error import survey_error
     from station.timing.timesfile import read_times
 
     track = _load_track(args.survey)
     times = read_times(args.times, track.photocell_ids)
     rho = _density(args)
     xs = np.array([track.photocell(p).x for p in times.photocells])
-    cond = Conditions(mass_kg=args.mass, air_density=rho, wind_ms=args.wind_ms)
-    res = fit_descent(track.profile, xs, np.array(times.times), cond, times.photocells, args.model)
+    grav = gravity_for(track, args.gravity)
+    cond = Conditions(mass_kg=args.mass, air_density=rho, wind_ms=args.wind_ms, g=grav.value)
+    res = fit_descent(
+        track.profile,
+        xs,
+        np.array(times.times),
+        cond,
+        times.photocells,
+        args.model,
+        timer_precision_s=args.timer_precision_ms * 1e-3,
+        survey=None if args.timing_only else survey_error(track, times.photocells),
+    )
     missing = [p for p in track.photocell_ids if p not in times.photocells]
     if args.json:
         out = res.to_dict()
         out.update({"missing": missing, "air_density": rho, "mass_kg": args.mass})
+        out.update({"gravity_ms2": grav.value, "gravity_source": grav.source})
         out["warnings"] = track.warnings
         _print_json(out)
         return 0
@@ -276,6 +317,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
         + f", {args.model} model, m {args.mass:g} kg, ρ {rho:.3f} kg/m³"
         + (f", wind {args.wind_ms:+g} m/s" if args.wind_ms else "")
     )
+    print(f"        {grav.describe()}")
     print(f"status  {res.status}" + (f": {res.message}" if res.message else ""))
 
     def line(label: str, key: str, unit: str, spec: str) -> None:
@@ -283,7 +325,15 @@ def cmd_fit(args: argparse.Namespace) -> int:
             return
         c = ci.get(key)
         rng = f"[{format(c[0], spec)}, {format(c[1], spec)}]" if c else "—"
-        print(f"  {label:<5}{_fmt(e[key], spec):>10} {unit:<5} 90 % CI {rng}")
+        extra = ""
+        if res.ci90_timing is not None and c:
+            ct = res.ci90_timing.get(key)
+            share = (res.survey_share or {}).get(key)
+            if ct:
+                extra = f"   timing only [{format(ct[0], spec)}, {format(ct[1], spec)}]"
+            if share is not None:
+                extra += f", survey {share * 100:.0f} % of the variance"
+        print(f"  {label:<5}{_fmt(e[key], spec):>10} {unit:<5} 90 % CI {rng}{extra}")
 
     line("μ", "mu", "", ".5f")
     line("μ1", "mu1", "s/m", ".2e")
@@ -299,6 +349,18 @@ def cmd_fit(args: argparse.Namespace) -> int:
             f"dof {res.dof}   v0 at {res.photocells[0]}"
         )
         print(f"  intervals: {CI_METHOD}")
+        if res.ci90_timing is not None:
+            print(
+                "  the 90 % CI carries the survey (profile spline and photocell positions, "
+                "linearised); 'timing only' leaves it out"
+            )
+        elif not args.timing_only:
+            print("  the survey's uncertainty is not in these intervals (no profile uncertainty)")
+        if res.chi2_p is not None:
+            print(
+                f"  goodness of fit: χ² {res.chi2:.1f} on {res.dof} dof against a timer "
+                f"precision of {args.timer_precision_ms:g} ms, p = {res.chi2_p:.2g}"
+            )
         print(f"{'photocell':<10}{'residual [ms]':>15}{'v [m/s]':>10}")
         for pid, r in res.residuals_s.items():
             print(f"{pid:<10}{r * 1000:>15.3f}{res.speeds_ms.get(pid, float('nan')):>10.2f}")
@@ -312,16 +374,33 @@ def cmd_fit_traverse(args: argparse.Namespace) -> int:
 
     t, s = read_traverse_data(args.data)
     rho = _density(args)
-    res = fit_traverse(t, s, args.slope_deg, args.traverse_deg, args.mass, rho)
+    if args.traverse_deg is not None:
+        beta = args.traverse_deg
+        given = f"traverse {beta:g}° from the fall line"
+    else:
+        beta = 90.0 - args.traverse_from_horizontal_deg
+        given = (
+            f"traverse {beta:g}° from the fall line "
+            f"(given as {args.traverse_from_horizontal_deg:g}° from the horizontal)"
+        )
+    res = fit_traverse(t, s, args.slope_deg, beta, args.mass, rho)
     if args.json:
         out = res.to_dict()
         out.update({"air_density": rho, "mass_kg": args.mass})
+        out.update(
+            {
+                "traverse_from_fall_line_deg": beta,
+                "traverse_given_as": (
+                    "from the fall line" if args.traverse_deg is not None else "from the horizontal"
+                ),
+            }
+        )
         _print_json(out)
         return 0
     e, ci = res.estimates, res.ci90
     print(
         f"traverse  {args.data}: {len(t)} positions, plane {args.slope_deg:g}°, "
-        f"traverse {args.traverse_deg:g}° to the fall line, m {args.mass:g} kg, ρ {rho:.3f} kg/m³"
+        f"{given}, m {args.mass:g} kg, ρ {rho:.3f} kg/m³"
     )
     print(f"status  {res.status}" + (f": {res.message}" if res.message else ""))
     for label, key, unit, spec in (
@@ -338,11 +417,31 @@ def cmd_fit_traverse(args: argparse.Namespace) -> int:
     return 0
 
 
+def _angle_below_90(text: str) -> float:
+    value = _nonnegative(text)
+    if value >= 90:
+        raise argparse.ArgumentTypeError(f"must lie between 0 and 90 degrees, got {text!r}")
+    return value
+
+
+def _angle_above_0(text: str) -> float:
+    value = _number(text)
+    if not 0 < value <= 90:
+        raise argparse.ArgumentTypeError(f"must lie above 0 and up to 90 degrees, got {text!r}")
+    return value
+
+
 def add_parsers(sub: Any) -> None:
     p = sub.add_parser("survey", help="reduce a survey to the track profile and photocells")
     p.add_argument("survey", help="survey YAML (or a bare .gsi file)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--csv", metavar="OUT", help="write the profile (every metre) as CSV")
+    p.add_argument(
+        "--plot",
+        metavar="FILE",
+        help="draw the points (used and left out), profile, slope, curvature and photocells "
+        "into FILE (.png or .svg)",
+    )
     p.set_defaults(func=cmd_survey)
 
     p = sub.add_parser("simulate", help="times and speeds of a skier with given μ and CdA")
@@ -372,6 +471,7 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--csv", metavar="OUT", help="write the times as a fit input (photocell,time)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     _add_air(p)
+    _add_gravity(p)
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("fit", help="fit μ, CdA and v0 to the photocell times of one descent")
@@ -388,16 +488,43 @@ def add_parsers(sub: Any) -> None:
     p.add_argument(
         "--wind-ms", type=_number, default=0.0, help="along-track wind, m/s, + = tailwind"
     )
+    p.add_argument(
+        "--timer-precision-ms",
+        type=_positive,
+        default=0.5,
+        metavar="MS",
+        help="standard deviation of one crossing time, for the goodness-of-fit test (default "
+        "0.5: a 1 ms timer resolution and typical photocell jitter)",
+    )
+    p.add_argument(
+        "--timing-only",
+        action="store_true",
+        help="leave the survey's uncertainty out of the intervals",
+    )
     p.add_argument("--json", action="store_true", help="machine-readable output")
     _add_air(p)
+    _add_gravity(p)
     p.set_defaults(func=cmd_fit)
 
     p = sub.add_parser("fit-traverse", help="fit μ and CdA to (t, s) data of a traverse")
     p.add_argument("--data", required=True, help="CSV with columns t,s (s, m)")
     p.add_argument("--slope-deg", type=_positive, required=True, metavar="A",
                    help="slope of the plane, degrees")  # fmt: skip
-    p.add_argument("--traverse-deg", type=_nonnegative, required=True, metavar="B",
-                   help="angle of the traverse to the fall line, degrees")  # fmt: skip
+    angle = p.add_mutually_exclusive_group(required=True)
+    angle.add_argument(
+        "--traverse-deg",
+        type=_angle_below_90,
+        metavar="B",
+        help="direction of travel, degrees measured from the fall line (0 = straight down, as "
+        "the paper's β)",
+    )
+    angle.add_argument(
+        "--traverse-from-horizontal-deg",
+        type=_angle_above_0,
+        metavar="H",
+        help="direction of travel, degrees measured from the horizontal (the paper's '40° to "
+        "the horizontal' is B = 50°)",
+    )
     p.add_argument("--mass", type=_positive, required=True, metavar="KG",
                    help="skier with equipment, kg")  # fmt: skip
     p.add_argument("--json", action="store_true", help="machine-readable output")

@@ -39,6 +39,13 @@ from scipy.optimize import least_squares, nnls
 from scipy.special import stdtrit  # Student-t quantile, without loading scipy.stats
 
 from station.model.physics import PARAM_NAMES, Conditions, Params, StraightRun
+from station.model.track_error import (
+    DEFAULT_TIMER_PRECISION_S,
+    SurveyError,
+    add_survey_uncertainty,
+    judge_goodness,
+    survey_time_covariance,
+)
 from station.survey.track import Profile
 
 #: typical magnitudes of (CdA, μ, v0, μ1), used to scale the search
@@ -77,6 +84,13 @@ class FitResult:
     speeds_ms: dict[str, float] = field(default_factory=dict)
     #: parameters (μ1) whose 90 % interval includes 0: shown, with this flag, not hidden
     consistent_with_zero: list[str] = field(default_factory=list)
+    # goodness of fit and the survey's part in the intervals (station.model.track_error)
+    timer_precision_s: float | None = None
+    chi2: float | None = None
+    chi2_p: float | None = None
+    ci90_timing: dict[str, tuple[float, float] | None] | None = None
+    stderr_timing: dict[str, float | None] | None = None
+    survey_share: dict[str, float | None] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON form documented in the README."""
@@ -111,6 +125,18 @@ class FitResult:
                 "min_normal_force_n": self.min_normal_force_n,
                 "nfev": self.nfev,
                 "starts": self.starts,
+                "timer_precision_s": self.timer_precision_s,
+                "chi2": self.chi2,
+                "chi2_p": self.chi2_p,
+                "ci90_timing": (
+                    None
+                    if self.ci90_timing is None
+                    else {
+                        k: (list(v) if v is not None else None) for k, v in self.ci90_timing.items()
+                    }
+                ),
+                "stderr_timing": self.stderr_timing,
+                "survey_share": self.survey_share,
             }
         )
         return out
@@ -365,9 +391,17 @@ def fit_descent(
     model: str = "constant",
     step: float = 0.5,
     run: StraightRun | None = None,
+    timer_precision_s: float = DEFAULT_TIMER_PRECISION_S,
+    survey: SurveyError | None = None,
 ) -> FitResult:
     """Fit one descent. ``xs`` and ``times`` are the photocells used, in order down the run;
-    times may be on any clock (the offset ``dt0`` absorbs it and the noise of the first)."""
+    times may be on any clock (the offset ``dt0`` absorbs it and the noise of the first).
+
+    ``timer_precision_s``: standard deviation of one crossing time, for the goodness-of-fit
+    test (default 0.5 ms: a 1 ms timer resolution and typical photocell jitter, see
+    :data:`station.model.track_error.DEFAULT_TIMER_PRECISION_S`). ``survey``: the track's
+    uncertainty (:func:`station.model.track_error.survey_error`); with it the 90 % intervals
+    carry the survey too, and the timing-only ones are kept beside them."""
     if model not in ("constant", "velocity"):
         raise ValueError(f"unknown model {model!r}")
     n_params = 4 if model == "velocity" else 3
@@ -524,4 +558,32 @@ def fit_descent(
         for k in result.not_identifiable:
             result.estimates[k] = None
             result.ci90[k] = None
+    _survey_and_goodness(result, run, p, conditions, jm, r, step, timer_precision_s, survey)
     return result
+
+
+def _survey_and_goodness(
+    result: FitResult,
+    run: StraightRun,
+    p: np.ndarray,
+    conditions: Conditions,
+    jm: np.ndarray,
+    r: np.ndarray,
+    step: float,
+    timer_precision_s: float,
+    survey: SurveyError | None,
+) -> None:
+    """The survey's share of the intervals, then the χ² test (station.model.track_error).
+
+    The fit has every crossing time as data and a free offset (the last parameter), so the
+    survey's covariance of the computed times t_i − t_1 is padded with a zero first row and
+    column: the model's own first time is 0 whatever the track."""
+    survey_cov = None
+    if survey is not None and result.covariance is not None:
+        n_phys = len(p) - 1
+        phys = Params(p[0], p[1], p[2], mu1=p[3] if n_phys == 4 else 0.0)
+        relative = survey_time_covariance(survey, run.xs, phys, conditions, step)
+        survey_cov = np.zeros((len(r), len(r)))
+        survey_cov[1:, 1:] = relative
+        add_survey_uncertainty(result, jm, r, survey_cov)
+    judge_goodness(result, r, timer_precision_s, survey_cov)

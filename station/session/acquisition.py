@@ -29,6 +29,7 @@ import datetime as dt
 import os
 import queue
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -58,7 +59,8 @@ from station.timing.assembly import ImpulseEvent, TimedDescent
 
 class Listener:
     """What an acquisition tells the outside world. Called from the reader and the fit worker
-    threads, always with immutable records; the defaults do nothing."""
+    threads, always with immutable records; the defaults do nothing, but for warnings, which
+    go to stderr: a failure is never passed over in silence."""
 
     #: wants every impulse and the open descent's progress (the UI); a headless run does not
     live_view = False
@@ -80,6 +82,7 @@ class Listener:
 
     def warning(self, text: str) -> None:
         """Something failed and the acquisition went on."""
+        print(f"warning: {text}", file=sys.stderr, flush=True)
 
     def ended(self, summary: str) -> None:
         """A replay reached its end and every descent is fitted."""
@@ -281,6 +284,8 @@ class Acquisition:
         self._submit(_End())
 
     def _start_source(self, target: Callable[[], None], name: str) -> None:
+        if self._closed:  # quit before the source was ready (the demo's simulator starting)
+            return
         self._source = threading.Thread(target=target, name=name, daemon=True)
         self._source.start()
 
@@ -327,12 +332,12 @@ class Acquisition:
     def _after(self, first_event: int, done: list[TimedDescent]) -> list[_Job]:
         """With the lock held: what the chunk did, for the listener; the finished descents."""
         proc = self.day.processor
-        new = tuple(proc.events[first_event:])
         cur = proc.assembler.current
         if cur is not None and cur.number != self._announced:
             self._announced = cur.number
             self._descent_started(cur.number)
         if self.listener.live_view:
+            new = tuple(proc.events[first_event:])
             if new:
                 self._tell(self.listener.impulses, new, proc.line_counts())
             if new or done:
@@ -411,8 +416,8 @@ class Acquisition:
         day = self.day
         if isinstance(job, _WriteResults):
             with self.lock:
-                snapshot = day.snapshot()
-            self._write_session_csv(snapshot)
+                current = day.snapshot()
+            self._write_session_csv(current)
             return
         if isinstance(job, _End):
             with self.lock:
@@ -451,6 +456,8 @@ class Acquisition:
         problem = sessions.save_results(path, lambda p: self._write(snapshot, p))
         if problem is not None and problem != self._csv_problem:
             self._tell(self.listener.warning, problem)
+        elif problem is None and self._csv_problem is not None:
+            self._tell(self.listener.warning, f"{path} written again: it is complete")
         self._csv_problem = problem
 
     def _write(self, snapshot: Sequence[DescentResult], path: str) -> None:

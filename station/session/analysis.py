@@ -75,19 +75,22 @@ def start_time(d: DescentTimes, host_t: float | None, date: dt.date | None) -> s
     start nearest the host's clock: a descent started at 23:59:58 and finished after midnight
     keeps its day, so start times never go backwards at midnight. In replay, the replay's
     date plus the days the device clock counted. A timer that dates its impulses (TAG: days
-    since 2000-01-01) is believed over both."""
+    since 2000-01-01) is believed over both. With a date, ISO 8601 with the local UTC offset of
+    that date, so a reader elsewhere (or after the clocks changed) knows the instant: timers
+    send local time of day."""
     if d.day is not None:
         tod_of_day = dt.timedelta(microseconds=d.start_us % DAY_US)
-        return (dt.datetime(2000, 1, 1) + dt.timedelta(days=d.day) + tod_of_day).isoformat()
+        start = dt.datetime(2000, 1, 1) + dt.timedelta(days=d.day) + tod_of_day
+        return start.astimezone().isoformat()
     days, tod = divmod(d.start_us, DAY_US)
     t = (dt.datetime.min + dt.timedelta(microseconds=tod)).time()
     if host_t is not None:
         host = dt.datetime.fromtimestamp(host_t)
         near = [dt.datetime.combine(host.date() + dt.timedelta(days=k), t) for k in (-1, 0, 1)]
-        return min(near, key=lambda c: abs(c - host)).isoformat()
+        return min(near, key=lambda c: abs(c - host)).astimezone().isoformat()
     if date is None:
         return t.isoformat()
-    return dt.datetime.combine(date + dt.timedelta(days=days), t).isoformat()
+    return dt.datetime.combine(date + dt.timedelta(days=days), t).astimezone().isoformat()
 
 
 class Analyser:

@@ -73,6 +73,7 @@ class Day:
     metadata_for_descents: list[tuple[frozenset[int], Metadata]] = field(default_factory=list)
     invalid: dict[int, str] = field(default_factory=dict)
     models: dict[int, FitModel] = field(default_factory=dict)
+    _base: Metadata | None = field(default=None, repr=False)  # the config's, built once
 
     @classmethod
     def start(cls, config: StationConfig, track: Track, date: dt.date | None = None) -> Day:
@@ -81,6 +82,11 @@ class Day:
     # -- metadata
 
     def base_metadata(self) -> Metadata:
+        if self._base is None:
+            self._base = self._config_metadata()
+        return self._base
+
+    def _config_metadata(self) -> Metadata:
         cfg = self.config
         values: dict[str, object] = {"mass_kg": cfg.mass_kg, **cfg.metadata}
         if "pressure_hpa" in cfg.air:

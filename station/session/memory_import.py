@@ -25,7 +25,7 @@ from station.session import store as sessions
 from station.session.config import StationConfig
 from station.session.rawlog import RawLogWriter, read_rawlog
 from station.timing.framing import LineFramer
-from station.timing.impulses import DAY_US, Impulse
+from station.timing.impulses import DAY_US, Edit, Impulse
 from station.timing.wireformats import make_parser
 
 IMPORTS = "imports"
@@ -47,6 +47,11 @@ def read_import(path: str) -> bytes:
     return read_bytes(path, MAX_IMPORT_BYTES, "capture or memory download")
 
 
+def _is_impulse(p) -> bool:
+    """An impulse line, or an ALGE line repeated from the timer's memory (flag ``m``)."""
+    return isinstance(p, Impulse) or (isinstance(p, Edit) and p.kind == "repeated from memory")
+
+
 def _identities(data: bytes, protocol: str) -> list[tuple[str, tuple[str, int], int | None]]:
     """(line text, (channel, time of day), device day) of every impulse line in the bytes."""
     framer = LineFramer()
@@ -54,7 +59,7 @@ def _identities(data: bytes, protocol: str) -> list[tuple[str, tuple[str, int], 
     out = []
     for line in framer.feed(data) + framer.flush():
         p = parser.parse(line)
-        if isinstance(p, Impulse):
+        if _is_impulse(p):
             out.append((line, (p.channel, p.tod_us % DAY_US), p.day))
     return out
 
@@ -105,7 +110,7 @@ def import_into(path: str, session: str) -> ImportReport:
             continue
         for line in framer.feed(chunk.data):
             p = parser.parse(line)
-            if isinstance(p, Impulse):
+            if _is_impulse(p):
                 have.add((p.channel, p.tod_us % DAY_US))
     found = _identities(data, protocol)
     missing = [line for line, ident, _day in found if ident not in have]

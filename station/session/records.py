@@ -152,7 +152,8 @@ class Metadata:
 def _fields() -> tuple[MetadataField, ...]:
     out = []
     for f in fields(Metadata):
-        kind, label, unit, kw = f.metadata["spec"]
+        kind, label, unit, spec = f.metadata["spec"]
+        kw = dict(spec)
         option = kw.pop("option", "--" + f.name.replace("_", "-"))
         out.append(MetadataField(f.name, kind, label, unit, option, **kw))
     return tuple(out)

@@ -1,4 +1,6 @@
-"""The results CSV: one row per descent, a ``#`` header saying what it was computed from.
+"""The results CSV: one row per descent, a ``#`` header saying what it was computed from and
+the unit of each number column (``# units:``; the column names stay as they are, because other
+code reads them).
 
 Read it back with ``read_results`` or ``pandas.read_csv(path, comment="#")``; text fields are
 quoted, so a ``#`` in the notes stays part of them. Text fields are also safe to open in a
@@ -94,11 +96,29 @@ def results_frame(rows: list[dict[str, Any]]) -> list[list[Any]]:
     return out
 
 
+#: the unit of each number column ("1" for a pure number), written in the ``# units:`` line
+UNITS = {
+    "descent": "1", "start_time": "ISO 8601 local time with UTC offset", "photocells_used": "1",
+    "v0": "m/s", "cda": "m2", "cda_lo": "m2", "cda_hi": "m2", "mu": "1", "mu_lo": "1",
+    "mu_hi": "1", "mu1": "s/m", "sigma_s2": "s2", "rms_residual_ms": "ms", "mass_kg": "kg",
+    "air_density": "kg/m3", "wind_ms": "m/s (+ tailwind)", "air_temperature_c": "degC",
+    "snow_temperature_c": "degC", "pressure_hpa": "hPa", "humidity_pct": "%",
+}  # fmt: skip
+
+
+def header_line(key: str, value: Any) -> str:
+    """``# key: value`` on one line without commas or semicolons (:func:`header_text`), so a
+    spreadsheet that splits on either keeps each header line in one cell, and pandas'
+    ``comment="#"`` skips it."""
+    return f"# {header_text(key)}: {header_text(value)}"
+
+
 def write_results_to(fh: IO[str], rows: list[dict[str, Any]], header: dict[str, str]) -> None:
     """The results CSV into an open text file (``newline=""``), e.g. standard output."""
     cells = results_frame(rows)
     lines = [f"# station {__version__} results"]
-    lines += [f"# {header_text(k)}: {header_text(v)}" for k, v in header.items()]
+    lines += [header_line(k, v) for k, v in header.items()]
+    lines.append(header_line("units", " | ".join(f"{k} {u}" for k, u in UNITS.items())))
     fh.write("\n".join(lines) + "\n")
     # the csv module, not DataFrame.to_csv: numbers must stay numbers (unquoted, full
     # precision) while every text field is quoted, so a "#" in the notes is safe

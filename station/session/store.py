@@ -166,14 +166,15 @@ def _digest(path: str) -> str:
 
 def results_header(cfg: StationConfig, survey_name: str) -> dict[str, str]:
     """What the results were computed from, the same live and in replay."""
-    air = " | ".join(f"{k} {v:g}" for k, v in cfg.air.items())
+    # the config's air data, then the density it gives (a given density is not said twice)
+    air = "".join(f"{k} {v:g} | " for k, v in cfg.air.items() if k != "density")
     return {
         "survey": f"{survey_name} ({os.path.basename(cfg.survey_path)} | "
         f"sha256 {_digest(cfg.survey_path)})",
         "config": f"{os.path.basename(cfg.path)} (sha256 {_digest(cfg.path)})",
         "protocol": cfg.serial.protocol,
         "skier": f"mass {cfg.mass_kg:g} kg",
-        "air": f"{air} | density {cfg.air_density:.4f} kg/m3",
+        "air": f"{air}density {cfg.air_density:.4f} kg/m3",
         "fit": f"model {cfg.model} | 90 % intervals linearised (Wald) | Student t",
     }
 

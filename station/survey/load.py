@@ -10,6 +10,7 @@ A survey YAML (documented in ``surveys/README.md``)::
     default_setup: {station: S0, e: 0, n: 0, h: 0, instrument_height: 1.5}
     precision: {angle_arcsec: 3, distance_mm: 2, distance_ppm: 2, target_mm: 5}
     photocells: [PC1, PC2, PC3]        # in order down the run; or {id: PC1, points: [a, b]}
+    points: run_points.csv             # and/or coordinates: id,e,n,h[,sigma_h] (coords.py)
     exclude: [BS1]                     # observed points that are neither profile nor photocell
     profile_pattern: "^P"              # optional: only ids matching this are profile points
 
@@ -24,6 +25,7 @@ import re
 from dataclasses import dataclass, field, replace
 
 from station.errors import InputError
+from station.survey.coords import read_points_csv
 from station.survey.gsi import read_gsi
 from station.survey.polar import (
     KnownPoint,
@@ -67,6 +69,11 @@ class Survey:
     setups: list[Setup] = field(default_factory=list)
     refraction_k: float | None = 0.13
     warnings: list[str] = field(default_factory=list)
+    #: geodetic latitude of the run (degrees, + north), for local gravity; None: not given
+    latitude_deg: float | None = None
+    #: altitude of the run above sea level (m) when the survey's heights are local; None: the
+    #: survey's own heights are above sea level
+    altitude_m: float | None = None
 
 
 def parse_angle(value: object, unit: str, where: Section, key: str) -> float:
@@ -225,6 +232,9 @@ _TOP_KEYS = {
     "exclude",
     "profile_pattern",
     "notes",
+    "latitude_deg",
+    "altitude_m",
+    "points",
 }
 
 
@@ -262,9 +272,10 @@ def load_survey(path: str) -> Survey:
         default_setup = _setup_from(dsec, unit, "default")
 
     has_file, has_inline = top.has("observations"), top.has("setups")
-    if has_file == has_inline:
+    has_points = top.has("points")
+    if has_file and has_inline or not (has_file or has_inline or has_points):
         raise InputError(
-            "give either 'observations: FILE' or inline 'setups:', exactly one of them",
+            "give 'observations: FILE' or inline 'setups:' (not both), and/or 'points: FILE.csv'",
             path=path,
             line=getattr(data, "line", None),
             field="observations",
@@ -279,9 +290,17 @@ def load_survey(path: str) -> Survey:
         if not os.path.exists(full):
             raise top.error("observations", f"observation file {obs_path!r} not found")
         obs = interpret_gsi(read_gsi(full), full, default_setup)
-    else:
+    elif has_inline:
         obs = _inline_observations(top, path, unit)
+    else:
+        obs = ObservationSet()
     reduced = reduce_all(obs, k, precision)
+    if has_points:
+        csv_path = top.get("points", str)
+        full = os.path.join(os.path.dirname(os.path.abspath(path)), csv_path)
+        if not os.path.exists(full):
+            raise top.error("points", f"coordinate file {csv_path!r} not found")
+        reduced += read_points_csv(full, precision.target_mm * 1e-3)
 
     photocells: list[PhotocellDef] = []
     raw_pcs = top.data.get("photocells") or []
@@ -321,6 +340,12 @@ def load_survey(path: str) -> Survey:
             pattern = re.compile(top.get("profile_pattern", str))
         except re.error as exc:
             raise top.error("profile_pattern", f"not a regular expression: {exc}") from None
+    latitude = top.get("latitude_deg", float)
+    if latitude is not None and not (math.isfinite(latitude) and -90.0 <= latitude <= 90.0):
+        raise top.error("latitude_deg", f"must lie between -90 and 90 degrees, got {latitude!r}")
+    altitude = top.get("altitude_m", float)
+    if altitude is not None and not (math.isfinite(altitude) and -500.0 <= altitude <= 9000.0):
+        raise top.error("altitude_m", f"must lie between -500 and 9000 m, got {altitude!r}")
     survey = _assemble(
         path,
         top.get("name", str, os.path.basename(path)),
@@ -341,6 +366,8 @@ def load_survey(path: str) -> Survey:
                     line=pc.line,
                     field=f"photocells {pc.id}",
                 )
+    survey.latitude_deg = latitude
+    survey.altitude_m = altitude
     return survey
 
 

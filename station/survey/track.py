@@ -2,10 +2,17 @@
 
 Survey points (E, N, H) are projected onto the vertical plane of a best-fit horizontal axis:
 x = horizontal distance along the axis, downhill, from the uppermost profile point; y = height.
-The profile is a cubic *smoothing* spline weighted by each point's height precision
-(``make_splrep``, w = 1/σ, s = n): continuous h, h′ and h″, and no curvature spikes from noisy
-points, which an interpolating spline would turn into normal-force errors (survey-formats.md
-§4.2). Photocell posts stand beside the track; only their projection onto x is used.
+
+The profile is a cubic smoothing spline whose smoothing is estimated from the points themselves
+(REML, :mod:`station.survey.smoothing`): exact points are nearly interpolated, rough ones (a
+prism pole on snow scatters 1–2 cm) properly smoothed; the declared precision only sets the
+relative weights and a floor under the scatter used for screening and uncertainty. The points'
+estimated scatter is reported.
+
+Gross errors (a reflector height booked 0.1–0.3 m wrong) are screened one point at a time by
+their leave-one-out residual in units of the data's own robust scatter (MAD), so one bad point
+never condemns its neighbours and a rough but honest survey is never refused. Photocell posts
+stand beside the track; only their projection onto x is used, with its survey precision.
 """
 
 from __future__ import annotations
@@ -15,20 +22,24 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.interpolate import make_splrep
 
 from station.errors import InputError
 from station.survey.load import Survey
+from station.survey.smoothing import SmoothingFit, fit_smoothing_spline
 
 Array = np.ndarray
 
-#: a profile point further than this from the spline, in units of its σ, is left out
-OUTLIER_SIGMA = 4.0
-#: ... and one further than this from a quadratic through its neighbours, before the spline
-SCREEN_SIGMA = 5.0
-SCREEN_NEIGHBOURS = 3  # on each side
-#: more outliers than this fraction of the profile points: it is not a profile of one run
+#: a point whose leave-one-out residual exceeds this many robust standard deviations is a gross
+#: error (at 4.5 an honest survey of 400 points loses one point in some 400 surveys)
+SCREEN_Z = 4.5
+#: more gross errors than this fraction of the points (and more than MIN_REFUSE of them): the
+#: points are not one profile
 MAX_OUTLIER_FRACTION = 0.2
+MIN_REFUSE = 3
+#: a scatter about the profile larger than this (m) is not snow roughness: not one profile
+MAX_SCATTER_M = 0.25
+#: profile points closer than this (m) in x are merged into their precision-weighted mean
+MERGE_M = 0.05
 #: profile points further than this (m) from the fall-line axis are not on the centre line
 MAX_LATERAL_M = 5.0
 #: gaps between profile points wider than this (m) cannot carry the curvature
@@ -78,6 +89,8 @@ class TrackPhotocell:
     y: float
     slope_deg: float
     lateral_m: float
+    #: standard deviation (m) of x from the survey precision of the photocell's post(s)
+    sigma_x_m: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -93,6 +106,35 @@ class ProfilePoint:
     used: bool
 
 
+@dataclass(frozen=True)
+class ProfileUncertainty:
+    """The profile's uncertainty as perturbations of its spline coefficients.
+
+    Cov(coefficients) = L Lᵀ, L = ``factor`` (m × r): each column is one independent standard
+    perturbation of the profile (the smoothing spline's sampling covariance at the scatter
+    ``sigma_m``, floored at the declared precision).
+    """
+
+    knots: Array
+    coef: Array
+    factor: Array
+    sigma_m: float
+
+    def profile(
+        self, delta: Array | None = None, x_min: float = -math.inf, x_max: float = math.inf
+    ) -> Profile:
+        """The profile with coefficients coef + delta (delta = factor @ e for a standard draw)."""
+        from scipy.interpolate import BSpline
+
+        c = self.coef if delta is None else self.coef + delta
+        return spline_profile(BSpline(self.knots, c, 3, extrapolate=True), x_min, x_max)
+
+
+def spline_profile(spl, x_min: float, x_max: float) -> Profile:
+    """A Profile from any scipy spline with ``derivative``."""
+    return Profile(h=spl, dh=spl.derivative(1), d2h=spl.derivative(2), x_min=x_min, x_max=x_max)
+
+
 @dataclass
 class Track:
     """The surveyed run: profile spline, photocells, survey QA values and warnings."""
@@ -106,6 +148,26 @@ class Track:
     residual_rms_m: float = 0.0
     warnings: list[str] = field(default_factory=list)
     source: str = ""
+    #: the points' scatter about the profile estimated from the points themselves (m)
+    scatter_m: float = 0.0
+    #: the declared precision of the profile points (RMS σ, m): the floor under scatter_m
+    declared_sigma_m: float = 0.0
+    #: effective number of parameters of the spline (3 = a parabola, n = interpolation)
+    spline_edf: float = 0.0
+    #: the profile's uncertainty, for intervals that carry the survey; None for closed forms
+    uncertainty: ProfileUncertainty | None = None
+    #: geodetic latitude (degrees) and altitude above sea level (m, None: the profile's own
+    #: heights are above sea level), for local gravity
+    latitude_deg: float | None = None
+    altitude_m: float | None = None
+
+    @property
+    def mean_height_m(self) -> float:
+        """Mean height of the timed section: the altitude for gravity."""
+        if self.altitude_m is not None:
+            return self.altitude_m
+        a, b = self.timed_section()
+        return float(np.mean(self.profile.h(np.linspace(a, b, 21))))
 
     def photocell(self, pid: str) -> TrackPhotocell:
         for pc in self.photocells:
@@ -142,52 +204,55 @@ class Track:
         return math.degrees(math.atan2(ue, un)) % 360.0
 
 
-def _merge_close(x: Array, y: Array, sigma: Array, tol: float = 1e-3) -> tuple[Array, Array, Array]:
-    """Points at (almost) the same x become one, the precision-weighted mean."""
-    xs, ys, ss = [x[0]], [y[0]], [sigma[0]]
-    for xi, yi, si in zip(x[1:], y[1:], sigma[1:], strict=True):
-        if xi - xs[-1] < tol:
-            w1, w2 = 1.0 / ss[-1] ** 2, 1.0 / si**2
-            ys[-1] = (w1 * ys[-1] + w2 * yi) / (w1 + w2)
-            xs[-1] = (w1 * xs[-1] + w2 * xi) / (w1 + w2)
-            ss[-1] = 1.0 / math.sqrt(w1 + w2)
+def _merge_groups(x: Array, tol: float = MERGE_M) -> list[list[int]]:
+    """Indices of (sorted) points grouped where consecutive x are closer than ``tol``."""
+    groups = [[0]]
+    for i in range(1, len(x)):
+        if x[i] - x[groups[-1][-1]] < tol:
+            groups[-1].append(i)
         else:
-            xs.append(xi)
-            ys.append(yi)
-            ss.append(si)
-    return np.array(xs), np.array(ys), np.array(ss)
+            groups.append([i])
+    return groups
 
 
-def screen_outliers(x: Array, y: Array, sigma: Array) -> list[int]:
-    """Indices of points that a quadratic through their neighbours does not explain.
+@dataclass(frozen=True)
+class ScreenedFit:
+    """The smoothing spline after screening, and the groups it left out with their z-scores."""
 
-    A smoothing spline adds knots until it meets its residual target, so it *follows* a gross
-    error (a wrong reflector height) and turns it into a curvature spike instead of leaving it
-    as a residual. Each point is therefore first compared with a weighted quadratic through up
-    to three neighbours on each side; the worst point beyond SCREEN_SIGMA is removed and the
-    check repeated, so one bad point does not condemn its neighbours.
+    fit: SmoothingFit
+    keep: Array  # bool per group
+    removed: list[tuple[int, float, float]]  # (group, leave-one-out residual m, z)
+    scale_m: float  # robust scatter used for the last screening step
+
+
+def screen_and_fit(xg: Array, yg: Array, sg: Array, max_removed: int) -> ScreenedFit:
+    """Fit the spline, then remove the single worst point while its standardised residual
+    exceeds SCREEN_Z robust standard deviations, refitting after each removal.
+
+    The scale is the points' own: 1.4826 × the median absolute standardised residual (a gross
+    error barely moves the median), floored at the declared precision so that exact points do
+    not make millimetre curvature look like gross errors. Each residual is divided by its own
+    standard deviation under the smoother, so a spline that partly follows a gross error still
+    shows it (25 cm booked wrong leaves some 17 cm), and the ends, which the spline follows
+    closely, are not judged by the middle's yardstick. Only the worst point goes each round,
+    so its pull on its neighbours is gone before they are judged: no cascade. Stops after
+    ``max_removed + 1`` removals (the caller refuses then). The reported deviation is the
+    point against the profile of all the others (leave-one-out).
     """
-    keep = list(range(len(x)))
-    removed: list[int] = []
-    while len(keep) >= 2 * SCREEN_NEIGHBOURS + 1:
-        worst, worst_z = -1, SCREEN_SIGMA
-        for pos, i in enumerate(keep):
-            lo = max(0, pos - SCREEN_NEIGHBOURS)
-            hi = min(len(keep), pos + SCREEN_NEIGHBOURS + 1)
-            nb = [keep[j] for j in range(lo, hi) if j != pos]
-            if len(nb) < 4:
-                continue
-            xn, yn, sn = x[nb], y[nb], sigma[nb]
-            coef = np.polyfit(xn - x[i], yn, 2, w=1.0 / sn)
-            scale = math.sqrt(sigma[i] ** 2 + float(np.median(sn)) ** 2)
-            z = abs(y[i] - coef[-1]) / scale
-            if z > worst_z:
-                worst, worst_z = i, z
-        if worst < 0:
-            break
-        keep.remove(worst)
-        removed.append(worst)
-    return removed
+    keep = np.ones(len(xg), dtype=bool)
+    removed: list[tuple[int, float, float]] = []
+    while True:
+        idx = np.flatnonzero(keep)
+        fit = fit_smoothing_spline(xg[idx], yg[idx], sg[idx])
+        z1 = fit.standardised(yg[idx], 1.0)
+        scale = max(1.4826 * float(np.median(np.abs(z1))), fit.sigma_ref)
+        z = z1 / scale
+        worst = int(np.argmax(np.abs(z)))
+        if abs(z[worst]) <= SCREEN_Z or len(removed) > max_removed or len(idx) <= 7:
+            return ScreenedFit(fit, keep, removed, scale)
+        loo = float(fit.leave_one_out(yg[idx])[worst])
+        keep[idx[worst]] = False
+        removed.append((int(idx[worst]), loo, float(z[worst])))
 
 
 def build_track(survey: Survey) -> Track:
@@ -217,56 +282,78 @@ def build_track(survey: Survey) -> Track:
     x_all -= x_all.min()  # exactly 0 at the uppermost point (rounding left ±1e-14)
     lat_all = (en - origin) @ left
 
-    order = np.argsort(x_all)
+    order = np.argsort(x_all, kind="stable")
     ids = [pts[i].point for i in order]
     x, y, s_, lat = x_all[order], hh[order], sig[order], lat_all[order]
-    used = np.ones(len(x), dtype=bool)
     warnings = list(survey.warnings)
 
-    def fit(mask: Array):
-        xm, ym, sm = _merge_close(x[mask], y[mask], s_[mask])
-        if len(xm) < 6:
-            raise InputError(
-                "fewer than 6 distinct profile points along the fall line",
-                path=survey.path,
-                field="profile points",
-            )
-        return make_splrep(xm, ym, w=1.0 / sm, k=3, s=float(len(xm)))
-
-    removed = screen_outliers(x, y, s_)
-    if len(removed) > max(2, MAX_OUTLIER_FRACTION * len(x)):
+    groups = _merge_groups(x)
+    if len(groups) < 6:
         raise InputError(
-            f"{len(removed)} of {len(x)} profile points do not lie on one smooth line along the "
-            f"fall line (lateral offsets up to {np.abs(lat).max():.1f} m): this is not a profile "
-            "of the run; name the centre-line points with profile_pattern or exclude the others",
+            "fewer than 6 distinct profile points along the fall line",
             path=survey.path,
             field="profile points",
         )
-    for i in removed:
-        used[i] = False
-    spl = fit(used)
-    resid = y - spl(x)
-    bad = (np.abs(resid) > OUTLIER_SIGMA * s_) | ~used
-    if bad.any():
-        for i in np.flatnonzero(bad):
-            warnings.append(
-                f"profile point {ids[i]} lies {resid[i] * 1000:.0f} mm from the profile "
-                f"(> {OUTLIER_SIGMA:.0f}σ = {OUTLIER_SIGMA * s_[i] * 1000:.0f} mm); left out"
-            )
-        used = ~bad
-        spl = fit(used)
-        resid = y - spl(x)
+    wgt = [1.0 / s_[g] ** 2 for g in groups]
+    xg = np.array([np.average(x[g], weights=w) for g, w in zip(groups, wgt, strict=True)])
+    yg = np.array([np.average(y[g], weights=w) for g, w in zip(groups, wgt, strict=True)])
+    sg = np.array([1.0 / math.sqrt(w.sum()) for w in wgt])
 
-    d1 = spl.derivative(1)
-    d2 = spl.derivative(2)
-    profile = Profile(h=spl, dh=d1, d2h=d2, x_min=float(x[used].min()), x_max=float(x[used].max()))
+    max_removed = max(MIN_REFUSE, int(MAX_OUTLIER_FRACTION * len(groups)))
+    sf = screen_and_fit(xg, yg, sg, max_removed)
+    fit = sf.fit
+
+    def named(gis: list[int]) -> str:
+        names = [f"{ids[i]} ({lat[i]:+.1f} m lateral)" for gi in gis for i in groups[gi]]
+        more = f" and {len(names) - 8} more" if len(names) > 8 else ""
+        return ", ".join(names[:8]) + more
+
+    if len(sf.removed) > max_removed:
+        worst = [g for g, _, _ in sf.removed]
+        raise InputError(
+            f"more than {max_removed} of {len(groups)} profile points do not lie on one smooth "
+            f"line along the fall line: {named(worst)} lie far off the profile of the others "
+            f"(largest lateral offset {np.abs(lat).max():.1f} m); this is not a profile of the "
+            "run. Name the centre-line points with profile_pattern or exclude the others",
+            path=survey.path,
+            field="profile points",
+        )
+    if fit.sigma_hat > MAX_SCATTER_M:
+        resid = yg[sf.keep] - fit.fitted
+        far = list(np.flatnonzero(sf.keep)[np.argsort(-np.abs(resid))[:5]])
+        raise InputError(
+            f"the profile points scatter {fit.sigma_hat:.2f} m about any smooth line along the "
+            f"fall line (snow roughness is centimetres); furthest off: {named(far)}. They do "
+            "not lie on one smooth line along the fall line: this is not a profile of the run. "
+            "Name the centre-line points with profile_pattern or exclude the others",
+            path=survey.path,
+            field="profile points",
+        )
+    used = np.ones(len(x), dtype=bool)
+    for gi, loo, z in sf.removed:
+        for i in groups[gi]:
+            used[i] = False
+            warnings.append(
+                f"profile point {ids[i]} lies {loo * 1000:+.0f} mm from the profile of the "
+                f"other points ({abs(z):.1f}× their scatter {sf.scale_m * 1000:.0f} mm): a "
+                "gross error (reflector height?); left out"
+            )
+    spl = fit.spline()
+    x_min, x_max = float(x[used].min()), float(x[used].max())
+    profile = spline_profile(spl, x_min, x_max)
+    resid = y - spl(x)
+    sigma_unc = max(fit.sigma_hat, fit.sigma_ref)
+    uncertainty = ProfileUncertainty(
+        knots=fit.knots, coef=fit.coef, factor=fit.coef_covariance_factor(sigma_unc),
+        sigma_m=sigma_unc,
+    )  # fmt: skip
 
     off = used & (np.abs(lat) > MAX_LATERAL_M)
     if off.any():
-        worst = int(np.argmax(np.where(off, np.abs(lat), 0.0)))
+        worst_i = int(np.argmax(np.where(off, np.abs(lat), 0.0)))
         warnings.append(
             f"{int(off.sum())} profile points lie more than {MAX_LATERAL_M:.0f} m off the "
-            f"fall-line axis (largest {lat[worst]:+.1f} m at {ids[worst]}): does the run curve "
+            f"fall-line axis (largest {lat[worst_i]:+.1f} m at {ids[worst_i]}): does the run curve "
             "in plan, or are these not centre-line points?"
         )
     xu = x[used]
@@ -279,7 +366,9 @@ def build_track(survey: Survey) -> Track:
 
     photocells: list[TrackPhotocell] = []
     for pc in survey.photocells:
-        pe = np.mean([[survey.points[p].e, survey.points[p].n] for p in pc.points], axis=0)
+        post = [survey.points[p] for p in pc.points]
+        pe = np.mean([[q.e, q.n] for q in post], axis=0)
+        sigma_x = math.sqrt(sum(q.sigma_xy**2 for q in post)) / len(post)
         px = float((pe - origin) @ u)
         plat = float((pe - origin) @ left)
         if not profile.x_min <= px <= profile.x_max:
@@ -304,6 +393,7 @@ def build_track(survey: Survey) -> Track:
                 y=float(spl(xa)[0]),
                 slope_deg=float(profile.slope_deg(xa)[0]),
                 lateral_m=plat,
+                sigma_x_m=sigma_x,
             )
         )
     for a, b in zip(photocells, photocells[1:], strict=False):
@@ -340,4 +430,10 @@ def build_track(survey: Survey) -> Track:
         residual_rms_m=rms,
         warnings=warnings,
         source=survey.path,
+        scatter_m=fit.sigma_hat,
+        declared_sigma_m=fit.sigma_ref,
+        spline_edf=fit.edf,
+        uncertainty=uncertainty,
+        latitude_deg=survey.latitude_deg,
+        altitude_m=survey.altitude_m,
     )

@@ -25,6 +25,8 @@ the photocells it has and flagged. Several skiers may be on the run at once (iss
 - **edits** from the timer (ALGE ``c`` ``i``, TAG ``TC`` ``T+`` ``T*`` ``T-``) are applied: a
   cleared impulse leaves its descent, an inserted or edited time enters or replaces one, and a
   finished descent that changed comes out of ``feed``/``edit`` again to be refitted;
+- an impulse repeated from the timer's memory (TAG ``AN``, ALGE ``m``) that is already kept
+  (same channel, same time) is not doubled; one that is not is an impulse like any other;
 - a disconnect is written on the open descents' flags.
 
 Every impulse and edit comes out once in ``events`` with whether it was kept and why not.
@@ -476,6 +478,10 @@ class DescentAssembler:
             return self._remove(e, line, pc, bib)[0]
         if e.kind in ENTERING:
             return self._enter(e, line, pc, bib)
+        if e.kind == "repeated from memory":
+            # ALGE `m`: an impulse from the timer's memory (a download): kept unless it is
+            # already (a live impulse the memory repeats is not doubled)
+            return self.feed(Impulse(e.channel, e.tod_us, 100, e.flag, e.bib, e.day, e.line), line)
         self._event(e, line, pc, False, f"{e.kind}: repeats an earlier impulse; nothing changed")
         return []
 
@@ -528,9 +534,15 @@ class DescentAssembler:
         for d in [*reversed(self.open), *reversed(self.finished)]:
             if not d.times_us or (bib and d.bib != bib):
                 continue
-            if not bib and not (d.times_us[0] <= t or k == 0):
-                continue
-            if t - d.times_us[0] > max(self.timeout_us) * len(self.photocells):
+            if not bib:  # without a bib: the descent whose times it falls among
+                if k == 0:  # a start typed in for a descent that has none
+                    if d.photocells[0] == pc or not 0 < d.times_us[0] - t <= self.timeout_us[0]:
+                        continue
+                else:
+                    j = self.order[d.photocells[-1]]
+                    if not d.times_us[0] <= t <= d.times_us[-1] + self.timeout_us[j]:
+                        continue
+            if abs(t - d.times_us[0]) > max(self.timeout_us) * len(self.photocells):
                 continue
             target = d
             break

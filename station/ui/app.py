@@ -23,7 +23,14 @@ from textual.widgets import DataTable, Footer, Header, RichLog, Static
 from station.session.acquisition import Acquisition
 from station.session.analysis import DescentResult
 from station.session.config import StationConfig
-from station.session.records import FitModel, InvalidMark, LineCounts, ModelChange, ValidMark
+from station.session.records import (
+    FitModel,
+    InvalidMark,
+    LineCounts,
+    ModelChange,
+    Progress,
+    ValidMark,
+)
 from station.timing.impulses import format_tod
 from station.ui.messages import (
     AcquisitionWarning,
@@ -113,7 +120,7 @@ class StationApp(App):
         self.photocell_ids: tuple[str, ...] = ()
         # what the messages brought: the UI's own snapshots of the day
         self.results: dict[int, DescentResult] = {}
-        self.progress: Any = None  # the latest Progress
+        self.progress: Progress | None = None
         self.counts = LineCounts()
         self.metadata_from: int | None = None  # where the latest metadata entered applies from
         self.latest: int | None = None
@@ -121,6 +128,7 @@ class StationApp(App):
             "no comparison yet: it needs fitted descents with ski or wax entered (m)"
         )
         self.connection = "starting"
+        self.problem = ""  # the latest failure the acquisition went on after (status line)
         self.sub_title = mode
 
     # ------------------------------------------------------------------ layout
@@ -185,7 +193,8 @@ class StationApp(App):
     def _update_status(self) -> None:
         c = self.counts
         counts = f"{c.impulses} impulses · {c.edits} edits · {c.unparsed} unparsed"
-        self.main.query_one("#status", Static).update(f" {self.connection}  │  {counts}")
+        problem = f"  │  ! {self.problem}" if self.problem else ""
+        self.main.query_one("#status", Static).update(f" {self.connection}  │  {counts}{problem}")
 
     def on_impulses_arrived(self, msg: ImpulsesArrived) -> None:
         self.counts = msg.counts
@@ -260,6 +269,8 @@ class StationApp(App):
             self.screen.update(msg.text)
 
     def on_acquisition_warning(self, msg: AcquisitionWarning) -> None:
+        self.problem = msg.text
+        self._update_status()
         self.main.query_one("#log", RichLog).write(f"! {msg.text}")
         self.notify(msg.text, title="the recording goes on", severity="error", timeout=10)
 
@@ -306,6 +317,13 @@ class StationApp(App):
             + "\n"
             + line("v0", "v0", ".3f", "m/s")
             + f"   rms {_f(row.rms_residual_ms, '.2f')} ms · {row.model} model"
+            + (  # the velocity model's μ1: always with its interval, flagged when ∋ 0
+                "\n"
+                + line("μ1", "mu1", ".2e", "s/m")
+                + ("  (not distinguishable from 0)" if "mu1" in f.consistent_with_zero else "")
+                if "mu1" in e
+                else ""
+            )
             + (f"\n{f.message}" if f.message else "")
         )
         self.main.query_one("#result", Static).update(text)

@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Grid, Vertical, VerticalScroll
 from textual.screen import ModalScreen
+from textual.validation import ValidationResult, Validator
 from textual.widgets import Button, Input, Label, Static
 
+from station.numbers import parse_number
 from station.session.records import METADATA_FIELDS
 
 HELP = """\
@@ -54,8 +57,48 @@ class HelpScreen(ModalScreen[None]):
         self.dismiss(None)
 
 
+#: plausible ranges of the number fields (min, max, unit shown in the message)
+RANGES: dict[str, tuple[float, float]] = {
+    "mass_kg": (20.0, 200.0),
+    "air_temperature_c": (-60.0, 50.0),
+    "snow_temperature_c": (-60.0, 5.0),
+    "pressure_hpa": (300.0, 1100.0),
+    "humidity_pct": (0.0, 100.0),
+    "wind_ms": (0.0, 60.0),
+    "wind_from_deg": (0.0, 360.0),
+}
+
+
+class NumberField(Validator):
+    """A metadata number: a decimal point or comma, within a plausible range. Its message is
+    shown in the field's own border, so it is seen where the eyes are, at any terminal size."""
+
+    def __init__(self, key: str) -> None:
+        super().__init__()
+        self.key = key
+
+    def validate(self, value: str) -> ValidationResult:
+        if not value.strip():
+            return self.success()
+        try:  # a decimal point or comma (72,5 on a German laptop), never nan or inf
+            number = parse_number(value)
+        except ValueError as exc:  # short: it must fit the field's border at 80 columns
+            why = str(exc)
+            if "both" in why:
+                return self.failure("point or comma, not both")
+            return self.failure("too large" if "too large" in why else "not a number")
+        lo, hi = RANGES.get(self.key, (-math.inf, math.inf))
+        if not lo <= number <= hi:
+            return self.failure(f"must lie between {lo:g} and {hi:g}")
+        return self.success()
+
+
 class MetadataScreen(ModalScreen[dict[str, Any] | None]):
-    """Edit the metadata for the descents that start from now on."""
+    """Edit the metadata for the descents that start from now on.
+
+    Only what the engineer changed is returned: a pre-filled field saved as it was must not
+    become a new entry that overrides what was entered for later descents (the demo's
+    rotation of pairs, a refit's mass)."""
 
     BINDINGS = [Binding("escape", "cancel", "cancel")]
 
@@ -63,25 +106,32 @@ class MetadataScreen(ModalScreen[dict[str, Any] | None]):
         super().__init__()
         self.current = current
         self.next_number = next_number
+        self.initial: dict[str, str] = {}
+
+    @staticmethod
+    def _text(value: Any) -> str:
+        if value is None:
+            return ""
+        return f"{value:g}" if isinstance(value, float) else str(value)
 
     def compose(self) -> ComposeResult:
         with VerticalScroll(id="form"):
             yield Label(f"Run metadata for descent {self.next_number} and after  (Enter saves)")
+            yield Label("", id="error", markup=False)  # "[kg]" in a message is a unit
             with Grid(id="fields"):
                 for key in KINDS:
                     yield Label(LABELS[key], markup=False)  # "[hPa]" is a unit, not markup
-                    value = self.current.get(key)
-                    yield Input(
-                        ""
-                        if value is None
-                        else f"{value:g}"
-                        if isinstance(value, float)
-                        else str(value),
+                    number = KINDS[key] is float
+                    self.initial[key] = self._text(self.current.get(key))
+                    field = Input(
+                        self.initial[key],
                         id=f"f_{key}",
-                        type="number" if KINDS[key] is float else "text",
+                        # text, not type="number": that drops a typed comma, so 72,5 became 725
+                        type="text",
+                        validators=[NumberField(key)] if number else None,
                         valid_empty=True,  # every field is optional
                     )
-            yield Label("", id="error")
+                    yield field
             with Grid(id="buttons"):
                 yield Button("Save", variant="primary", id="save")
                 yield Button("Cancel", id="cancel")
@@ -89,30 +139,41 @@ class MetadataScreen(ModalScreen[dict[str, Any] | None]):
     def on_mount(self) -> None:
         self.query_one("#f_skier", Input).focus()  # type at once; Enter saves
 
+    def on_input_changed(self, event: Input.Changed) -> None:
+        """The message next to the field while typing, not only when saving."""
+        result = event.validation_result
+        if result is not None and not result.is_valid:
+            event.input.border_subtitle = result.failure_descriptions[0]
+        else:
+            event.input.border_subtitle = ""
+            self.query_one("#error", Label).update("")
+
+    def _refuse(self, key: str, message: str) -> None:
+        field = self.query_one(f"#f_{key}", Input)
+        field.border_subtitle = message
+        field.add_class("-invalid")
+        field.focus()  # scrolls it into view in a form taller than the terminal
+        text = f"{LABELS[key]}: {field.value.strip()!r}: {message}"
+        self.query_one("#error", Label).update(text)
+        self.notify(text, severity="error", timeout=4)
+
     def _values(self) -> dict[str, Any] | None:
         out: dict[str, Any] = {}
         for key, kind in KINDS.items():
             text = self.query_one(f"#f_{key}", Input).value.strip()
-            if text == "":
-                continue
+            if text == "" or text == self.initial.get(key, "").strip():
+                continue  # empty, or pre-filled and left as it was
             if kind is float:
-                try:
-                    out[key] = float(text)
-                except ValueError:
-                    self.query_one("#error", Label).update(
-                        f"{LABELS[key]}: {text!r} is not a number"
-                    )
+                result = NumberField(key).validate(text)
+                if not result.is_valid:
+                    self._refuse(key, result.failure_descriptions[0])
                     return None
+                out[key] = parse_number(text)
             else:
                 out[key] = text
-        if "mass_kg" in out and out["mass_kg"] <= 0:
-            self.query_one("#error", Label).update("mass must be greater than 0")
-            return None
-        if out.get("wind_ms") and "wind_from_deg" not in out:
-            self.query_one("#error", Label).update("wind speed needs the direction it comes from")
-            return None
-        if "humidity_pct" in out and not 0 <= out["humidity_pct"] <= 100:
-            self.query_one("#error", Label).update("humidity must lie between 0 and 100 %")
+        wind_dir = "wind_from_deg" in out or self.initial.get("wind_from_deg", "").strip()
+        if out.get("wind_ms") and not wind_dir:
+            self._refuse("wind_from_deg", "a wind speed needs the direction it comes from")
             return None
         return out
 
