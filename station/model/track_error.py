@@ -119,7 +119,7 @@ def add_survey_uncertainty(
     once through S (measured: 95 % coverage of the "90 %" intervals instead of 92 %). The
     estimate is floored at a tenth of the raw one, so the timing never vanishes.
     """
-    from scipy.stats import t as student_t
+    from scipy.special import stdtrit  # Student-t quantile, without loading scipy.stats
 
     if result.covariance is None or result.dof < 1:
         return
@@ -147,7 +147,7 @@ def add_survey_uncertainty(
             continue
         # Welch-Satterthwaite: only the timing part is estimated (from dof residuals)
         dof_eff = result.dof * (vtot / vt) ** 2 if vt > 0 else math.inf
-        q = float(student_t.ppf(0.95, min(dof_eff, 1e6)))
+        q = float(stdtrit(min(dof_eff, 1e6), 0.95))
         sd = math.sqrt(vtot)
         lo, hi = est - q * sd, est + q * sd
         if k in ("cda", "mu", "v0", "mu1"):
@@ -167,7 +167,7 @@ def judge_goodness(
     """χ² of the residuals against the timer precision (and the survey's share of the times'
     covariance, so that an honest rough survey is not called a poor fit); status ``poor-fit``
     if improbable."""
-    from scipy.stats import chi2
+    from scipy.special import chdtrc  # χ² survival function, without loading scipy.stats
 
     result.timer_precision_s = timer_precision_s
     if result.dof < 1 or not timer_precision_s > 0:
@@ -180,7 +180,7 @@ def judge_goodness(
     if survey_cov is not None:
         cov = cov + survey_cov
     q = float(r @ np.linalg.solve(cov, r))
-    p = float(chi2.sf(q, result.dof))
+    p = float(chdtrc(result.dof, q))
     result.chi2 = q
     result.chi2_p = p
     if result.status == "ok" and p < POOR_FIT_P:
