@@ -30,6 +30,7 @@ import termios
 import time
 import tty
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -239,7 +240,8 @@ def run(args: argparse.Namespace) -> int:
     first_start = timer.tod_us() + int(args.first_after * args.speed * 1e6)
     first_start = -(-first_start // 1_000_000) * 1_000_000  # whole seconds: reproducible
     edits = args.protocol != "microgate"
-    state = {"next_start": first_start, "prev_end": None, "k": 0, "seq": 0}
+    # counters the planning closures share (prev_end is None before the first descent)
+    state: dict[str, Any] = {"next_start": first_start, "prev_end": None, "k": 0, "seq": 0}
     heap: list[Planned] = []
     truths: dict[int, dict] = {}
     remaining: dict[int, int] = {}

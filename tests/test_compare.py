@@ -123,7 +123,7 @@ def _record_day(tmp_path, skis: str, seed: int):
     """Eight descents in ABBAABBA on a drifting track, recorded from the simulated timer."""
     _, session, _ = record_with_sim(
         tmp_path,
-        ["--speed", "20", "--first-after", "2", "--hold", "1", "--descents", "8",
+        ["--speed", "20", "--first-after", "4", "--hold", "1", "--descents", "8",
          "--interval", "60", "--skis", skis, "--order", "ABBAABBA", "--noise-ms", "0.5",
          "--mu-drift-per-hour", "0.02", "--seed", str(seed)],
         max_descents=8,

@@ -46,10 +46,13 @@ def test_overlapping_skiers_in_counter_mode_with_edits(tmp_path):
     df = pd.read_csv(tmp_path / "s" / "results.csv", comment="#")
     ok = df[df["status"] == "ok"]
     assert len(ok) == 5 and (ok["photocells_used"] == 9).all()
-    # every fit holds its skier's true friction: no impulse went to the wrong skier
+    # no impulse went to the wrong skier: one would leave residuals of seconds, not of the
+    # timer's 0.3 ms noise, and pull μ far from its skier's (a 90 % interval would miss the
+    # truth one time in ten, so the check is on the residuals and a wide band, not coverage)
     for row, tr in zip(ok.itertuples(), sorted(truths, key=lambda t: t["start_tod_us"]),
                        strict=True):  # fmt: skip
-        assert row.mu_lo <= tr["mu"] <= row.mu_hi
+        assert row.rms_residual_ms < 1.0
+        assert abs(row.mu - tr["mu"]) < 0.001
     # the cleared false starts left descents with no time, said so
     assert (df["status"] == "aborted").sum() == sum(t["false_start_cleared"] for t in truths)
 

@@ -119,7 +119,7 @@ def add_survey_uncertainty(
     once through S (measured: 95 % coverage of the "90 %" intervals instead of 92 %). The
     estimate is floored at a tenth of the raw one, so the timing never vanishes.
     """
-    from scipy.special import stdtrit  # Student-t quantile, without loading scipy.stats
+    from scipy.special import stdtrit  # Student-t quantile, without scipy.stats' start-up
 
     if result.covariance is None or result.dof < 1:
         return
@@ -167,7 +167,7 @@ def judge_goodness(
     """χ² of the residuals against the timer precision (and the survey's share of the times'
     covariance, so that an honest rough survey is not called a poor fit); status ``poor-fit``
     if improbable."""
-    from scipy.special import chdtrc  # χ² survival function, without loading scipy.stats
+    from scipy.special import chdtrc  # χ² survival function, without scipy.stats' start-up
 
     result.timer_precision_s = timer_precision_s
     if result.dof < 1 or not timer_precision_s > 0:

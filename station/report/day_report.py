@@ -24,7 +24,7 @@ import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -144,7 +144,7 @@ def _png(fig, tight: bool = True) -> str:
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
-def _figure(height_in: float, layout: str | None = "constrained"):
+def _figure(height_in: float, layout: Literal["constrained", "tight"] | None = "constrained"):
     from matplotlib.figure import Figure
 
     return Figure(figsize=(WIDTH_IN, height_in), layout=layout)

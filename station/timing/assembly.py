@@ -344,7 +344,8 @@ class DescentAssembler:
         j = self.order[d.photocells[-1]]
         typical_k, typical_j = self._typical.get(k), self._typical.get(j)
         if typical_k and (j == 0 or typical_j):
-            ahead = statistics.median(typical_k) - (statistics.median(typical_j) if j else 0)
+            before = statistics.median(typical_j) if j and typical_j else 0
+            ahead = statistics.median(typical_k) - before
             if ahead > 0:
                 return d.times_us[-1] + round(ahead), d.times_us[-1]
         pos = self.positions

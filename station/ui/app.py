@@ -318,6 +318,13 @@ class StationApp(App):
             + "\n"
             + line("v0", "v0", ".3f", "m/s")
             + f"   rms {_f(row.rms_residual_ms, '.2f')} ms · {row.model} model"
+            + (  # the velocity model's μ1: always with its interval, flagged when ∋ 0
+                "\n"
+                + line("μ1", "mu1", ".2e", "s/m")
+                + ("  (not distinguishable from 0)" if "mu1" in f.consistent_with_zero else "")
+                if "mu1" in e
+                else ""
+            )
             + (f"\n{f.message}" if f.message else "")
         )
         self.main.query_one("#result", Static).update(text)
