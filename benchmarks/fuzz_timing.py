@@ -12,9 +12,11 @@ an impulse that is in a descent on the clean capture and in none on the flipped 
 impulse is counted as
 
 - *own line*: its own bytes were damaged;
-- *start lost*: intact, but its descent's start impulse was damaged: an impulse that no open
-  descent can take starts nothing (issue 11), so the descent's other impulses are rejected
-  with "without a start" (or, with bibs, "no open descent of bib N");
+- *start lost*: intact, but its descent's start impulse was damaged. The Processor tells the
+  assembler of a line it could not read, and a later photocell then starts the descent (flagged
+  "start line damaged"); what is still lost here is where the damaged start was read as
+  something else (an impulse at another channel, a skipped line) or, on a start/finish
+  course, a finish alone (nothing to fit);
 - *other line*: intact, its start intact, but another line of its descent was damaged (an
   operator's edit line, or a damaged impulse that took its place);
 - *unexplained*: nothing of its descent was damaged. Must be 0; each one is listed.

@@ -304,3 +304,117 @@ def test_a_start_typed_in_without_a_bib_starts_a_descent_and_does_not_replace_on
     assert asm.open and asm.open[0].number == 2 and asm.finished[0].times_us[0] == 100 * S
     done = run_lines(asm, parser, lines[6:])
     assert [(d.number, d.status) for d in done] == [(2, "complete")]
+
+
+# ----------------------------------------------------------------------------- damaged start line
+
+
+def _flip_unparsable(line: str) -> str:
+    """One bit flipped in the time's first colon (':' -> ';'): the line no longer parses."""
+    i = line.index(":")
+    return line[:i] + chr(ord(line[i]) ^ 1) + line[i + 1 :]
+
+
+def test_a_descent_whose_start_line_is_bit_flipped_is_recovered_and_fitted(demo_track):
+    """Issue 9: one flipped bit in a start line used to lose the skier's whole descent (every
+    later impulse "without a start"). The Processor says the line was damaged; the descent
+    starts at PC2, is flagged, incomplete, and fitted from the 8 photocells it has."""
+    from station.model.physics import Conditions, Params, StraightRun
+    from station.session.config import load_config
+    from station.session.day import Day
+    from station.session.rawlog import Chunk
+    from station.session.records import DescentStatus, DescentTimes
+    from tests.conftest import SURVEYS
+
+    config = load_config(str(SURVEYS / "demo_station.yaml"))
+    xs = np.array([pc.x for pc in demo_track.photocells])
+    run = StraightRun(demo_track.profile, xs)
+    truth = run.solve(Params(0.22, 0.0085, 3.4), Conditions(88, 1.079))
+    t = truth.t
+    rng = np.random.default_rng(4)
+    lines = []
+    for k, t0 in enumerate([36_000.0, 36_060.0]):  # a clean descent, then the damaged one
+        noisy = t + np.concatenate([[0], rng.normal(0, 2e-4, len(t) - 1)])
+        for i, ti in enumerate(noisy):
+            lines.append(format_alge(f"C{i}", round((t0 + ti) * S), 9 * k + i + 1))
+    lines[9] = _flip_unparsable(lines[9])
+    assert AlgeParser().parse(lines[9]).__class__.__name__ == "Unparsed"
+    day = Day.start(config, demo_track)
+    done = day.processor.feed(Chunk(0.0, "".join(s + "\r" for s in lines).encode()))
+    done += day.processor.finish()
+    assert [d.number for d in done] == [1, 2]
+    d = done[1]
+    assert d.photocells == [f"PC{i}" for i in range(2, 10)] and d.missing == ["PC1"]
+    assert d.status == "incomplete"
+    assert "start line damaged (line 10): the descent starts at PC2" in d.flags
+    assert [e.kept for e in day.processor.events] == [True] * 17
+    res = day.analyse(DescentTimes.of(d))
+    assert res.descent.status == DescentStatus.INCOMPLETE
+    assert res.fit is not None and res.fit.status == "ok", res.fit
+    assert res.fit.photocells == d.photocells
+    mu = res.fit.estimates["mu"]
+    assert mu is not None and abs(mu - 0.0085) < 0.002
+    # v0 is the speed at the first photocell it has: PC2
+    v0 = res.fit.estimates["v0"]
+    assert v0 is not None and abs(v0 - truth.v[1]) < 0.3
+
+
+def _feed(asm: DescentAssembler, seq) -> None:
+    for ch, t, line, *bib in seq:
+        asm.feed(Impulse(ch, round(t * S), 100, "", bib[0] if bib else "", None, ""), line)
+
+
+def test_a_stray_impulse_without_a_damaged_line_before_it_is_still_rejected():
+    """Someone walking through PC3: no damaged line came, so it starts nothing (issue 11)."""
+    asm = DescentAssembler(PCS, CH, positions_m=POS, min_speed_ms=2.0, pairing="order")
+    _feed(asm, [("C0", 100.0, 1), ("C1", 105.0, 2), ("C2", 109.0, 3), ("C3", 112.0, 4),
+                ("C4", 115.0, 5), ("C2", 160.0, 6)])  # fmt: skip
+    ev = asm.events[-1]
+    assert not ev.kept and ev.reason == "PC3 without a start at PC1"
+    assert not asm.open and asm.count == 1
+
+
+def test_a_damaged_line_too_long_before_a_stray_does_not_start_it():
+    """The damaged line came before a descent that was kept, 60 s before the stray: no skier
+    reaches PC3 (80 m) that slowly (60 s), so it was not this one's start."""
+    asm = DescentAssembler(PCS, CH, positions_m=POS, min_speed_ms=2.0, pairing="order")
+    asm.note_damaged(1)
+    _feed(asm, [("C0", 100.0, 2), ("C1", 105.0, 3), ("C2", 109.0, 4), ("C3", 112.0, 5),
+                ("C4", 115.0, 6), ("C2", 160.0, 7)])  # fmt: skip
+    ev = asm.events[-1]
+    assert not ev.kept and ev.reason == "PC3 without a start at PC1"
+
+
+def test_one_damaged_line_starts_one_descent_and_a_lone_one_is_aborted():
+    asm = DescentAssembler(PCS, CH, positions_m=POS, min_speed_ms=2.0, pairing="order")
+    asm.note_damaged(1)
+    # two at PC2 10 s apart: the damaged line could have been either's start, but it was one
+    _feed(asm, [("C1", 105.0, 2), ("C1", 115.0, 3)])
+    first, second = asm.events
+    assert first.kept and first.reason.startswith("start line damaged (line 1)")
+    assert not second.kept and second.reason == "second impulse at PC2, 10.000 s after the first"
+    assert asm.count == 1
+    (d,) = asm.tick(300 * S)
+    assert d.status == "aborted" and d.flags[-1].startswith("lone impulse, no impulse for")
+
+
+def test_a_damaged_line_does_not_start_a_second_descent_of_an_open_bib():
+    """With bibs, only a bib with no open descent is recovered: bib 7's second PC2 is not."""
+    asm = DescentAssembler(PCS, CH, positions_m=POS, pairing="bib")
+    _feed(asm, [("C0", 100.0, 1, "7"), ("C1", 105.0, 2, "7")])
+    asm.note_damaged(3)
+    _feed(asm, [("C1", 106.0, 4, "7"), ("C1", 107.0, 5, "8")])
+    seven, eight = asm.events[-2:]
+    assert not seven.kept and seven.reason.startswith("second impulse at PC2")
+    assert eight.kept and "start line damaged (line 3)" in eight.reason
+    assert {d.bib: d.photocells for d in asm.open} == {"7": ["PC1", "PC2"], "8": ["PC2"]}
+
+
+def test_a_finish_alone_is_not_recovered_but_its_reason_names_the_damaged_line():
+    asm = DescentAssembler(["S", "F"], {"C0": "S", "C1": "F"}, positions_m=[0.0, 400.0])
+    asm.note_damaged(1)
+    _feed(asm, [("C1", 60.0, 2)])
+    ev = asm.events[-1]
+    assert not ev.kept and not asm.open
+    assert ev.reason == "F without a start at S; line 1 before it was damaged (its start?); " \
+        "F alone is nothing to fit"  # fmt: skip

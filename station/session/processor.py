@@ -105,6 +105,8 @@ class Processor:
             self.counts["skipped"] += 1
         elif isinstance(parsed, Unparsed):
             self.counts["unparsed"] += 1
+            # it may have been a skier's start: the assembler may start that descent later
+            self.assembler.note_damaged(self.lines)
             if len(self.unparsed) < MAX_UNPARSED:
                 self.unparsed.append((self.lines, parsed.reason, line[:100]))
             elif len(self.unparsed) == MAX_UNPARSED:  # said once, in the list itself

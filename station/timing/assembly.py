@@ -27,7 +27,16 @@ the photocells it has and flagged. Several skiers may be on the run at once (iss
   finished descent that changed comes out of ``feed``/``edit`` again to be refitted;
 - an impulse repeated from the timer's memory (TAG ``AN``, ALGE ``m``) that is already kept
   (same channel, same time) is not doubled; one that is not is an impulse like any other;
-- a disconnect is written on the open descents' flags.
+- a disconnect is written on the open descents' flags;
+- **a damaged start line** (issue 9): the caller says which lines it could not parse or whose
+  checksum failed (``note_damaged``). An impulse at a later photocell that no open descent can
+  take starts a descent only when such a line came at a time that skier's start could have
+  been (between the kept impulses around it, within the time to its photocell at the
+  plausible speeds and the earlier descents' typical time), with bibs only for a bib with no
+  open descent, and not at the last photocell (one time is nothing to fit). That descent is
+  flagged, ``incomplete``, and fitted from the photocells it has; each damaged line starts at
+  most one. Without a damaged line a stray impulse (someone walking through PC3) is rejected
+  as before: one bit flipped in a start line no longer loses the skier's whole descent.
 
 Every impulse and edit comes out once in ``events`` with whether it was kept and why not.
 """
@@ -75,6 +84,19 @@ class TimedDescent:
     @property
     def start_us(self) -> int:
         return self.times_us[0] if self.times_us else (self.first_us or 0)
+
+
+@dataclass
+class _Damage:
+    """A line the caller could not read: where it came in the device's time."""
+
+    line: int
+    after_us: int | None  # the device clock when it came: its time was not earlier
+    before_us: int | None = None  # the first time kept after it: its time was not later
+
+
+#: damaged lines remembered for recovering a start (a flood of noise keeps the latest)
+MAX_DAMAGED = 200
 
 
 class ImpulseEvent(NamedTuple):
@@ -155,6 +177,7 @@ class DescentAssembler:
         self._typical: dict[int, list[int]] = {}  # photocell index -> recent t_k - t_0
         self._last_done: TimedDescent | None = None
         self._seen: set[tuple[str, int, int | None]] = set()  # kept: channel, time, day
+        self._damaged: list[_Damage] = []  # unread lines that may have been a start
 
     @property
     def current(self) -> TimedDescent | None:
@@ -184,6 +207,70 @@ class DescentAssembler:
     def _move_clock(self, t: int) -> None:
         self._clock = t
         self._day_offset = t // DAY_US
+        for dmg in reversed(self._damaged):
+            if dmg.before_us is not None:
+                break
+            dmg.before_us = t
+
+    # -- damaged lines
+
+    def note_damaged(self, line: int) -> None:
+        """Line ``line`` could not be read (unparsed, a failed checksum, a corrupted time): it
+        may have been a skier's start, so an impulse after it may start a descent without one."""
+        self._damaged.append(_Damage(line, self._clock))
+        del self._damaged[:-MAX_DAMAGED]
+
+    def _reach_us(self, k: int) -> tuple[int, int]:
+        """(shortest, longest) plausible time from the first photocell to photocell k: from
+        the survey's distance at the plausible speeds, narrowed to within a factor
+        ``SPEED_RATIO`` of the earlier complete descents' typical time where there are some."""
+        if self.positions is None:
+            shortest, longest = 0, self.timeout_us[0] * k
+        else:
+            dist = self.positions[k] - self.positions[0]
+            shortest = round(dist / self.max_speed * 1e6)
+            longest = round(dist / self.min_speed * 1e6)
+        typical = self._typical.get(k)
+        if typical:
+            mid = statistics.median(typical)
+            shortest = max(shortest, round(mid / SPEED_RATIO))
+            longest = min(longest, round(mid * SPEED_RATIO))
+        return shortest, longest
+
+    def _damaged_start(self, line: int, k: int, t: int) -> _Damage | None:
+        """The latest damaged line before ``line`` that came when the start of a skier at
+        photocell k at ``t`` could have been; None when there is none."""
+        shortest, longest = self._reach_us(k)
+        for dmg in reversed(self._damaged):
+            before = t if dmg.before_us is None else dmg.before_us
+            if (
+                dmg.line < line
+                and before >= t - longest
+                and (dmg.after_us is None or dmg.after_us <= t - shortest)
+            ):
+                return dmg
+        return None
+
+    def _recover(
+        self, imp: Impulse, line: int, pc: str, k: int, t: int, bib: str
+    ) -> tuple[TimedDescent | None, str]:
+        """A descent whose start line was damaged, started at photocell k (None when no
+        damaged line came when this skier's start could have been), or why not."""
+        if bib and self.mode != "order" and any(d.bib == bib for d in self.open):
+            return None, ""
+        dmg = self._damaged_start(line, k, t)
+        if dmg is None:
+            return None, ""
+        if k == len(self.photocells) - 1:  # nothing can follow: one time is nothing to fit
+            return None, f"line {dmg.line} before it was damaged (its start?); {pc} alone is " \
+                "nothing to fit"  # fmt: skip
+        self._damaged.remove(dmg)  # one damaged line starts one descent at most
+        self.count += 1
+        d = TimedDescent(self.count, [pc], [t], first_line=line, channels=[imp.channel],
+                         bib=bib if self.mode != "order" else "", day=imp.day,
+                         missing=self.photocells[:k])  # fmt: skip
+        d.flags.append(f"start line damaged (line {dmg.line}): the descent starts at {pc}")
+        return d, ""
 
     # -- impulses
 
@@ -219,6 +306,7 @@ class DescentAssembler:
                     f"implausible time: {self._far(p_t)} the device clock, and the next "
                     "impulse does not confirm it (a corrupted time?); the clock did not move",
                 )  # fmt: skip
+                self.note_damaged(p_line)  # it may have been a start
         far = self._clock is not None and abs(t - self._clock) > self.jump_us
         if far and (now_us is None or abs(t - now_us) > HOST_TOLERANCE_US):
             self._pending = (imp, line, t)
@@ -275,11 +363,20 @@ class DescentAssembler:
             return done
         chosen, reason = self._choose(pc, k, t, bib)
         if chosen is None:
+            rec, why = self._recover(imp, line, pc, k, t, bib)
+            if rec is not None:
+                self.open.append(rec)
+                self._move_clock(t)
+                self._seen.add((imp.channel, imp.tod_us, imp.day))
+                self._event(imp, line, pc, True, rec.flags[0], rec.number)
+                return done + self._expire(t)
             if not self.open:
                 reason = f"{pc} without a start at {self.photocells[0]}"
             elif self._clock is not None and t < self._clock and reason.startswith("out of"):
                 reason = f"out of order: {(self._clock - t) / 1e6:.4f} s earlier than the " \
                     "previous impulse"  # fmt: skip
+            if why:
+                reason = f"{reason}; {why}"
             self._event(imp, line, pc, False, reason, self._near(bib))
             return done
         d = chosen
@@ -296,7 +393,8 @@ class DescentAssembler:
         self._event(imp, line, pc, True, "", d.number)
         if k == len(self.photocells) - 1:
             self.open.remove(d)
-            d.status = "complete"
+            # a descent recovered without its start is short of the first photocell
+            d.status = "complete" if d.photocells[0] == self.photocells[0] else "incomplete"
             self._done(d)
             done.append(d)
         done += self._expire(t)
@@ -439,7 +537,8 @@ class DescentAssembler:
         self.open.remove(d)
         if len(d.photocells) == 1:
             d.status = "aborted"
-            d.flags.append(f"lone start impulse, {why}")
+            lone = "start impulse" if d.photocells[0] == self.photocells[0] else "impulse"
+            d.flags.append(f"lone {lone}, {why}")
         else:
             d.status = "incomplete"
             last = self.order[d.photocells[-1]]
@@ -585,7 +684,7 @@ class DescentAssembler:
         is_open = d in self.open
         if d.photocells[-1] == self.photocells[-1] and len(d.photocells) >= 2:
             d.missing = [p for p in d.missing if p not in d.photocells]
-            d.status = "complete"
+            d.status = "complete" if d.photocells[0] == self.photocells[0] else "incomplete"
             if is_open:
                 self.open.remove(d)
                 self._done(d)
