@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from station.model.fit import FitResult, fit_descent
-from station.model.physics import Conditions, Params, StraightRun
+from station.model.physics import Conditions, Params, StraightRun, gravity_for
 from station.session.config import StationConfig
 from station.session.records import (
     DescentStatus,
@@ -101,6 +101,8 @@ class Analyser:
         self.config = config
         self.track = track
         self._runs: dict[tuple[str, ...], StraightRun] = {}
+        # the g `station fit` uses too: normal gravity at the survey's latitude_deg, else 9.80665
+        self.gravity = gravity_for(track)
 
     def run(self, job: FitJob) -> DescentResult:
         """Fit one descent; an exception of the fit is the descent's ``error`` status."""
@@ -113,7 +115,7 @@ class Analyser:
 
     def _fit(self, job: FitJob) -> DescentResult:
         d = job.descent
-        cond = Conditions(job.mass_kg, job.air_density, job.wind_ms)
+        cond = Conditions(job.mass_kg, job.air_density, job.wind_ms, g=self.gravity.value)
         if d.status == DescentStatus.ABORTED:
             return DescentResult(d, None, result_row(job, None))
         ids = d.photocells
