@@ -261,10 +261,12 @@ def load_survey(path: str) -> Survey:
         {"angle_arcsec", "distance_mm", "distance_ppm", "target_mm"},
     )
     precision = Precision(
-        angle_arcsec=psec.positive("angle_arcsec", 3.0),
-        distance_mm=psec.positive("distance_mm", 2.0),
-        distance_ppm=psec.get("distance_ppm", float, 2.0),
-        target_mm=psec.positive("target_mm", 5.0),
+        # ranges wide enough for any instrument and pole on snow, narrow enough to catch a
+        # wrong unit (an angle in degrees, a distance in metres) before it overflows a weight
+        angle_arcsec=psec.number("angle_arcsec", 0.01, 600.0, 3.0, unit="″"),
+        distance_mm=psec.number("distance_mm", 0.01, 1000.0, 2.0, unit="mm"),
+        distance_ppm=psec.number("distance_ppm", 0.0, 1000.0, 2.0, unit="ppm"),
+        target_mm=psec.number("target_mm", 0.01, 1000.0, 5.0, unit="mm"),
     )
     default_setup = None
     if top.has("default_setup"):
