@@ -11,6 +11,7 @@ limit) and run through the command that reads it:
     GSI          station fit --survey YAML-POINTING-AT-MUTATED --times ...
     times        station fit --survey ... --times MUTATED
     capture      station replay MUTATED --config ...
+    import       station import MUTATED --config ... --session-dir NEW   (memory download)
 
 Each run is ``station.cli.main.main(argv)`` in a forked child of a process that has already
 imported everything (a fresh interpreter per run would take a second or two each), with a
@@ -301,9 +302,15 @@ def build_cases(work: Path, seed: int) -> list[Case]:
     for name, data in generic(times_text.encode(), rng):
         times_case(name, data)
 
+    def import_case(name: str, path: str) -> None:
+        d = new_dir()
+        argv = ["import", path, "--config", demo_cfg, "--session-dir", str(d / "session")]
+        cases.append(Case("import", name, argv))
+
     cap = capture.read_bytes()
     for name, data in generic(cap, rng):
         capture_case(name, data)
+        import_case(name, cases[-1].argv[1])
     for k in range(10):
         capture_case(f"many-flips-{k}", _flip(cap, rng, 20))
 
@@ -314,6 +321,7 @@ def build_cases(work: Path, seed: int) -> list[Case]:
         cases.append(Case("survey", f"special-{name}", fit_argv(path, times)))
         cases.append(Case("times", f"special-{name}", fit_argv(survey, path)))
         cases.append(Case("capture", f"special-{name}", replay_argv(path, demo_cfg)))
+        import_case(f"special-{name}", path)
         if path and "\0" not in path:  # a survey's observation file is always a real name
             d = new_dir()
             (d / "s.yaml").write_text(survey_text.replace("demo_run.gsi", path))

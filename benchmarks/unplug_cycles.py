@@ -39,18 +39,6 @@ from simulators.timer import PtyPort  # noqa: E402
 from station.timing.wireformats import format_alge  # noqa: E402
 
 
-class UsbLikePort(PtyPort):
-    """The simulator's pty, whose device name also disappears while it is unplugged, as a
-    USB-serial adapter's /dev node does. Otherwise the name still points at the old
-    /dev/pts/N, which the kernel may give to another program's pty in the meantime: the
-    station would then read (and take) that program's bytes."""
-
-    def unplug(self) -> None:
-        super().unplug()
-        if os.path.lexists(self.link):
-            os.unlink(self.link)
-
-
 def queued(fd: int) -> int:
     """Bytes waiting in the pty's input queue, unread by the station."""
     return struct.unpack("i", fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0"))[0]
@@ -84,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     work = Path(tempfile.mkdtemp(prefix="unplug-cycles-"))
-    port = UsbLikePort(str(work / "timer"))
+    port = PtyPort(str(work / "timer"))
     cfg = work / "station.yaml"
     channels = ", ".join(f"C{i}: PC{i + 1}" for i in range(9))
     cfg.write_text(

@@ -113,10 +113,15 @@ class PtyPort:
                 return
 
     def unplug(self) -> None:
+        """Pull the cable: the pty closes and its name disappears, as a USB-serial adapter's
+        /dev node does. (Left in place, the link would point at a /dev/pts/N that the kernel
+        may give to another program's pty meanwhile, and the station would read its bytes.)"""
         for fd in (self.master, self.slave):
             with contextlib.suppress(OSError):
                 os.close(fd)
         self.master = self.slave = -1
+        if os.path.lexists(self.link):
+            os.unlink(self.link)
 
     def write(self, data: bytes) -> None:
         if self.master >= 0:

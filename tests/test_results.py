@@ -191,3 +191,11 @@ def test_the_air_header_says_the_density_once(tmp_path):
     air = results_header(load_config(str(tmp_path / "station.yaml")), "Demo run")["air"]
     assert air.startswith("pressure_hpa 835 | temperature_c -4 | humidity_pct 70 | density 1.")
     assert air.count("density") == 1
+
+
+def test_the_trackside_shows_the_start_without_its_utc_offset():
+    from station.report.text import local_time
+
+    assert local_time("2026-02-02T10:41:07.234500+01:00") == "2026-02-02 10:41:07.23"
+    assert local_time("2026-02-02T10:03:00-05:00") == "2026-02-02 10:03:00"
+    assert local_time("10:41:07.2345") == "10:41:07.2345"  # a capture without a date

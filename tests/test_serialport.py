@@ -20,16 +20,6 @@ from tests.conftest import station_cmd
 from tests.timing_helpers import start_sim, write_config
 
 
-class UsbLikePort(PtyPort):
-    """The simulator's pty whose name disappears while unplugged, as a USB adapter's does
-    (else the name points at a /dev/pts/N that another program's pty may get meanwhile)."""
-
-    def unplug(self) -> None:
-        super().unplug()
-        if os.path.lexists(self.link):
-            os.unlink(self.link)
-
-
 def _pty() -> tuple[int, int, str]:
     master, slave = os.openpty()
     tty.setraw(slave)
@@ -92,7 +82,7 @@ def test_a_second_reader_is_refused_naming_the_process_that_holds_the_port():
 
 
 def test_reader_reconnects_within_half_a_second_and_loses_nothing_queued():
-    port = UsbLikePort()
+    port = PtyPort()
     chunks: list[bytes] = []
     events: list[tuple[float, str]] = []
     connected = threading.Event()

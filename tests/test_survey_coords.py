@@ -111,6 +111,12 @@ def test_decimal_comma_with_comma_separator_is_explained(tmp_path):
     assert "a decimal comma needs ';'" in _error(yaml)
 
 
+def test_a_device_is_not_read(tmp_path):
+    yaml = tmp_path / "dev.yaml"
+    yaml.write_text("points: /dev/zero\nphotocells: []\n")
+    assert "/dev/zero: not a regular file" in _error(yaml)
+
+
 @pytest.mark.parametrize("kind", ["missing", "folder", "latin1", "empty", "height"])
 def test_unreadable_coordinate_files(tmp_path, kind):
     yaml, _ = _write(tmp_path)

@@ -17,10 +17,20 @@ def num(v: float | None, spec: str) -> str:
     return "—" if v is None or v != v else format(v, spec)
 
 
+def local_time(iso: str) -> str:
+    """A start time for people at the trackside: date and local time to 1/100 s, without the
+    UTC offset the results CSV carries (``2026-02-02T10:41:07.234500+01:00`` ->
+    ``2026-02-02 10:41:07.23``)."""
+    text = iso.replace("T", " ")
+    if len(text) > 6 and text[-6] in "+-" and text[-3] == ":":
+        text = text[:-6]
+    return text[:22]
+
+
 def describe(res: DescentResult) -> str:
     """One line per descent, for the terminal."""
     d, f, row = res.descent, res.fit, res.row
-    when = res.start_time.replace("T", " ")[:22]
+    when = local_time(res.start_time)
     used = f"{len(d.photocells)}/{len(d.photocells) + len(d.missing)}"
     head = f"descent {d.number:>3}  {when}  {used} photocells"
     if f is None:

@@ -20,6 +20,7 @@ import time
 from dataclasses import dataclass
 
 from station.errors import InputError
+from station.files import read_bytes
 from station.session import store as sessions
 from station.session.config import StationConfig
 from station.session.rawlog import RawLogWriter, read_rawlog
@@ -43,18 +44,7 @@ class ImportReport:
 
 def read_import(path: str) -> bytes:
     """The file's bytes; a folder, special file, unreadable or huge file is one clear line."""
-    if os.path.isdir(path):
-        raise InputError("is a folder, not a capture or memory download", path=path)
-    if os.path.exists(path) and not os.path.isfile(path):
-        raise InputError("not a regular file", path=path)
-    try:
-        size = os.path.getsize(path)
-        if size > MAX_IMPORT_BYTES:
-            raise InputError(f"larger than {MAX_IMPORT_BYTES >> 20} MiB", path=path)
-        with open(path, "rb") as fh:
-            return fh.read()
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror}", path=path) from None
+    return read_bytes(path, MAX_IMPORT_BYTES, "capture or memory download")
 
 
 def _is_impulse(p) -> bool:

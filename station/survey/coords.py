@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import os
 
 from station.errors import InputError
 from station.survey.polar import ReducedPoint
@@ -46,6 +47,10 @@ def _number(text: str, decimal_comma: bool, path: str, line: int, column: str) -
 
 def read_points_csv(path: str, default_sigma_h: float) -> list[ReducedPoint]:
     """Read a coordinate list; ``default_sigma_h`` (m) where no ``sigma_h`` column is given."""
+    if os.path.isdir(path):
+        raise InputError("is a folder, not a coordinate file", path=path)
+    if os.path.exists(path) and not os.path.isfile(path):
+        raise InputError("not a regular file (a device or pipe?)", path=path)
     try:
         with open(path, encoding="utf-8-sig", newline="") as fh:
             text = fh.read()

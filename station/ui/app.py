@@ -20,6 +20,7 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, RichLog, Static
 
+from station.report.text import local_time
 from station.session.acquisition import Acquisition
 from station.session.analysis import DescentResult
 from station.session.config import StationConfig
@@ -285,7 +286,7 @@ class StationApp(App):
     def _show(self, res: DescentResult) -> None:
         """Result panel and plots for one descent."""
         f, row, d = res.fit, res.row, res.descent
-        head = f"descent {d.number} · {res.start_time.replace('T', ' ')[:22]} · "
+        head = f"descent {d.number} · {local_time(res.start_time)} · "
         if f is None:
             self.main.query_one("#result", Static).update(
                 head + f"{row.status}: {'; '.join(row.flags)}"
