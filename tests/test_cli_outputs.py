@@ -6,6 +6,7 @@ from __future__ import annotations
 import io
 import json
 import os
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -81,6 +82,9 @@ def test_dash_is_standard_output_and_the_report_goes_to_stderr(run_station, sess
     r = run_station(*SIM, "--csv", "-")
     assert r.returncode == 0 and r.stdout.splitlines()[0] == "photocell,time"  # CRLF: csv's own
     assert "minimum normal force" in r.stderr  # the report, out of the way of the data
+    r = run_station("export", session, "--times", "-")
+    assert r.returncode == 0 and r.stdout.startswith("descent,bib,photocell,channel")
+    assert not (Path.cwd() / "-").exists() and "crossing times -> standard output" in r.stderr
     r = run_station("replay", session, "--events", "-")
     assert r.returncode == 0 and r.stdout.splitlines()[0].startswith("line,channel,photocell")
     assert "descent   8" in r.stderr

@@ -241,7 +241,7 @@ def unique_prefix(text: str, choices: list[str], what: str, option: str) -> str:
 
 STDOUT = "-"
 #: options whose value is an output file; ``-`` sends it to standard output
-OUTPUT_OPTIONS = ("csv", "events")
+OUTPUT_OPTIONS = ("csv", "events", "times")
 #: where ``-`` writes: the real standard output, saved before the report is moved to stderr
 _data_stdout: IO[str] | None = None
 

@@ -72,6 +72,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
     output_path(args.csv, "--csv")
     output_path(args.events, "--events")
+    output_path(args.times, "--times")
     if args.ui:
         return _replay_ui(args)
     acq = _replay_run(args)
@@ -91,8 +92,10 @@ def _write_times(acq: Any, args: argparse.Namespace) -> None:
     if getattr(args, "times", None):
         from station.session.crossings import write_times
 
-        n = write_times(acq.results(), args.times)
-        print(f"{n} crossing times -> {args.times}", file=sys.stderr)
+        with open_output(args.times, "--times") as fh:
+            n = write_times(acq.results(), fh)
+        where = "standard output" if args.times == "-" else args.times
+        print(f"{n} crossing times -> {where}", file=sys.stderr)
 
 
 def cmd_export(args: argparse.Namespace) -> int:

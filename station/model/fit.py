@@ -91,6 +91,9 @@ class FitResult:
     ci90_timing: dict[str, tuple[float, float] | None] | None = None
     stderr_timing: dict[str, float | None] | None = None
     survey_share: dict[str, float | None] | None = None
+    #: the survey's covariance (s²) of the computed times t_i − t_1 used, for reuse by later
+    #: fits on the same photocells (not part of the JSON)
+    survey_time_cov: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON form documented in the README."""
@@ -393,6 +396,7 @@ def fit_descent(
     run: StraightRun | None = None,
     timer_precision_s: float = DEFAULT_TIMER_PRECISION_S,
     survey: SurveyError | None = None,
+    survey_time_cov: np.ndarray | None = None,
 ) -> FitResult:
     """Fit one descent. ``xs`` and ``times`` are the photocells used, in order down the run;
     times may be on any clock (the offset ``dt0`` absorbs it and the noise of the first).
@@ -401,7 +405,10 @@ def fit_descent(
     test (default 0.5 ms: a 1 ms timer resolution and typical photocell jitter, see
     :data:`station.model.track_error.DEFAULT_TIMER_PRECISION_S`). ``survey``: the track's
     uncertainty (:func:`station.model.track_error.survey_error`); with it the 90 % intervals
-    carry the survey too, and the timing-only ones are kept beside them."""
+    carry the survey too, and the timing-only ones are kept beside them. ``survey_time_cov``:
+    that survey's covariance of the times as an earlier fit on the same photocells returned it
+    (``FitResult.survey_time_cov``), instead of ``survey``: its ~60 model solves are then not
+    repeated for every descent of a day."""
     if model not in ("constant", "velocity"):
         raise ValueError(f"unknown model {model!r}")
     n_params = 4 if model == "velocity" else 3
@@ -558,7 +565,9 @@ def fit_descent(
         for k in result.not_identifiable:
             result.estimates[k] = None
             result.ci90[k] = None
-    _survey_and_goodness(result, run, p, conditions, jm, r, step, timer_precision_s, survey)
+    _survey_and_goodness(
+        result, run, p, conditions, jm, r, step, timer_precision_s, survey, survey_time_cov
+    )
     return result
 
 
@@ -572,6 +581,7 @@ def _survey_and_goodness(
     step: float,
     timer_precision_s: float,
     survey: SurveyError | None,
+    relative: np.ndarray | None = None,
 ) -> None:
     """The survey's share of the intervals, then the χ² test (station.model.track_error).
 
@@ -579,10 +589,12 @@ def _survey_and_goodness(
     survey's covariance of the computed times t_i − t_1 is padded with a zero first row and
     column: the model's own first time is 0 whatever the track."""
     survey_cov = None
-    if survey is not None and result.covariance is not None:
+    if relative is None and survey is not None and result.covariance is not None:
         n_phys = len(p) - 1
         phys = Params(p[0], p[1], p[2], mu1=p[3] if n_phys == 4 else 0.0)
         relative = survey_time_covariance(survey, run.xs, phys, conditions, step)
+    if relative is not None and result.covariance is not None:
+        result.survey_time_cov = relative
         survey_cov = np.zeros((len(r), len(r)))
         survey_cov[1:, 1:] = relative
         add_survey_uncertainty(result, jm, r, survey_cov)

@@ -15,6 +15,7 @@ import numpy as np
 
 from station.model.fit import FitResult, fit_descent
 from station.model.physics import Conditions, Params, StraightRun, gravity_for
+from station.model.track_error import survey_error
 from station.session.config import StationConfig
 from station.session.records import (
     DescentStatus,
@@ -103,6 +104,10 @@ class Analyser:
         self._runs: dict[tuple[str, ...], StraightRun] = {}
         # the g `station fit` uses too: normal gravity at the survey's latitude_deg, else 9.80665
         self.gravity = gravity_for(track)
+        # the survey's covariance of the crossing times, per set of photocells: computed by
+        # the first good fit on them (linearised at its parameters), then reused, so the
+        # intervals of every descent carry the track without ~60 model solves each
+        self._survey_cov: dict[tuple[str, ...], np.ndarray] = {}
 
     def run(self, job: FitJob) -> DescentResult:
         """Fit one descent; an exception of the fit is the descent's ``error`` status."""
@@ -124,9 +129,14 @@ class Analyser:
         if run is None:
             run = self._runs[ids] = StraightRun(self.track.profile, xs)
         t = (np.array(d.times_us) - d.times_us[0]) / 1e6
+        cov = self._survey_cov.get(ids)
         fit = fit_descent(
-            self.track.profile, xs, t, cond, list(ids), model=job.model.value, run=run
-        )
+            self.track.profile, xs, t, cond, list(ids), model=job.model.value, run=run,
+            survey=survey_error(self.track, list(ids)) if cov is None else None,
+            survey_time_cov=cov,
+        )  # fmt: skip
+        if cov is None and fit.status == "ok" and fit.survey_time_cov is not None:
+            self._survey_cov[ids] = fit.survey_time_cov
         row = result_row(job, fit)
         speed_x = speed_v = None
         e = fit.estimates

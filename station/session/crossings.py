@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import csv
 from collections.abc import Iterable
+from typing import IO
 
-from station.errors import InputError
 from station.session.analysis import DescentResult
 from station.timing.impulses import DAY_US, format_tod
 
@@ -38,14 +38,11 @@ def crossing_rows(results: Iterable[DescentResult]) -> list[list[str]]:
     return rows
 
 
-def write_times(results: Iterable[DescentResult], path: str) -> int:
-    """Write the crossing times CSV; returns the number of rows."""
+def write_times(results: Iterable[DescentResult], fh: IO[str]) -> int:
+    """Write the crossing times CSV into an open text file (``newline=""``; the command opens
+    it, or standard output for ``-``); returns the number of rows."""
     rows = crossing_rows(results)
-    try:
-        with open(path, "w", newline="", encoding="utf-8") as fh:
-            w = csv.writer(fh)
-            w.writerow(TIMES_COLUMNS)
-            w.writerows(rows)
-    except OSError as exc:
-        raise InputError(f"cannot write the crossing times: {exc.strerror}", path=path) from None
+    w = csv.writer(fh, lineterminator="\n")
+    w.writerow(TIMES_COLUMNS)
+    w.writerows(rows)
     return len(rows)

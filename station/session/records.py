@@ -31,6 +31,7 @@ class Status(StrEnum):
     STOPPED = "stopped"
     TOO_FEW_PHOTOCELLS = "too-few-photocells"
     NOT_CONVERGED = "not-converged"
+    POOR_FIT = "poor-fit"  # residuals far above the timer's precision (χ² test)
     ABORTED = "aborted"  # a lone start impulse: nothing to fit
     ERROR = "error"  # the fit raised: the reason is in the flags
 

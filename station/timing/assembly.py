@@ -175,6 +175,8 @@ class DescentAssembler:
         self._pending: tuple[Impulse, int, int] | None = None
         self._prev_number: int | None = None
         self._typical: dict[int, list[int]] = {}  # photocell index -> recent t_k - t_0
+        # their medians, kept as the history changes (not recomputed for every impulse)
+        self._typical_mid: dict[int, float] = {}
         self._last_done: TimedDescent | None = None
         self._seen: set[tuple[str, int, int | None]] = set()  # kept: channel, time, day
         self._damaged: list[_Damage] = []  # unread lines that may have been a start
@@ -230,9 +232,8 @@ class DescentAssembler:
             dist = self.positions[k] - self.positions[0]
             shortest = round(dist / self.max_speed * 1e6)
             longest = round(dist / self.min_speed * 1e6)
-        typical = self._typical.get(k)
-        if typical:
-            mid = statistics.median(typical)
+        mid = self._typical_mid.get(k)
+        if mid is not None:
             shortest = max(shortest, round(mid / SPEED_RATIO))
             longest = min(longest, round(mid * SPEED_RATIO))
         return shortest, longest
@@ -440,10 +441,9 @@ class DescentAssembler:
         """(expected time at photocell k, from when) for the order pairing's choice: from the
         earlier descents' typical times where there are some, else at the last speed."""
         j = self.order[d.photocells[-1]]
-        typical_k, typical_j = self._typical.get(k), self._typical.get(j)
-        if typical_k and (j == 0 or typical_j):
-            before = statistics.median(typical_j) if j and typical_j else 0
-            ahead = statistics.median(typical_k) - before
+        mid_k, mid_j = self._typical_mid.get(k), self._typical_mid.get(j)
+        if mid_k is not None and (j == 0 or mid_j is not None):
+            ahead = mid_k - (mid_j if j and mid_j is not None else 0)
             if ahead > 0:
                 return d.times_us[-1] + round(ahead), d.times_us[-1]
         pos = self.positions
@@ -532,6 +532,7 @@ class DescentAssembler:
                 hist = self._typical.setdefault(self.order[pc], [])
                 hist.append(ti - d.times_us[0])
                 del hist[:-10]
+                self._typical_mid[self.order[pc]] = statistics.median(hist)
 
     def _finish(self, d: TimedDescent, why: str) -> list[TimedDescent]:
         self.open.remove(d)
