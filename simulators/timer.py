@@ -399,7 +399,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="station-sim", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="station-sim", description=__doc__.splitlines()[0].replace("``", "")
+    )  # no reST markup on screen
     ap.add_argument("--version", action="version", version=f"station-sim {__version__}")
     ap.add_argument("--survey", default=DEFAULT_SURVEY, help="survey YAML (default: the demo run)")
     ap.add_argument("--protocol", choices=["alge", "tag", "microgate"], default="alge")

@@ -28,6 +28,11 @@ def test_version():
     assert r.returncode == 0 and r.stdout.startswith("station-sim ")
 
 
+def test_help_shows_no_markup():
+    r = subprocess.run([*sim_cmd(), "--help"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and "a simulated sports timer" in r.stdout and "``" not in r.stdout
+
+
 def test_overlapping_skiers_in_counter_mode_with_edits(tmp_path):
     """Skiers 7 s apart on a run that takes ~20 s: three on it at once; ALGE numbers every
     impulse; false starts cleared (c) and missed photocells typed in (i)."""
