@@ -15,10 +15,12 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from enum import StrEnum
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from station.errors import InputError
-from station.timing.assembly import TimedDescent
+
+if TYPE_CHECKING:  # for annotations only: `station fit` need not load the assembler
+    from station.timing.assembly import TimedDescent
 
 
 class Status(StrEnum):
