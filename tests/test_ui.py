@@ -104,7 +104,7 @@ async def test_live_ui_against_the_simulated_timer(tmp_path, run_station):
             await pilot.pause(0.3)
             await pilot.press(*"fell at PC7", "enter")
             await wait_for(pilot, lambda: app.results[1].row.invalid_reason == "fell at PC7")
-            await wait_for(pilot, lambda: "INVALID" in str(table.get_row("1")))
+            await wait_for(pilot, lambda: "INV" in str(table.get_cell("1", "status")))
             # refit it with velocity-dependent friction
             await pilot.press("v")
             await wait_for(pilot, lambda: app.results[1].row.model == "velocity")
@@ -154,14 +154,15 @@ async def test_ui_shows_an_unplugged_timer_and_goes_on(tmp_path):
 @run_async
 async def test_failed_fits_and_aborted_descents_show_their_status(tmp_path, demo_track):
     app = replay_app(tmp_path, demo_track)
-    async with app.run_test(size=(120, 30)) as pilot:
+    async with app.run_test(size=(160, 40)) as pilot:
         await wait_for(pilot, lambda: len(app.results) == 4)
         await pilot.pause(0.3)
         table = app.main.query_one("#table")
-        statuses = [str(table.get_row(str(n))[4]) for n in range(1, 5)]
+        statuses = [str(table.get_cell(str(n), "status")).strip() for n in range(1, 5)]
         assert statuses == ["ok", "ok", "aborted", "too-few-photocells"]
-        notes = str(table.get_row("2")[10])
-        assert "missed PC5" in notes
+        # the flags have a column of their own; "notes" are the engineer's notes
+        assert "missed PC5" in str(table.get_cell("2", "flags"))
+        assert str(table.get_cell("2", "notes")).strip() == ""
 
 
 @pytest.mark.parametrize("size", [(80, 24), (160, 45)])
@@ -280,13 +281,13 @@ async def test_a_fit_that_raises_shows_as_error_and_the_replay_goes_on(
 
     monkeypatch.setattr(analysis, "fit_descent", fit)
     app = replay_app(tmp_path, demo_track)
-    async with app.run_test(size=(120, 30)) as pilot:
+    async with app.run_test(size=(160, 40)) as pilot:
         await wait_for(pilot, lambda: "replay finished" in app.connection)
         await pilot.pause(0.3)
         table = app.main.query_one("#table")
-        statuses = [str(table.get_row(str(n))[4]) for n in range(1, 5)]
+        statuses = [str(table.get_cell(str(n), "status")).strip() for n in range(1, 5)]
         assert statuses == ["error", "ok", "aborted", "too-few-photocells"]
-        assert "fit failed: LinAlgError: Singular matrix" in str(table.get_row("1")[10])
+        assert "fit failed: LinAlgError: Singular matrix" in str(table.get_cell("1", "flags"))
         table.move_cursor(row=0)
         await pilot.pause(0.2)
         assert "error: fit failed" in str(app.main.query_one("#result").render())
@@ -306,7 +307,7 @@ async def test_a_results_csv_that_cannot_be_written_shows_in_the_status_line(
     app = StationApp(cfg, mode="live", session_dir=str(tmp_path / "s"))
     cap = tmp_path / "capture.txt"
     make_capture(cap, demo_track)
-    async with app.run_test(size=(120, 30)) as pilot:
+    async with app.run_test(size=(160, 40)) as pilot:
         await wait_for(pilot, lambda: app.acq is not None)
         monkeypatch.setattr(results, "write_results", full)
         for i, line in enumerate(cap.read_bytes().split(b"\r")[:9]):  # descent 1
@@ -314,4 +315,116 @@ async def test_a_results_csv_that_cannot_be_written_shows_in_the_status_line(
         await wait_for(pilot, lambda: "No space left" in app.problem)
         status = str(app.main.query_one("#status").render())
         assert "cannot write" in status and "raw log keeps recording" in app.problem
-        assert str(app.main.query_one("#table").get_row("1")[4]) == "ok"  # the result is shown
+        status = app.main.query_one("#table").get_cell("1", "status")
+        assert str(status).strip() == "ok"  # the result is shown
+
+
+# ----------------------------------------------------------------------------- one descent
+
+
+def _panel(app) -> str:
+    return str(app.main.query_one("#result").render())
+
+
+@run_async
+async def test_the_panel_shows_the_selected_row_and_keys_work_at_once(tmp_path, demo_track):
+    """One notion of "the descent": ↑/↓ work without Tab (the table has the focus), the panel
+    shows the selected row, and i acts on the descent the panel shows."""
+    from station.ui.screens import ReasonScreen
+
+    app = replay_app(tmp_path, demo_track)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: "replay finished" in app.connection)
+        await pilot.pause(0.2)
+        table = app.main.query_one("#table")
+        assert app.focused is table
+        # the cursor followed the new descents: the last row is selected and shown
+        assert table.cursor_row == 3 and app.shown == 4
+        assert _panel(app).startswith("descent 4 ")
+        await pilot.press("up", "up")
+        await pilot.pause(0.2)
+        assert app.shown == 2 and _panel(app).startswith("descent 2 ")
+        await pilot.press("i")
+        await pilot.pause(0.2)
+        assert isinstance(app.screen, ReasonScreen) and app.screen.number == 2
+        await pilot.press("escape")
+
+
+@run_async
+async def test_a_selection_is_kept_when_a_new_descent_arrives(tmp_path, demo_track):
+    """The cursor follows new descents only while it is on the last row; the panel does not
+    jump to a new descent while the engineer looks at an older one."""
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "loop://")))
+    app = StationApp(cfg, mode="live", session_dir=str(tmp_path / "s"))
+    cap = tmp_path / "capture.txt"
+    make_capture(cap, demo_track)
+    lines = cap.read_bytes().split(b"\r")
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.acq is not None)
+
+        def feed(part):
+            for i, line in enumerate(part):
+                app.acq.receive(Chunk(1_770_000_000.0 + i, line + b"\r"))
+
+        feed(lines[:9])  # descent 1
+        await wait_for(pilot, lambda: 1 in app.results)
+        feed(lines[9:17])  # descent 2 (a photocell missed)
+        await wait_for(pilot, lambda: 2 in app.results)
+        await pilot.pause(0.2)
+        assert app.shown == 2  # on the last row: followed
+        await pilot.press("up")
+        await pilot.pause(0.2)
+        assert app.shown == 1
+        feed(lines[17:])  # descents 3 and 4
+        app.acq.end_of_input()
+        await wait_for(pilot, lambda: len(app.results) >= 4)
+        await pilot.pause(0.2)
+        table = app.main.query_one("#table")
+        assert table.cursor_row == 0 and app.shown == 1
+        assert _panel(app).startswith("descent 1 ")
+
+
+@run_async
+async def test_the_table_scrolls_to_new_descents_at_80x24(tmp_path, demo_track):
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "loop://")))
+    app = StationApp(cfg, mode="live", session_dir=str(tmp_path / "s"))
+    cap = tmp_path / "capture.txt"
+    make_capture(cap, demo_track)
+    one = cap.read_bytes().split(b"\r")[:9]  # descent 1: nine photocells
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.acq is not None)
+        for k in range(12):  # twelve descents, a minute apart
+            for i, line in enumerate(one):
+                shifted = line.replace(b"10:", b"%02d:" % (10 + k), 1) if k else line
+                app.acq.receive(Chunk(1_770_000_000.0 + 60 * k + i, shifted + b"\r"))
+        app.acq.end_of_input()
+        await wait_for(pilot, lambda: len(app.results) >= 12)
+        await pilot.pause(0.3)
+        table = app.main.query_one("#table")
+        assert table.cursor_row == table.row_count - 1 == 11
+        # the last row is inside the visible region of the table
+        visible = table.scrollable_content_region.height - 1  # the header row
+        assert table.scroll_y + visible >= 12 > table.scroll_y
+        assert app.shown == 12
+
+
+# ----------------------------------------------------------------------------- 80x24
+
+
+def test_no_number_is_ever_cut_in_the_table():
+    from station.ui.app import _num, table_columns
+
+    for width in (80, 100, 120, 129, 130, 200):
+        cols = table_columns(width)
+        assert sum(c.width + 1 for c in cols) <= width, width
+        keys = {c.key for c in cols}
+        assert {"n", "start", "ski", "wax", "mu", "cda", "v0", "rms", "status", "notes"} <= keys
+    assert _num(0.22437, 4, 6) == "0.2244"
+    assert _num(12.3456, 4, 6) == "12.346"  # fewer decimals, never "12.34" cut from "12.3456"
+    assert _num(1234567.0, 4, 6) == "1e+06"
+    assert _num(-1.5e12, 2, 4) == "####"
+    assert _num(None, 2, 4) == "—" and _num(float("nan"), 2, 4) == "—"
