@@ -182,7 +182,7 @@ def test_station_demo_in_tmux_shows_a_fitted_row(tmp_path):
     assert shutil.which("tmux"), "tmux must be installed in CI (.ci/run installs it)"
     name = f"station-demo-{os.getpid()}"
     cmd = " ".join([*station_cmd(), "demo", "--speed", "4", "--seed", "5", "--session-dir",
-                    str(tmp_path / "demo")])  # fmt: skip
+                    str(tmp_path / "demo"), "; sleep 30"])  # fmt: skip
     subprocess.run(["tmux", "kill-session", "-t", name], capture_output=True)
     subprocess.run(
         ["tmux", "new-session", "-d", "-s", name, "-x", "80", "-y", "24", cmd], check=True
@@ -202,10 +202,23 @@ def test_station_demo_in_tmux_shows_a_fitted_row(tmp_path):
         assert rows, screen
         assert "demo pair A" in rows[0] and "ok" in rows[0], screen
         assert "timer connected" in screen
-        mu = float(rows[0].split("demo pair A")[1].split()[0])
+        after = rows[0].split("demo pair A")[1].split()
+        mu = float(next(tok for tok in after if tok[:1].isdigit()))  # after the wax
         assert 0.006 < mu < 0.011
+        # q: the UI is gone and the session's place said within a second (measured ~0.4 s;
+        # the bound leaves room for a busy 2-core machine)
+        t0 = time.monotonic()
         subprocess.run(["tmux", "send-keys", "-t", name, "q"], check=True)
-        time.sleep(1.5)
+        while time.monotonic() - t0 < 10:
+            screen = subprocess.run(
+                ["tmux", "capture-pane", "-p", "-J", "-t", name], capture_output=True, text=True
+            ).stdout  # -J: the message's wrapped lines joined
+            if "session saved in" in screen:
+                break
+            time.sleep(0.02)
+        quit_s = time.monotonic() - t0
+        assert "session saved in" in screen and str(tmp_path / "demo") in screen, screen
+        assert quit_s < 2.0, quit_s
     finally:
         subprocess.run(["tmux", "kill-session", "-t", name], capture_output=True)
     assert (tmp_path / "demo" / "raw.jsonl").exists()
@@ -428,3 +441,31 @@ def test_no_number_is_ever_cut_in_the_table():
     assert _num(1234567.0, 4, 6) == "1e+06"
     assert _num(-1.5e12, 2, 4) == "####"
     assert _num(None, 2, 4) == "—" and _num(float("nan"), 2, 4) == "—"
+
+
+# ----------------------------------------------------------------------------- no terminal
+
+
+@pytest.mark.parametrize(
+    "args",
+    [["demo"], ["live", "--config", "nonexistent.yaml"], ["replay", "nonexistent", "--ui"]],
+)
+def test_ui_commands_refuse_without_a_terminal(run_station, tmp_path, args):
+    """``station demo </dev/null >file``: one line, exit 2, nothing written, no session."""
+    r = run_station(*args, cwd=tmp_path)  # pytest's stdin and captured stdout: no terminal
+    assert r.returncode == 2
+    assert r.stdout == ""
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "is not a terminal" in lines[0], r.stderr
+    assert not (tmp_path / "sessions").exists()
+
+
+def test_station_demo_without_a_terminal_refuses_as_a_process(tmp_path):
+    out = tmp_path / "out.txt"
+    with open(out, "w") as fh:
+        r = subprocess.run(
+            [*station_cmd(), "demo"], stdin=subprocess.DEVNULL, stdout=fh,
+            stderr=subprocess.PIPE, text=True, timeout=60, cwd=tmp_path,
+        )  # fmt: skip
+    assert r.returncode == 2 and out.read_text() == ""
+    assert r.stderr.count("\n") == 1 and "standard input is not a terminal" in r.stderr

@@ -76,7 +76,7 @@ def table_columns(width: int) -> list[Column]:
     result panel, which shows the selected descent in full. Notes take what is left."""
     if width < NARROW_TABLE:
         cols = [
-            Column("#", "n", 3, True), Column("start", "start", 5), Column("ski", "ski", 10),
+            Column("#", "n", 3, True), Column("start", "start", 5), Column("ski", "ski", 12),
             Column("wax", "wax", 8), Column("μ", "mu", 7, True), Column("±90%", "mu_pm", 7, True),
             Column("CdA", "cda", 6, True), Column("v0", "v0", 5, True),
             Column("rms", "rms", 4, True), Column("st", "status", 6),
@@ -588,6 +588,10 @@ class StationApp(App):
         """Quitting ends the day as Ctrl-C ends ``station record``: the open descent is ended
         and fitted, the results CSV written, the raw log closed."""
         if self.acq is not None:
+            self.acq.stop()  # no more bytes: the simulator may go now
+        if self.sim is not None:
+            self.sim.terminate()  # it ends while the day is closed, not after
+        if self.acq is not None:
             self.acq.close()
         if self.sim is not None:
-            self.sim.stop()
+            self.sim.stop(timeout=0.05)
