@@ -377,9 +377,11 @@ async def test_a_selection_is_kept_when_a_new_descent_arrives(tmp_path, demo_tra
     async with app.run_test(size=(80, 24)) as pilot:
         await wait_for(pilot, lambda: app.acq is not None)
 
+        now = time.time()  # the reader's idle tick ends a descent whose time-out passed
+
         def feed(part):
             for i, line in enumerate(part):
-                app.acq.receive(Chunk(1_770_000_000.0 + i, line + b"\r"))
+                app.acq.receive(Chunk(now + i * 0.01, line + b"\r"))
 
         feed(lines[:9])  # descent 1
         await wait_for(pilot, lambda: 1 in app.results)
@@ -410,10 +412,11 @@ async def test_the_table_scrolls_to_new_descents_at_80x24(tmp_path, demo_track):
     one = cap.read_bytes().split(b"\r")[:9]  # descent 1: nine photocells
     async with app.run_test(size=(80, 24)) as pilot:
         await wait_for(pilot, lambda: app.acq is not None)
+        now = time.time()  # the reader's idle tick ends a descent whose time-out passed
         for k in range(12):  # twelve descents, a minute apart
             for i, line in enumerate(one):
                 shifted = line.replace(b"10:", b"%02d:" % (10 + k), 1) if k else line
-                app.acq.receive(Chunk(1_770_000_000.0 + 60 * k + i, shifted + b"\r"))
+                app.acq.receive(Chunk(now + 60 * k + i, shifted + b"\r"))
         app.acq.end_of_input()
         await wait_for(pilot, lambda: len(app.results) >= 12)
         await pilot.pause(0.3)
@@ -469,3 +472,76 @@ def test_station_demo_without_a_terminal_refuses_as_a_process(tmp_path):
         )  # fmt: skip
     assert r.returncode == 2 and out.read_text() == ""
     assert r.stderr.count("\n") == 1 and "standard input is not a terminal" in r.stderr
+
+
+# ----------------------------------------------------------------------------- dialogs
+
+
+def _inside(widget, size) -> bool:
+    r = widget.region
+    return r.width > 0 and r.height > 0 and r.right <= size[0] and r.bottom <= size[1]
+
+
+@pytest.mark.parametrize("size", [(80, 24), (100, 30)])
+@run_async
+async def test_dialogs_fit_the_terminal(tmp_path, demo_track, size):
+    """Help and the metadata form need no scrolling at 80×24; the Close button of the
+    comparison is in sight however long the text."""
+    app = replay_app(tmp_path, demo_track)
+    async with app.run_test(size=size) as pilot:
+        await wait_for(pilot, lambda: "replay finished" in app.connection)
+        await wait_for(pilot, lambda: "joint fit" in app.comparison_text)
+        await pilot.press("question_mark")
+        await pilot.pause(0.3)
+        body = app.screen.query_one(".dialog-body")
+        assert body.max_scroll_y == 0 and body.max_scroll_x == 0
+        assert _inside(app.screen.query_one("#close"), size)
+        await pilot.press("escape", "m")
+        await pilot.pause(0.3)
+        form = app.screen.query_one("#form")
+        assert form.max_scroll_y == 0
+        assert _inside(app.screen.query_one("#save"), size)
+        assert _inside(app.screen.query_one("#f_notes"), size)
+        await pilot.press("escape", "c")
+        await pilot.pause(0.3)
+        assert _inside(app.screen.query_one("#close"), size)
+        assert "joint fit" in str(app.screen.query_one("#comparison_text").render())
+        await pilot.click("#close")
+        await pilot.pause(0.2)
+        assert app.screen is app.main
+
+
+@run_async
+async def test_metadata_form_names_the_next_descent_and_saves_only_changes(tmp_path, demo_track):
+    """While descent 1 runs the form is for descent 2 on (as the toast then says); a field
+    left as it was pre-filled (the demo's next pair of skis) is not written again."""
+    from station.session.rawlog import Chunk
+    from station.session.store import read_annotations
+    from station.ui.screens import MetadataScreen
+
+    cfg = load_config(str(write_config(tmp_path, "loop://")))
+    session = tmp_path / "s"
+    app = StationApp(cfg, mode="live", session_dir=str(session))
+    cap = tmp_path / "capture.txt"
+    make_capture(cap, demo_track)
+    lines = cap.read_bytes().split(b"\r")
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.acq is not None)
+        app.acq.add_metadata({"ski": "pair B"}, from_descent=2)  # as the demo's rotation does
+        now = time.time()  # the reader's idle tick ends a descent whose time-out passed
+        for i, line in enumerate(lines[:3]):  # descent 1 is on the run
+            app.acq.receive(Chunk(now + i * 0.01, line + b"\r"))
+        await wait_for(pilot, lambda: app.progress is not None and app.progress.number == 1)
+        await pilot.press("m")
+        await pilot.pause(0.3)
+        assert isinstance(app.screen, MetadataScreen)
+        title = str(app.screen.query_one("#title").render())
+        assert "from descent 2 on" in title
+        assert app.screen.query_one("#f_ski").value == "pair B"  # pre-filled
+        app.screen.query_one("#f_wax").value = "LF blue"
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: app.metadata_from is not None)
+        assert app.metadata_from == 2
+    last = read_annotations(str(session))[-1]
+    assert last.from_descent == 2
+    assert last.values.values() == {"wax": "LF blue"}  # the pre-filled ski not written again

@@ -394,6 +394,8 @@ class StationApp(App):
                 f"{last} +{(passed[last] - t0) / 1e6:.2f} s\n{marks}"
             )
         self.main.query_one("#progress", Static).update(text)
+        if isinstance(self.screen, MetadataScreen):  # a descent started while it is open
+            self.screen.set_next(p.next_number)
 
     def on_descent_fitted(self, msg: DescentFitted) -> None:
         res = msg.result

@@ -7,7 +7,7 @@ from typing import Any
 
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.containers import Grid, Horizontal, Vertical, VerticalScroll
+from textual.containers import Grid, Horizontal, ScrollableContainer, Vertical, VerticalScroll
 from textual.screen import ModalScreen
 from textual.validation import ValidationResult, Validator
 from textual.widgets import Button, Input, Label, Static
@@ -234,7 +234,7 @@ class ComparisonScreen(ModalScreen[None]):
     def compose(self) -> ComposeResult:
         # the text scrolls, the Close button stays in sight below it at any size
         with Vertical(id="comparison"):
-            with VerticalScroll(classes="dialog-body"):
+            with ScrollableContainer(classes="dialog-body"):  # long lines scroll sideways
                 yield Static(self.text, id="comparison_text", markup=False)
             yield Button("Close", id="close", compact=True)
 
