@@ -165,15 +165,34 @@ async def test_failed_fits_and_aborted_descents_show_their_status(tmp_path, demo
         assert str(table.get_cell("2", "notes")).strip() == ""
 
 
-@pytest.mark.parametrize("size", [(80, 24), (160, 45)])
+@pytest.mark.parametrize("size", [(80, 24), (100, 30), (200, 50)])
 def test_main_screen_snapshot(snap_compare, tmp_path, demo_track, size):
+    """The laptop at the run (80×24), a larger terminal and a full screen (the plots grow);
+    descent 2 selected, so the panel shows its flags."""
     app = replay_app(tmp_path, demo_track)
 
     async def finished(pilot) -> None:
         await wait_for(pilot, lambda: "replay finished" in app.connection)
+        await pilot.pause(0.3)
+        app.clear_notifications()  # the toast's time-out is not part of the picture
+        await pilot.press("up", "up")
         await pilot.pause(0.5)
 
     assert snap_compare(app, terminal_size=size, run_before=finished)
+
+
+@pytest.mark.parametrize("key", ["question_mark", "m", "c"])
+def test_dialog_snapshot_at_80x24(snap_compare, tmp_path, demo_track, key):
+    app = replay_app(tmp_path, demo_track)
+
+    async def opened(pilot) -> None:
+        await wait_for(pilot, lambda: "replay finished" in app.connection)
+        await wait_for(pilot, lambda: "joint fit" in app.comparison_text)
+        app.clear_notifications()
+        await pilot.press(key)
+        await pilot.pause(0.5)
+
+    assert snap_compare(app, terminal_size=(80, 24), run_before=opened)
 
 
 @pytest.mark.slow  # station demo in tmux, in real time

@@ -191,14 +191,15 @@ class MainScreen(Screen):
 
     def compose(self) -> ComposeResult:
         yield Header(show_clock=False)
-        yield Static("", id="status")
+        yield Static("", id="status", markup=False)
+        # markup=False: "[0.2238, 0.2249]", "x [m]" and a port name are text, not markup
         with Horizontal(id="top"):
             with Vertical(id="left"):
-                yield Static("waiting for the first descent", id="progress")
-                yield Static("no result yet", id="result")
+                yield Static("waiting for the first descent", id="progress", markup=False)
+                yield Static("no result yet", id="result", markup=False)
                 with Horizontal(id="plots"):
-                    yield Static("", id="residuals")
-                    yield Static("", id="speed")
+                    yield Static("", id="residuals", markup=False)
+                    yield Static("", id="speed", markup=False)
             yield RichLog(id="log", max_lines=500, markup=False, wrap=False)
         yield DataTable(id="table", cursor_type="row", zebra_stripes=True, cell_padding=0)
         # compact, without the command palette's key: at 80 columns "q Quit" stays in sight
