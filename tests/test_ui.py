@@ -468,12 +468,18 @@ def test_no_number_is_ever_cut_in_the_table():
 # ----------------------------------------------------------------------------- no terminal
 
 
-@pytest.mark.parametrize(
-    "args",
-    [["demo"], ["live", "--config", "nonexistent.yaml"], ["replay", "nonexistent", "--ui"]],
-)
-def test_ui_commands_refuse_without_a_terminal(run_station, tmp_path, args):
-    """``station demo </dev/null >file``: one line, exit 2, nothing written, no session."""
+@pytest.mark.parametrize("command", ["demo", "live", "replay"])
+def test_ui_commands_refuse_without_a_terminal(run_station, tmp_path, demo_track, command):
+    """``station demo </dev/null >file``: one line, exit 2, nothing written, no session (a
+    wrong config, port or source is said first: that needs no terminal)."""
+    if command == "live":
+        args = ["live", "--config", write_config(tmp_path, "loop://")]
+    elif command == "replay":
+        make_capture(tmp_path / "capture.txt", demo_track)
+        args = ["replay", tmp_path / "capture.txt", "--ui", "--config",
+                write_config(tmp_path, "loop://")]  # fmt: skip
+    else:
+        args = ["demo"]
     r = run_station(*args, cwd=tmp_path)  # pytest's stdin and captured stdout: no terminal
     assert r.returncode == 2
     assert r.stdout == ""

@@ -19,8 +19,8 @@ def _replay_ui(args: argparse.Namespace) -> int:
     from station.session.replay import source_date
     from station.ui.app import StationApp
 
+    cfg = _replay_config(args)  # a wrong source or config is said first, terminal or not
     require_terminal("replay --ui", "without --ui, replay prints the results")
-    cfg = _replay_config(args)
     date = source_date(args.source, _date(args.date))
     speed = None if args.fast else args.speed
     return _run_ui(StationApp(cfg, mode="replay", source=args.source, speed=speed, date=date))
@@ -69,9 +69,9 @@ def cmd_live(args: argparse.Namespace) -> int:
     from station.session.ports import check_port
     from station.ui.app import StationApp
 
-    require_terminal("live", "to record without a terminal: station record")
     cfg = load_config(args.config)
     check_port(cfg.serial.port, args.config)  # a wrong port: say so and list them, at once
+    require_terminal("live", "to record without a terminal: station record")
     folder = args.session_dir or sessions.default_dir()
     return _run_ui(StationApp(cfg, mode="live", session_dir=folder))
 
