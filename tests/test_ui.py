@@ -570,3 +570,23 @@ async def test_metadata_form_names_the_next_descent_and_saves_only_changes(tmp_p
     last = read_annotations(str(session))[-1]
     assert last.from_descent == 2
     assert last.values.values() == {"wax": "LF blue"}  # the pre-filled ski not written again
+
+
+@pytest.mark.parametrize("size", [(80, 24), (100, 30), (200, 50)])
+@run_async
+async def test_plots_fit_their_boxes_and_grow_with_the_terminal(tmp_path, demo_track, size):
+    app = replay_app(tmp_path, demo_track)
+    async with app.run_test(size=size) as pilot:
+        await wait_for(pilot, lambda: "replay finished" in app.connection)
+        await pilot.press("up", "up")  # descent 2: a fit with a speed profile
+        await pilot.pause(0.5)
+        for wid in ("#residuals", "#speed"):
+            box = app.main.query_one(wid)
+            lines = str(box.render()).splitlines()
+            assert len(lines) == app.plot_rows <= box.content_region.height, wid
+            assert max(map(len, lines)) <= box.content_region.width, wid
+        speed = str(app.main.query_one("#speed").render()).splitlines()
+        assert speed[-1].rstrip().endswith(" 366") and "x [m]" in speed[-1]
+        # the table keeps at least six rows at 24 lines; at 50 the plots take what is left
+        assert app.main.query_one("#table").content_region.height >= 6
+        assert app.plot_rows == (6 if size[1] <= 30 else 16)

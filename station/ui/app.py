@@ -493,24 +493,28 @@ class StationApp(App):
         self._draw_plots()
 
     def _draw_plots(self) -> None:
-        """Both plots fill their widgets: drawn again when the terminal is resized."""
+        """Both plots fill their widgets: drawn again when the terminal is resized. Their
+        widths come from the terminal's, not from the widgets' last layout (which lags one
+        refresh behind the residual plot's new width)."""
         res = self._plotted
         if res is None:
             return
         rows = self.plot_rows
+        # the left panel: the terminal less the log of impulses (hidden when narrow)
+        left = self.size.width - (0 if self.size.width < NARROW else 46)
+        resid_width = 40  # the residual plot's min-width (station.tcss)
         f = res.fit
         if f is not None:
             ids = list(f.residuals_s)
             # wider bars in a wide terminal: the residual plot takes up to half the panel
-            left = self.main.query_one("#left").content_region.width
             bar = max(4, min(10, (left // 2 - 7) // max(len(ids), 1)))
             res_ms = [r * 1000 for r in f.residuals_s.values()]
-            plot = residual_plot(ids, res_ms, height=rows, bar_width=bar)
-            self.main.query_one("#residuals", Static).update(
-                "\n".join(plot) if ids else "no residuals: " + f.status
-            )
+            lines = residual_plot(ids, res_ms, height=rows, bar_width=bar)
+            text = "\n".join(lines) if ids else "no residuals: " + f.status
+            resid_width = max(resid_width, *(len(line) for line in text.splitlines()))
+            self.main.query_one("#residuals", Static).update(text)
         box = self.main.query_one("#speed", Static)
-        width = max(10, box.content_region.width - 7)
+        width = max(10, left - resid_width - 1 - 7)  # its padding, the speed labels
         if res.speed_x is not None and res.speed_v is not None:
             x, v = res.speed_x.tolist(), res.speed_v.tolist()
             plot = speed_plot(x, v, width=width, height=rows - 1)
