@@ -484,7 +484,9 @@ class StationApp(App):
             + line("CdA", "cda", ".4f", "m²")
             + "\n"
             + line("v0", "v0", ".3f", "m/s")
-            + f"   rms {_f(row.rms_residual_ms, '.2f')} ms · {row.model} model\n"
+            + f"   rms {_f(row.rms_residual_ms, '.2f')} ms · {row.model} model"
+            + (f" · μ1 {_f(e.get('mu1'), '.5f')} s/m" if row.model == FitModel.VELOCITY else "")
+            + "\n"
             + conditions(row)
             + (f"\n{notes}" if notes else "")
         )
