@@ -24,7 +24,9 @@ def test_the_days_fits_use_the_surveys_latitude(demo_track, demo_xs):
     job = FitJob(descent, "2026-02-12T10:00:00+00:00", Metadata(), FitModel.CONSTANT, 88.0, 1.04)
     analyser = Analyser(None, track)  # type: ignore[arg-type]
     assert analyser.gravity.value == pytest.approx(g) and "GRS80" in analyser.gravity.source
-    fit = analyser.run(job).fit
+    res = analyser.run(job)
+    fit = res.fit
+    assert res.row.gravity == pytest.approx(g)  # the results and the UI say which g was used
     assert fit is not None and fit.estimates["mu"] == pytest.approx(0.0085, abs=2e-6)
     # standard gravity on the same times: μ off by about (g0 − g)/g·(tan α − μ)
     plain = Analyser(None, demo_track).run(job).fit  # type: ignore[arg-type]

@@ -11,6 +11,7 @@ from station.cli.common import (
     _date,
     _positive,
 )
+from station.errors import InputError
 
 
 def _replay_ui(args: argparse.Namespace) -> int:
@@ -18,15 +19,48 @@ def _replay_ui(args: argparse.Namespace) -> int:
     from station.session.replay import source_date
     from station.ui.app import StationApp
 
-    cfg = _replay_config(args)
+    cfg = _replay_config(args)  # a wrong source or config is said first, terminal or not
+    require_terminal("replay --ui", "without --ui, replay prints the results")
     date = source_date(args.source, _date(args.date))
     speed = None if args.fast else args.speed
     return _run_ui(StationApp(cfg, mode="replay", source=args.source, speed=speed, date=date))
 
 
-def _run_ui(app) -> int:
+def require_terminal(command: str, instead: str) -> None:
+    """The UI needs a terminal to read keys from and to draw on (Textual draws on stderr): with
+    input or output redirected it would write escape codes into a file and run until killed."""
+    streams = {"standard input": sys.stdin, "standard output": sys.stdout}
+    streams["standard error"] = sys.stderr
+    for name, stream in streams.items():
+        try:
+            tty = stream is not None and stream.isatty()
+        except (AttributeError, ValueError):  # closed or replaced by something without a fd
+            tty = False
+        if not tty:
+            raise InputError(
+                f"station {command} is a terminal UI and {name} is not a terminal; "
+                f"run it in a terminal ({instead})"
+            )
+
+
+def _run_ui(app: Any) -> int:
     app.run()
-    return 0
+    if app.return_code:  # an error inside the app: Textual has printed it
+        return int(app.return_code)
+    folder = getattr(app, "session_dir", None)
+    if folder is not None:
+        n = len(getattr(app, "results", {}))
+        print(
+            f"session saved in {os.path.abspath(folder)} ({n} descent{'s' * (n != 1)}: raw.jsonl, "
+            f"results.csv); replay it with: station replay {folder} --ui",
+            file=sys.stderr,
+            flush=True,
+        )
+    # Quit within a second: by now the raw log is closed, the results CSV and the
+    # annotations are written and the simulator has ended; what is left is the interpreter
+    # taking numpy, scipy and Textual apart (0.4-0.6 s), which nobody needs to wait for.
+    sys.stdout.flush()
+    os._exit(0)
 
 
 def cmd_live(args: argparse.Namespace) -> int:
@@ -37,6 +71,7 @@ def cmd_live(args: argparse.Namespace) -> int:
 
     cfg = load_config(args.config)
     check_port(cfg.serial.port, args.config)  # a wrong port: say so and list them, at once
+    require_terminal("live", "to record without a terminal: station record")
     folder = args.session_dir or sessions.default_dir()
     return _run_ui(StationApp(cfg, mode="live", session_dir=folder))
 
@@ -59,6 +94,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from station.session.config import load_config
     from station.ui.app import StationApp
 
+    require_terminal("demo", "the simulated timer alone: station-sim")
     cfg = load_config(demo_config_path())
     folder = args.session_dir or sessions.default_dir("sessions").replace(
         os.sep + "20", os.sep + "demo-20", 1

@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from station.model.fit import FitResult, fit_descent
-from station.model.physics import Conditions, Params, StraightRun, gravity_for
+from station.model.physics import G_STANDARD, Conditions, Params, StraightRun, gravity_for
 from station.model.track_error import survey_error
 from station.session.config import StationConfig
 from station.session.records import (
@@ -42,6 +42,7 @@ class FitJob:
     mass_kg: float
     air_density: float
     wind_ms: float = 0.0
+    gravity: float | None = None  # m/s²; None: the analyser's (the survey's site, else standard)
     problem: str = ""  # what makes the fit impossible (e.g. wind without a direction)
 
 
@@ -111,6 +112,8 @@ class Analyser:
 
     def run(self, job: FitJob) -> DescentResult:
         """Fit one descent; an exception of the fit is the descent's ``error`` status."""
+        if job.gravity is None:  # the site's g, which the row then reports
+            job = replace(job, gravity=self.gravity.value)
         if job.problem:
             return error_result(job, job.problem)
         try:
@@ -120,7 +123,8 @@ class Analyser:
 
     def _fit(self, job: FitJob) -> DescentResult:
         d = job.descent
-        cond = Conditions(job.mass_kg, job.air_density, job.wind_ms, g=self.gravity.value)
+        assert job.gravity is not None  # set by run()
+        cond = Conditions(job.mass_kg, job.air_density, job.wind_ms, g=job.gravity)
         if d.status == DescentStatus.ABORTED:
             return DescentResult(d, None, result_row(job, None))
         ids = d.photocells
@@ -165,7 +169,8 @@ def result_row(job: FitJob, fit: FitResult | None) -> ResultRow:
     est = fit.estimates if fit else {}
     rms = None
     if fit is not None and fit.residuals_s:
-        r = np.array(list(fit.residuals_s.values())[1:])
+        # every photocell: each time is data (the fit's free offset takes the first one's noise)
+        r = np.array(list(fit.residuals_s.values()))
         rms = float(np.sqrt(np.mean(r**2)) * 1000) if r.size else None
     flags = d.flags
     if fit is None:
@@ -194,6 +199,7 @@ def result_row(job: FitJob, fit: FitResult | None) -> ResultRow:
         model=job.model,
         mass_kg=job.mass_kg,
         air_density=job.air_density,
+        gravity=job.gravity if job.gravity is not None else G_STANDARD,
         wind_ms=job.wind_ms,
         metadata=job.metadata,
     )

@@ -357,6 +357,7 @@ class ResultRow:
     air_density: float
     wind_ms: float
     metadata: Metadata
+    gravity: float = 9.80665  # m/s² the fit used (the site's, from the survey's latitude)
     invalid_reason: str = ""
 
     @property
@@ -384,7 +385,7 @@ class ResultRow:
 _BEFORE_META = (
     "descent", "start_time", "photocells_used", "missing", "v0", "cda", "cda_lo", "cda_hi",
     "mu", "mu_lo", "mu_hi", "mu1", "sigma_s2", "rms_residual_ms", "status", "descent_status",
-    "flags", "model", "mass_kg", "air_density", "wind_ms",
+    "flags", "model", "mass_kg", "air_density", "gravity", "wind_ms",
 )  # fmt: skip
 
 

@@ -28,7 +28,7 @@ from station.session.records import ResultRow, csv_record
 COLUMNS = [
     "descent", "start_time", "photocells_used", "missing", "v0", "cda", "cda_lo", "cda_hi",
     "mu", "mu_lo", "mu_hi", "mu1", "sigma_s2", "rms_residual_ms", "status", "descent_status",
-    "flags", "model", "mass_kg", "air_density", "wind_ms", "skier", "ski", "wax",
+    "flags", "model", "mass_kg", "air_density", "gravity", "wind_ms", "skier", "ski", "wax",
     "air_temperature_c",
     "snow_temperature_c", "pressure_hpa", "humidity_pct", "notes", "invalid_reason",
 ]  # fmt: skip
@@ -101,7 +101,8 @@ UNITS = {
     "descent": "1", "start_time": "ISO 8601 local time with UTC offset", "photocells_used": "1",
     "v0": "m/s", "cda": "m2", "cda_lo": "m2", "cda_hi": "m2", "mu": "1", "mu_lo": "1",
     "mu_hi": "1", "mu1": "s/m", "sigma_s2": "s2", "rms_residual_ms": "ms", "mass_kg": "kg",
-    "air_density": "kg/m3", "wind_ms": "m/s (+ tailwind)", "air_temperature_c": "degC",
+    "air_density": "kg/m3", "gravity": "m/s2", "wind_ms": "m/s (+ tailwind)",
+    "air_temperature_c": "degC",
     "snow_temperature_c": "degC", "pressure_hpa": "hPa", "humidity_pct": "%",
 }  # fmt: skip
 

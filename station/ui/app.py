@@ -10,8 +10,9 @@ it shows is what the messages brought, and what the engineer enters goes to the 
 from __future__ import annotations
 
 import datetime as dt
+import math
 import os
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 from textual.app import App, ComposeResult
@@ -30,6 +31,7 @@ from station.session.records import (
     LineCounts,
     ModelChange,
     Progress,
+    ResultRow,
     ValidMark,
 )
 from station.timing.impulses import format_tod
@@ -47,17 +49,140 @@ from station.ui.plots import residual_plot, speed_plot
 from station.ui.screens import ComparisonScreen, HelpScreen, MetadataScreen, ReasonScreen
 from station.ui.simulator import SimulatedTimer, SimulatorError
 
-#: (label, key, width): fixed widths, so the table does not jump as rows arrive and the
-#: columns that matter most fit in 80 columns
-COLUMNS = [
-    ("#", "n", 3), ("start", "start", 8), ("ski", "ski", 12), ("μ", "mu", 7),
-    ("status", "status", 18), ("μ 90 %", "mu_ci", 15), ("CdA", "cda", 6), ("v0", "v0", 5),
-    ("rms ms", "rms", 6), ("wax", "wax", 12), ("notes", "notes", 40),
-]  # fmt: skip
+
+@dataclass(frozen=True)
+class Column:
+    """A column of the descents table: its heading, key, width in cells, and whether its
+    values are numbers (right-aligned)."""
+
+    label: str
+    key: str
+    width: int
+    number: bool = False
+
+
+#: below this width the log of impulses is hidden
+NARROW = 110
+#: below this width the table takes its narrow set of columns
+NARROW_TABLE = 130
+#: the vertical scrollbar of the table, kept free so the last column is never under it
+SCROLLBAR = 2
+
+
+def table_columns(width: int) -> list[Column]:
+    """The columns for a terminal ``width`` cells wide. Every number column is wide enough for
+    its values (a number is never cut: ``_num`` drops decimals first, then says ``#``); what
+    does not fit at 80 columns is abbreviated (status, start without seconds) or left to the
+    result panel, which shows the selected descent in full. Notes take what is left."""
+    if width < NARROW_TABLE:
+        cols = [
+            Column("#", "n", 3, True), Column("start", "start", 5), Column("ski", "ski", 12),
+            Column("wax", "wax", 8), Column("μ", "mu", 7, True), Column("±90%", "mu_pm", 7, True),
+            Column("CdA", "cda", 6, True), Column("v0", "v0", 5, True),
+            Column("rms", "rms", 4, True), Column("st", "status", 6),
+        ]  # fmt: skip
+        used = sum(c.width + 1 for c in cols) + SCROLLBAR + 1
+        if width - used < 12:  # the interval is in the result panel: notes keep some room
+            cols = [c for c in cols if c.key != "mu_pm"]
+            used = sum(c.width + 1 for c in cols) + SCROLLBAR + 1
+        return [*cols, Column("notes", "notes", max(8, width - used))]
+    cols = [
+        Column("#", "n", 3, True), Column("start", "start", 8), Column("ski", "ski", 12),
+        Column("wax", "wax", 12), Column("μ", "mu", 7, True),
+        Column("μ 90 %", "mu_ci", 15, True), Column("CdA", "cda", 6, True),
+        Column("v0", "v0", 5, True), Column("rms ms", "rms", 6, True),
+        Column("status", "status", 20),
+    ]  # fmt: skip
+    rest = max(16, width - sum(c.width + 1 for c in cols) - SCROLLBAR - 2)
+    return [*cols, Column("flags", "flags", rest // 2), Column("notes", "notes", rest - rest // 2)]
+
+
+#: statuses in the narrow table (the help explains them; the result panel says them in full)
+SHORT_STATUS = {
+    "ok": "ok", "ill-conditioned": "ill", "lift-off": "lift", "stopped": "stop",
+    "too-few-photocells": "few", "not-converged": "nc", "aborted": "abort", "error": "ERR",
+}  # fmt: skip
+
+
+def _num(v: float | None, decimals: int, width: int) -> str:
+    """A number in at most ``width`` characters, never cut: fewer decimals first, then the
+    exponent form, and a column of ``#`` (as spreadsheets do) if even that does not fit."""
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "—"
+    for d in range(decimals, -1, -1):
+        text = f"{v:.{d}f}"
+        if len(text) <= width:
+            return text
+    text = f"{v:.0e}"
+    return text if len(text) <= width else "#" * width
+
+
+def _middle(text: str, width: int) -> str:
+    """Text in ``width`` cells, cut in the middle where it must be ("demo…ir A")."""
+    if len(text) <= width:
+        return text
+    tail = (width - 1) // 2
+    return text[: width - 1 - tail] + "…" + text[len(text) - tail :]
 
 
 def _f(v: Any, spec: str) -> str:
     return "—" if v is None or (isinstance(v, float) and v != v) else format(v, spec)
+
+
+def cell(res: DescentResult, col: Column) -> str:
+    """The text of one cell of the table for a descent."""
+    row, w = res.row, col.width
+    key = col.key
+    if key == "n":
+        return str(res.number)
+    if key == "start":
+        clock = res.start_time[11:19] if "T" in res.start_time else res.start_time[:8]
+        return clock[:w]
+    if key in ("ski", "wax"):  # an item's name often differs at its end: "pair A", "pair B"
+        return _middle(getattr(row, key), w)
+    if key == "notes":
+        return row.notes
+    if key == "mu":
+        return _num(row.mu, 5, w)
+    if key == "mu_ci":
+        if row.mu_lo is None or row.mu_hi is None:
+            return "—"
+        return f"{_num(row.mu_lo, 5, 7)}–{_num(row.mu_hi, 5, 7)}"
+    if key == "mu_pm":
+        if row.mu_lo is None or row.mu_hi is None:
+            return "—"
+        return _num((row.mu_hi - row.mu_lo) / 2, 5, w)
+    if key == "cda":
+        return _num(row.cda, 4, w)
+    if key == "v0":
+        return _num(row.v0, 2, w)
+    if key == "rms":
+        return _num(row.rms_residual_ms, 2, w)
+    velocity = row.model == FitModel.VELOCITY
+    if key == "status":
+        if w < 10:  # narrow: short status, v for the velocity model, ! when there are flags
+            short = "INV" if row.invalid else SHORT_STATUS.get(row.status.value, "?")
+            marks = ("v" if velocity else "") + ("!" if row.flags else "")
+            return f"{short} {marks}".strip()
+        status = "INVALID" if row.invalid else row.status.value
+        return status + (" (v)" if velocity else "")
+    if key == "flags":
+        invalid = [f"invalid: {row.invalid_reason}"] if row.invalid else []
+        return "; ".join([*invalid, *row.flags])
+    raise KeyError(key)
+
+
+def conditions(row: ResultRow) -> str:
+    """What the fit took as known: a wrong mass (72,5 read as 725) shows here at once."""
+    wind = f" · wind {row.wind_ms:g} m/s" if row.wind_ms else ""
+    air = f"air {row.air_density:.3f} kg/m³"
+    return f"mass {row.mass_kg:g} kg · {air} · g {row.gravity:.5f} m/s²{wind}"
+
+
+def _justify(text: str, col: Column) -> str:
+    """One space before every column, numbers right-aligned (the table has no padding of its
+    own: at 80 columns every cell counts)."""
+    return " " + (text.rjust(col.width) if col.number else text)
 
 
 class MainScreen(Screen):
@@ -65,17 +190,19 @@ class MainScreen(Screen):
 
     def compose(self) -> ComposeResult:
         yield Header(show_clock=False)
-        yield Static("", id="status")
+        yield Static("", id="status", markup=False)
+        # markup=False: "[0.2238, 0.2249]", "x [m]" and a port name are text, not markup
         with Horizontal(id="top"):
             with Vertical(id="left"):
-                yield Static("waiting for the first descent", id="progress")
-                yield Static("no result yet", id="result")
+                yield Static("waiting for the first descent", id="progress", markup=False)
+                yield Static("no result yet", id="result", markup=False)
                 with Horizontal(id="plots"):
-                    yield Static("", id="residuals")
-                    yield Static("", id="speed")
+                    yield Static("", id="residuals", markup=False)
+                    yield Static("", id="speed", markup=False)
             yield RichLog(id="log", max_lines=500, markup=False, wrap=False)
-        yield DataTable(id="table", cursor_type="row", zebra_stripes=True)
-        yield Footer()
+        yield DataTable(id="table", cursor_type="row", zebra_stripes=True, cell_padding=0)
+        # compact, without the command palette's key: at 80 columns "q Quit" stays in sight
+        yield Footer(compact=True, show_command_palette=False)
 
     def on_resize(self, _event: object) -> None:
         self.app.on_resize()  # type: ignore[attr-defined]
@@ -89,8 +216,8 @@ class StationApp(App):
     BINDINGS = [
         Binding("m", "metadata", "Metadata"),
         Binding("i", "invalid", "Invalid"),
-        Binding("v", "refit", "Velocity fit"),
-        Binding("e", "export", "Export CSV"),
+        Binding("v", "refit", "Refit v"),
+        Binding("e", "export", "Export"),
         Binding("c", "compare", "Compare"),
         Binding("question_mark,f1", "help", "Help", key_display="?"),
         Binding("q", "quit", "Quit"),
@@ -125,10 +252,15 @@ class StationApp(App):
         self.counts = LineCounts()
         self.metadata_from: int | None = None  # where the latest metadata entered applies from
         self.latest: int | None = None
+        self.shown: int | None = None  # the descent the result panel shows: the selected row
+        self.columns: list[Column] = []
+        self.plot_rows = 6
+        self._plotted: DescentResult | None = None
         self.comparison_text = (
             "no comparison yet: it needs fitted descents with ski or wax entered (m)"
         )
         self.connection = "starting"
+        self.connection_detail = ""
         self.problem = ""  # the latest failure the acquisition went on after (status line)
         self.sub_title = mode
 
@@ -137,9 +269,10 @@ class StationApp(App):
     async def on_mount(self) -> None:
         self.main = MainScreen()
         await self.push_screen(self.main)
-        table = self.main.query_one("#table", DataTable)
-        for label, key, width in COLUMNS:
-            table.add_column(label, key=key, width=width)
+        self.columns = table_columns(self.size.width)
+        self._build_table()
+        # ↑ ↓, i and v work at once: the table has the focus from the start
+        self.main.query_one("#table", DataTable).focus()
         self._update_status()
         self.on_resize()
         self.acq = Acquisition.open(
@@ -174,20 +307,57 @@ class StationApp(App):
 
     def on_resize(self, _event: object = None) -> None:
         """Called by the main screen when the terminal changes size."""
-        self.set_class(self.size.width < 110, "narrow")
-        self.call_after_refresh(self._draw_speed)
+        if not self.columns:  # before the main screen is mounted
+            return
+        self.set_class(self.size.width < NARROW, "narrow")
+        if table_columns(self.size.width) != self.columns:
+            self._build_table()
+        # the plots grow with the terminal's height; the table keeps at least 6 rows at 24
+        self.plot_rows = max(6, min(16, 6 + (self.size.height - 30) // 2))
+        self.main.query_one("#plots").styles.height = self.plot_rows
+        self.main.query_one("#top").styles.height = 2 + 6 + self.plot_rows
+        self.call_after_refresh(self._draw_plots)
+
+    # ------------------------------------------------------------------ the table
+
+    def _build_table(self) -> None:
+        """The columns for the terminal's width, and every row again; the selection is kept."""
+        table = self.main.query_one("#table", DataTable)
+        selected = self._cursor_number()
+        self.columns = table_columns(self.size.width)
+        table.clear(columns=True)
+        for col in self.columns:
+            label = " " + (col.label.rjust(col.width) if col.number else col.label)
+            table.add_column(label, key=col.key, width=col.width + 1)
+        for n in sorted(self.results):
+            table.add_row(*self._cells(self.results[n]), key=str(n))
+        if selected is not None and str(selected) in table.rows:
+            table.move_cursor(row=table.get_row_index(str(selected)))
+
+    def _cells(self, res: DescentResult) -> list[str]:
+        return [_justify(cell(res, col), col) for col in self.columns]
+
+    def _cursor_number(self) -> int | None:
+        """The descent of the selected row (None: no rows yet)."""
+        table = self.main.query_one("#table", DataTable)
+        if table.row_count == 0:
+            return None
+        key = table.coordinate_to_cell_key(table.cursor_coordinate).row_key
+        return int(key.value) if key.value is not None else None
 
     # ------------------------------------------------------------------ messages
 
     def on_connection_changed(self, msg: ConnectionChanged) -> None:
+        # the state first, the port (or why) last: at 80 columns the counts stay in sight
         states = {
-            "connected": f"timer connected: {msg.detail}",
-            "disconnected": f"TIMER DISCONNECTED ({msg.detail}) · reconnecting",
-            "open-failed": f"cannot open the timer port ({msg.detail}) · retrying",
-            "replay": f"replaying {msg.detail}",
-            "error": f"ERROR: {msg.detail}",
+            "connected": "timer connected",
+            "disconnected": "TIMER DISCONNECTED · reconnecting",
+            "open-failed": "cannot open the timer port · retrying",
+            "replay": "replaying",
+            "error": "ERROR",
         }
         self.connection = states.get(msg.state, msg.state)
+        self.connection_detail = msg.detail
         self.set_class(msg.state in ("disconnected", "open-failed", "error"), "offline")
         self._update_status()
 
@@ -195,7 +365,10 @@ class StationApp(App):
         c = self.counts
         counts = f"{c.impulses} impulses · {c.edits} edits · {c.unparsed} unparsed"
         problem = f"  │  ! {self.problem}" if self.problem else ""
-        self.main.query_one("#status", Static).update(f" {self.connection}  │  {counts}{problem}")
+        detail = f"  │  {self.connection_detail}" if self.connection_detail else ""
+        self.main.query_one("#status", Static).update(
+            f" {self.connection}  │  {counts}{problem}{detail}"
+        )
 
     def on_impulses_arrived(self, msg: ImpulsesArrived) -> None:
         self.counts = msg.counts
@@ -221,41 +394,30 @@ class StationApp(App):
                 f"{last} +{(passed[last] - t0) / 1e6:.2f} s\n{marks}"
             )
         self.main.query_one("#progress", Static).update(text)
+        if isinstance(self.screen, MetadataScreen):  # a descent started while it is open
+            self.screen.set_next(p.next_number)
 
     def on_descent_fitted(self, msg: DescentFitted) -> None:
         res = msg.result
         n = res.number
         self.results[n] = res
-        row = res.row
-        ci = f"{_f(row.mu_lo, '.5f')}–{_f(row.mu_hi, '.5f')}" if row.mu_lo is not None else "—"
-        status = row.status.value if not row.invalid else "INVALID"
-        values = [
-            str(n),
-            res.start_time[11:19] if "T" in res.start_time else res.start_time[:8],
-            row.ski,
-            _f(row.mu, ".5f"),
-            status + (" (v)" if row.model == FitModel.VELOCITY else ""),
-            ci,
-            _f(row.cda, ".4f"),
-            _f(row.v0, ".2f"),
-            _f(row.rms_residual_ms, ".2f"),
-            row.wax,
-            row.invalid_reason or "; ".join(row.flags),
-        ]
         table = self.main.query_one("#table", DataTable)
         key = str(n)
+        values = self._cells(res)
         if key in table.rows:
-            for (_label, col, _width), value in zip(COLUMNS, values, strict=True):
-                table.update_cell(key, col, value)
+            for col, value in zip(self.columns, values, strict=True):
+                table.update_cell(key, col.key, value)
         else:
             # follow new descents only when the cursor is on the last row: a selection the
             # engineer made (to mark or refit a descent) is never taken away
             following = table.row_count == 0 or table.cursor_row >= table.row_count - 1
             table.add_row(*values, key=key)
             if following:
-                table.move_cursor(row=table.row_count - 1)
+                table.move_cursor(row=table.row_count - 1, scroll=True)
         self.latest = n
-        self._show(res)
+        # the panel shows the selected row, and only it: "the descent" is one descent
+        if self._cursor_number() == n:
+            self._show(res)
 
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
         if event.row_key is None or event.row_key.value is None:
@@ -285,14 +447,17 @@ class StationApp(App):
 
     def _show(self, res: DescentResult) -> None:
         """Result panel and plots for one descent."""
+        self.shown = res.number
         f, row, d = res.fit, res.row, res.descent
         head = f"descent {d.number} · {local_time(res.start_time)} · "
         if f is None:
+            status = f"INVALID: {row.invalid_reason} ({row.status})" if row.invalid else row.status
             self.main.query_one("#result", Static).update(
-                head + f"{row.status}: {'; '.join(row.flags)}"
+                head + f"{status}: {'; '.join(row.flags)}\n" + conditions(row)
             )
             self.main.query_one("#residuals", Static).update("")
             self.main.query_one("#speed", Static).update("")
+            self._plotted = None
             return
         e, ci = f.estimates, f.ci90
 
@@ -309,6 +474,7 @@ class StationApp(App):
         status = row.status.value
         if row.invalid:
             status = f"INVALID: {row.invalid_reason} (fit {status})"
+        notes = "; ".join(x for x in (*row.flags, f.message, row.notes) if x)
         text = (
             head
             + f"{len(d.photocells)} photocells · {status}\n"
@@ -325,39 +491,53 @@ class StationApp(App):
                 if "mu1" in e
                 else ""
             )
+            + "\n"
+            + conditions(row)
+            + (f"\n{notes}" if notes else "")
             + (f"\n{f.message}" if f.message else "")
         )
         self.main.query_one("#result", Static).update(text)
-        ids = list(f.residuals_s)
-        plot = residual_plot(ids, [r * 1000 for r in f.residuals_s.values()], height=6)
-        self.main.query_one("#residuals", Static).update(
-            "\n".join(plot) if ids else "no residuals: " + f.status
-        )
-        self._speed_of = res
-        self._draw_speed()
+        self._plotted = res
+        self._draw_plots()
 
-    def _draw_speed(self) -> None:
-        """The speed plot fills its widget: drawn again when the terminal is resized."""
-        res = getattr(self, "_speed_of", None)
+    def _draw_plots(self) -> None:
+        """Both plots fill their widgets: drawn again when the terminal is resized. Their
+        widths come from the terminal's, not from the widgets' last layout (which lags one
+        refresh behind the residual plot's new width)."""
+        res = self._plotted
         if res is None:
             return
+        rows = self.plot_rows
+        # the left panel: the terminal less the log of impulses (hidden when narrow)
+        left = self.size.width - (0 if self.size.width < NARROW else 46)
+        resid_width = 40  # the residual plot's min-width (station.tcss)
+        f = res.fit
+        if f is not None:
+            ids = list(f.residuals_s)
+            # wider bars in a wide terminal: the residual plot takes up to half the panel
+            bar = max(4, min(10, (left // 2 - 7) // max(len(ids), 1)))
+            res_ms = [r * 1000 for r in f.residuals_s.values()]
+            lines = residual_plot(ids, res_ms, height=rows, bar_width=bar)
+            text = "\n".join(lines) if ids else "no residuals: " + f.status
+            resid_width = max(resid_width, *(len(line) for line in text.splitlines()))
+            self.main.query_one("#residuals", Static).update(text)
         box = self.main.query_one("#speed", Static)
-        width = max(10, box.content_region.width - 7)
+        width = max(10, left - resid_width - 1 - 7)  # its padding, the speed labels
         if res.speed_x is not None and res.speed_v is not None:
-            plot = speed_plot(res.speed_x, res.speed_v, width=width, height=5)
+            x, v = res.speed_x.tolist(), res.speed_v.tolist()
+            plot = speed_plot(x, v, width=width, height=rows - 1)
         else:
             plot = ["(no speed profile)"]
-        self.main.query_one("#speed", Static).update("\n".join(plot))
+        box.update("\n".join(plot))
 
     # ------------------------------------------------------------------ actions
 
     def _selected(self) -> int | None:
-        table = self.main.query_one("#table", DataTable)
-        if table.row_count == 0:
+        """The descent ``i`` and ``v`` act on: the selected row, which the panel shows."""
+        n = self._cursor_number()
+        if n is None:
             self.notify("no descent yet", severity="warning")
-            return None
-        key = table.coordinate_to_cell_key(table.cursor_coordinate).row_key
-        return int(key.value) if key.value is not None else None
+        return n
 
     def action_help(self) -> None:
         self.push_screen(HelpScreen())
@@ -423,6 +603,10 @@ class StationApp(App):
         """Quitting ends the day as Ctrl-C ends ``station record``: the open descent is ended
         and fitted, the results CSV written, the raw log closed."""
         if self.acq is not None:
+            self.acq.stop()  # no more bytes: the simulator may go now
+        if self.sim is not None:
+            self.sim.terminate()  # it ends while the day is closed, not after
+        if self.acq is not None:
             self.acq.close()
         if self.sim is not None:
-            self.sim.stop()
+            self.sim.stop(timeout=0.05)

@@ -32,28 +32,32 @@ def _hanging_cell(level: float, row_from_top: int) -> str:
     return "▔" if fill > 0 else " "
 
 
-def residual_plot(ids: Sequence[str], residuals_ms: Sequence[float], height: int = 6) -> list[str]:
+def residual_plot(
+    ids: Sequence[str], residuals_ms: Sequence[float], height: int = 6, bar_width: int = 4
+) -> list[str]:
     """Bars up (computed later than measured) and down around a zero line, one per photocell.
 
     ``height`` rows in all: half above the zero line, half below. The scale is printed.
+    Each photocell takes ``bar_width`` columns (at least its name and a space).
     """
     half = max(1, (height - 2) // 2)
     finite = [abs(r) for r in residuals_ms if math.isfinite(r)]
     scale = max(finite) if finite else 1.0
     scale = scale if scale > 0 else 1.0
-    width = max(4, max((len(i) for i in ids), default=3) + 1)
+    width = max(bar_width, max((len(i) for i in ids), default=3) + 1)
+    bar = max(1, (width - 2) // 3)  # the bar's own width: a third of its column
     up = []
     for r in residuals_ms:
         up.append(half * max(r, 0.0) / scale if math.isfinite(r) else 0.0)
     down = [half * max(-r, 0.0) / scale if math.isfinite(r) else 0.0 for r in residuals_ms]
     lines = []
     for row in range(half - 1, -1, -1):
-        cells = "".join(_bar_cell(u, row).center(width) for u in up)
+        cells = "".join((_bar_cell(u, row) * bar).center(width) for u in up)
         label = f"+{scale:.2f}" if row == half - 1 else ""
         lines.append(f"{label:>6} {cells}")
     lines.append(f"{'0 ms':>6} " + "".join("─" * (width - 1) + " " for _ in ids))
     for row in range(half):
-        cells = "".join(_hanging_cell(d, row).center(width) for d in down)
+        cells = "".join((_hanging_cell(d, row) * bar).center(width) for d in down)
         label = f"-{scale:.2f}" if row == half - 1 else ""
         lines.append(f"{label:>6} {cells}")
     lines.append(" " * 7 + "".join(i.center(width) for i in ids))

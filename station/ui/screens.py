@@ -7,7 +7,7 @@ from typing import Any
 
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.containers import Grid, Vertical, VerticalScroll
+from textual.containers import Grid, Horizontal, ScrollableContainer, Vertical, VerticalScroll
 from textual.screen import ModalScreen
 from textual.validation import ValidationResult, Validator
 from textual.widgets import Button, Input, Label, Static
@@ -15,30 +15,25 @@ from textual.widgets import Button, Input, Label, Static
 from station.numbers import parse_number
 from station.session.records import METADATA_FIELDS
 
+#: fits 80×24 without scrolling (tests/test_ui.py checks it)
 HELP = """\
 [b]station[/b] — trackside measurement of ski friction
 
-[b]Panels[/b]
-  header     connection to the timer, lines and impulses received
-  descent    the open descent: photocells passed, with their times
-  result     the latest fit: μ, CdA and v0 with 90 % intervals, status
-  residuals  computed minus measured time at each photocell
-  speed      the fitted skier's speed along the run
-  table      every descent of the session; select one with ↑ ↓
+[b]Keys[/b]  ↑ ↓  select a descent: the result panel, i and v are about it
+      m    metadata (skier, mass, ski, wax, air, notes) for next descents
+      i    mark the selected descent invalid, with a reason (again: valid)
+      v    refit the selected descent with μ + μ1·v (again: constant μ)
+      e    write the results CSV    c  compare the skis / waxes of the day
+      ?    this help                q  quit: the open descent is ended
 
-[b]Keys[/b]
-  m   run metadata (skier, mass, ski, wax, air, snow, notes) for the following descents
-  i   mark the selected descent invalid, with a reason (again: valid)
-  v   refit the selected descent with velocity-dependent friction (again: constant)
-  e   export the session's results CSV
-  c   compare the items (ski / wax) of the session: joint fit, Δμ, ranking, drift
-  ?   this help        q   quit
+[b]Panels[/b] status: timer, impulses, edits, unparsed · the open descent ·
+      result: μ, CdA, v0 with 90 % intervals; mass, air density, g; flags ·
+      residuals: computed − measured time per photocell · speed on the run
+[b]Table[/b]  st: ok · ill ill-conditioned (— where not identifiable) · lift
+      lift-off · stop · few too few photocells · nc not converged · abort
+      · ERR the fit failed · INV marked invalid; v velocity model; ! flags
 
-Every byte from the timer is recorded before it is parsed; a session replays with
-[i]station replay SESSION --ui[/i]. Statuses: ok, ill-conditioned (a parameter not
-identifiable: shown as —), lift-off, stopped, too-few-photocells, not-converged, aborted,
-error (the fit failed: the reason is in the notes; the recording goes on).
-"""
+Every byte from the timer is recorded first: [i]station replay SESSION --ui[/i]"""
 
 #: the form's labels, from the one table of metadata keys
 LABELS = {f.key: f.title for f in METADATA_FIELDS}
@@ -49,9 +44,10 @@ class HelpScreen(ModalScreen[None]):
     BINDINGS = [Binding("escape,q,question_mark", "dismiss", "close")]
 
     def compose(self) -> ComposeResult:
-        with VerticalScroll(id="help"):
-            yield Static(HELP)
-            yield Button("Close", id="close")
+        with Vertical(id="help"):
+            with VerticalScroll(classes="dialog-body"):
+                yield Static(HELP)
+            yield Button("Close", id="close", compact=True)
 
     def on_button_pressed(self, _event: Button.Pressed) -> None:
         self.dismiss(None)
@@ -114,9 +110,19 @@ class MetadataScreen(ModalScreen[dict[str, Any] | None]):
             return ""
         return f"{value:g}" if isinstance(value, float) else str(value)
 
+    def title_text(self) -> str:
+        return f"Run metadata from descent {self.next_number} on  (Enter saves, Esc cancels)"
+
+    def set_next(self, next_number: int) -> None:
+        """A descent started while the form is open: it applies from the one after."""
+        if next_number != self.next_number:
+            self.next_number = next_number
+            self.query_one("#title", Label).update(self.title_text())
+
     def compose(self) -> ComposeResult:
+        # two columns of fields: the whole form fits 80×24 without scrolling
         with VerticalScroll(id="form"):
-            yield Label(f"Run metadata for descent {self.next_number} and after  (Enter saves)")
+            yield Label(self.title_text(), id="title", markup=False)
             yield Label("", id="error", markup=False)  # "[kg]" in a message is a unit
             with Grid(id="fields"):
                 for key in KINDS:
@@ -132,9 +138,9 @@ class MetadataScreen(ModalScreen[dict[str, Any] | None]):
                         valid_empty=True,  # every field is optional
                     )
                     yield field
-            with Grid(id="buttons"):
-                yield Button("Save", variant="primary", id="save")
-                yield Button("Cancel", id="cancel")
+            with Horizontal(id="buttons"):
+                yield Button("Save", variant="primary", id="save", compact=True)
+                yield Button("Cancel", id="cancel", compact=True)
 
     def on_mount(self) -> None:
         self.query_one("#f_skier", Input).focus()  # type at once; Enter saves
@@ -226,9 +232,11 @@ class ComparisonScreen(ModalScreen[None]):
         self.text = text
 
     def compose(self) -> ComposeResult:
-        with VerticalScroll(id="comparison"):
-            yield Static(self.text, id="comparison_text", markup=False)
-            yield Button("Close", id="close")
+        # the text scrolls, the Close button stays in sight below it at any size
+        with Vertical(id="comparison"):
+            with ScrollableContainer(classes="dialog-body"):  # long lines scroll sideways
+                yield Static(self.text, id="comparison_text", markup=False)
+            yield Button("Close", id="close", compact=True)
 
     def update(self, text: str) -> None:
         self.text = text

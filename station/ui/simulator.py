@@ -4,6 +4,8 @@ a real timer would be. ``station`` never imports the simulators; it runs
 
 from __future__ import annotations
 
+import contextlib
+import os
 import subprocess
 
 
@@ -17,6 +19,7 @@ class SimulatedTimer:
     def __init__(self, command: list[str]) -> None:
         self.command = command
         self.process: subprocess.Popen | None = None
+        self.port = ""
 
     def start(self) -> str:
         """Start the process; returns the port it opened."""
@@ -29,13 +32,25 @@ class SimulatedTimer:
         first = self.process.stdout.readline() if self.process.stdout else ""
         if not first.startswith("PORT "):
             raise SimulatorError("the simulated timer did not start")
-        return first.split(" ", 1)[1].strip()
+        self.port = first.split(" ", 1)[1].strip()
+        return self.port
 
-    def stop(self) -> None:
+    def terminate(self) -> None:
+        """Ask the simulator to end, without waiting (quitting the UI does both at once)."""
+        if self.process is not None and self.process.poll() is None:
+            self.process.terminate()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """End the simulator: asked first, killed when it has not ended within ``timeout``
+        (it sleeps up to a second between lines; the demo's timer has nothing to save)."""
         if self.process is None:
             return
-        self.process.terminate()
+        self.terminate()
         try:
-            self.process.wait(timeout=5)
+            self.process.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
             self.process.kill()
+            self.process.wait()
+        if self.port and os.path.islink(self.port):  # killed: its link to the pty is left
+            with contextlib.suppress(OSError):
+                os.unlink(self.port)
