@@ -383,7 +383,7 @@ async def test_the_panel_shows_the_selected_row_and_keys_work_at_once(tmp_path, 
         await pilot.press("v")  # refits the descent shown, and the panel shows its μ1
         await wait_for(pilot, lambda: app.results[2].row.model == "velocity")
         await pilot.pause(0.2)
-        assert app.shown == 2 and "velocity model · μ1 " in _panel(app)
+        assert app.shown == 2 and "velocity model\nμ1 " in _panel(app)  # μ1 with its interval
 
 
 @run_async
