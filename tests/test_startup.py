@@ -12,7 +12,7 @@ from tests.conftest import ROOT
 FIT = ["fit", "--survey", "surveys/demo_run.yaml", "--times", "surveys/demo_descent.csv",
        "--mass", "88", "--pressure-hpa", "835", "--temperature-c", "-4",
        "--humidity-pct", "70"]  # fmt: skip
-HEAVY = ["pandas", "scipy.stats", "textual", "serial", "simulators"]
+HEAVY = ["pandas", "scipy.stats", "textual", "serial", "simulators", "station.session.records"]
 
 #: run in a fresh interpreter: main(argv), then which modules it imported, as JSON
 SCRIPT = """
@@ -50,3 +50,20 @@ def test_a_usage_error_loads_no_numerics():
     loaded = loaded_after(["fit", "--mass", "-1"])
     assert loaded["status"] == 2
     assert not loaded["numpy"] and [m for m in HEAVY if loaded[m]] == []
+
+
+def test_the_parser_of_one_command_is_the_parser_of_that_command():
+    """main builds only the named command's group: the same commands, in the same order, as
+    the full parser, so a command missing from the table would not run at all."""
+    import argparse
+
+    from station.cli.main import COMMANDS, build_parser
+
+    def commands(ap: argparse.ArgumentParser) -> list[str]:
+        sub = next(a for a in ap._actions if isinstance(a, argparse._SubParsersAction))
+        return list(sub.choices)
+
+    assert commands(build_parser()) == list(COMMANDS)
+    for name, group in COMMANDS.items():
+        assert name in commands(build_parser(name))
+        assert set(commands(build_parser(name))) == {c for c, g in COMMANDS.items() if g == group}

@@ -1,33 +1,35 @@
 """The ``station`` command line: the parser of every subcommand, and the one place that turns
 bad input into one line on stderr and exit status 2, never a traceback.
 
-Each group of subcommands lives in its own module and is imported only when the parser is
-built; the work a command does is imported inside the command, so ``station fit`` does not load
-pandas, the serial port or the terminal UI.
+Each group of subcommands lives in its own module. A command line that names a command builds
+(and imports) only that command's group; ``station --help`` or an unknown command builds them
+all. The work a command does is imported inside the command, so ``station fit`` does not load
+the typed session records, the serial port or the terminal UI.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import sys
 
 from station import __version__
-from station.cli import (
-    analysis,
-    common,
-    memory,
-    ports,
-    recording,
-    report,
-    sessions,
-    survey,
-    terminal,
-)
+from station.cli import common
 from station.errors import InputError
 
+#: every command and the module (station.cli.<module>) that defines it, in the order of --help
+COMMANDS = {
+    "survey": "survey", "simulate": "survey", "fit": "survey", "fit-traverse": "survey",
+    "record": "recording", "replay": "recording", "export": "recording",
+    "annotate": "analysis", "compare": "analysis",
+    "live": "terminal", "demo": "terminal",
+    "sessions": "sessions", "ports": "ports", "import": "memory", "report": "report",
+}  # fmt: skip
 
-def build_parser() -> argparse.ArgumentParser:
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser of every command, or of ``command``'s group only (what its run needs)."""
     ap = common._Parser(
         prog="station",
         description="Measurement station for ski-friction test days "
@@ -35,13 +37,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ap.add_argument("--version", action="version", version=f"station {__version__}")
     sub = ap.add_subparsers(dest="command", required=True, parser_class=common._Parser)
-    for group in (survey, recording, analysis, terminal, sessions, ports, memory, report):
-        group.add_parsers(sub)
+    groups = [COMMANDS[command]] if command in COMMANDS else list(dict.fromkeys(COMMANDS.values()))
+    for name in groups:
+        importlib.import_module(f"station.cli.{name}").add_parsers(sub)
     return ap
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    words = sys.argv[1:] if argv is None else argv
+    args = build_parser(words[0] if words else None).parse_args(argv)
     try:
         return common.dispatch(args)
     except InputError as exc:
