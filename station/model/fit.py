@@ -40,7 +40,6 @@ from scipy.special import stdtrit  # Student-t quantile, without loading scipy.s
 
 from station.model.physics import PARAM_NAMES, Conditions, Params, StraightRun
 from station.model.track_error import (
-    COV_STEP_M,
     DEFAULT_TIMER_PRECISION_S,
     SurveyError,
     add_survey_uncertainty,
@@ -593,7 +592,7 @@ def _survey_and_goodness(
     if relative is None and survey is not None and result.covariance is not None:
         n_phys = len(p) - 1
         phys = Params(p[0], p[1], p[2], mu1=p[3] if n_phys == 4 else 0.0)
-        relative = survey_time_covariance(survey, run.xs, phys, conditions, max(step, COV_STEP_M))
+        relative = survey_time_covariance(survey, run.xs, phys, conditions, step)
     if relative is not None and result.covariance is not None:
         result.survey_time_cov = relative
         survey_cov = np.zeros((len(r), len(r)))
