@@ -25,6 +25,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from replay_speed import CONFIG  # noqa: E402  # the same station config as the replay benchmark
+
 from station.model.physics import Conditions, Params, StraightRun  # noqa: E402
 from station.session.acquisition import Acquisition  # noqa: E402
 from station.session.analysis import DescentResult, FitJob, error_result  # noqa: E402
@@ -36,13 +38,6 @@ from station.survey.load import load_survey  # noqa: E402
 from station.survey.track import build_track  # noqa: E402
 from station.timing.wireformats import format_alge  # noqa: E402
 
-CONFIG = """\
-serial: {{port: loop://, protocol: alge}}
-survey: {survey}
-photocells: {{C0: PC1, C1: PC2, C2: PC3, C3: PC4, C4: PC5, C5: PC6, C6: PC7, C7: PC8, C8: PC9}}
-skier: {{mass_kg: 88}}
-air: {{density: 1.079}}
-"""
 DESCENTS = 11_200
 
 

@@ -107,6 +107,19 @@ def test_time_of_day_wraps_at_midnight():
     assert [t - d.times_us[0] for t in d.times_us] == [0, 1_500_000, 3 * S, 5 * S, 7 * S]
 
 
+def test_the_same_times_of_day_a_day_later_are_new_descents():
+    """A repeat of a kept impulse (the timer's memory sent again) is not doubled, but a
+    station left running overnight sees the same time of day again on the next day: new."""
+    asm = make()
+    day = [("C0", 100), ("C1", 104), ("C2", 107), ("C3", 109), ("C4", 111)]
+    steps = [(c, t + k * 21_600) for k in range(5) for c, t in day]  # every 6 h, over 24 h
+    done = feed(asm, steps)
+    assert len(done) == 5 and all(d.status == "complete" for d in done)
+    assert done[4].times_us[0] - done[0].times_us[0] == 86_400 * S
+    again = asm.feed(imp("C4", 111 + 4 * 21_600), 99)  # the last one repeated
+    assert again == [] and "not doubled" in asm.events[-1].reason
+
+
 def test_out_of_order_impulses_are_rejected_with_their_reason():
     asm = make()
     feed(asm, [("C0", 100), ("C1", 104), ("C2", 107)])

@@ -178,7 +178,9 @@ class DescentAssembler:
         # their medians, kept as the history changes (not recomputed for every impulse)
         self._typical_mid: dict[int, float] = {}
         self._last_done: TimedDescent | None = None
-        self._seen: set[tuple[str, int, int | None]] = set()  # kept: channel, time, day
+        # kept impulses by channel and device time (unwrapped): a repeat of one (the timer's
+        # memory sent again) is not doubled, while the same time of day a day later is new
+        self._seen: set[tuple[str, int]] = set()
         self._damaged: list[_Damage] = []  # unread lines that may have been a start
 
     @property
@@ -290,7 +292,7 @@ class DescentAssembler:
         if pc is None:
             self._event(imp, line, None, False, f"channel {imp.channel} is not a photocell")
             return done
-        if (imp.channel, imp.tod_us, imp.day) in self._seen:
+        if (imp.channel, self.unwrap(imp)) in self._seen:
             self._event(imp, line, pc, False, "repeats an impulse already kept (from the "
                         "timer's memory?); not doubled")  # fmt: skip
             return done
@@ -359,7 +361,7 @@ class DescentAssembler:
                              bib=bib if self.mode != "order" else "", day=imp.day)  # fmt: skip
             self.open.append(d)
             self._move_clock(t)
-            self._seen.add((imp.channel, imp.tod_us, imp.day))
+            self._seen.add((imp.channel, t))
             self._event(imp, line, pc, True, "", d.number)
             return done
         chosen, reason = self._choose(pc, k, t, bib)
@@ -368,7 +370,7 @@ class DescentAssembler:
             if rec is not None:
                 self.open.append(rec)
                 self._move_clock(t)
-                self._seen.add((imp.channel, imp.tod_us, imp.day))
+                self._seen.add((imp.channel, t))
                 self._event(imp, line, pc, True, rec.flags[0], rec.number)
                 return done + self._expire(t)
             if not self.open:
@@ -390,7 +392,7 @@ class DescentAssembler:
         d.times_us.append(t)
         d.channels.append(imp.channel)
         self._move_clock(t)
-        self._seen.add((imp.channel, imp.tod_us, imp.day))
+        self._seen.add((imp.channel, t))
         self._event(imp, line, pc, True, "", d.number)
         if k == len(self.photocells) - 1:
             self.open.remove(d)
