@@ -49,7 +49,8 @@ def _run_ui(app: Any) -> int:
         return int(app.return_code)
     folder = getattr(app, "session_dir", None)
     if folder is not None:
-        n = len(getattr(app, "results", {}))
+        acq = getattr(app, "acq", None)  # closed by now: its results include the open descent
+        n = len(acq.results()) if acq is not None else len(getattr(app, "results", {}))
         print(
             f"session saved in {os.path.abspath(folder)} ({n} descent{'s' * (n != 1)}: raw.jsonl, "
             f"results.csv); replay it with: station replay {folder} --ui",
