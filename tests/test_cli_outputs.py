@@ -183,3 +183,15 @@ def test_a_decimal_comma_in_a_number_option(run_station):
     assert comma.returncode == 0, comma.stderr
     assert json.loads(comma.stdout) == json.loads(point.stdout)
     _one_line(run_station(*SIM, "--noise-ms", "1,2.5"), "has both a decimal point and a comma")
+
+
+def test_annotations_that_would_do_nothing_or_contradict_are_refused(run_station, session):
+    """Each of these used to say "1 annotation(s) added" while it annotated nothing (a range
+    that runs backwards), said both things (invalid and valid) or a direction off the compass."""
+    before = (session / "annotations.jsonl").read_bytes()
+    _one_line(run_station("annotate", session, "--descents", "5-3", "--ski", "X"), "backwards")
+    _one_line(run_station("annotate", session, "--descents", "2", "--invalid", "x", "--valid"),
+              "contradict")  # fmt: skip
+    _one_line(run_station("annotate", session, "--descents", "2", "--wind-ms", "2",
+                          "--wind-from-deg", "400"), "0 to 360")  # fmt: skip
+    assert (session / "annotations.jsonl").read_bytes() == before

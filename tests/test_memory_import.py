@@ -77,3 +77,28 @@ def test_import_bad_paths_are_one_line(tmp_path, run_station):
     assert r.returncode == 2 and "Traceback" not in r.stderr
     r = run_station("import", cfg, "--config", cfg, "--into", tmp_path / "nosession")
     assert r.returncode == 2 and "not a session" in r.stderr
+
+
+def test_a_merged_download_brings_the_operators_clears_with_it(tmp_path, run_station):
+    """A finish the operator cleared at the timer must not come back with the download: the
+    clear line is merged too, in its place after the impulse it cancels."""
+    cfg = write_config(tmp_path, "/dev/null", "alge", {"C0": "PC1", "C1": "PC9"})
+    live = tmp_path / "live.txt"
+    live.write_text(" 0001 C0  09:00:00.0000 00\r 0001 C1  09:00:30.0000 00\r", newline="")
+    session = tmp_path / "s"
+    assert run_station("import", live, "--config", cfg, "--session-dir", session).returncode == 0
+    memory = tmp_path / "memory.txt"
+    memory.write_text(
+        " 0001 C0  09:00:00.0000 00\r 0001 C1  09:00:30.0000 00\r"
+        " 0003 C0  10:01:00.0000 00\r 0003 C1  10:01:10.0000 00\rc0003 C1  10:01:10.0000 00\r",
+        newline="",
+    )
+    r = run_station("import", memory, "--config", cfg, "--into", session)
+    assert r.returncode == 0, r.stderr
+    assert "2 already in the session, 2 added" in r.stderr
+    raw = (session / "raw.jsonl").read_text()
+    assert "c0003 C1  10:01:10.0000" in raw  # the clear is in the session's raw log
+    r = run_station("export", session, "--times", "-")
+    assert r.returncode == 0, r.stderr
+    assert "10:01:10" not in r.stdout  # the cleared finish is not a crossing time
+    assert "10:01:00" in r.stdout and "09:00:30" in r.stdout

@@ -124,3 +124,22 @@ def test_aborted_and_unfitted_descents_have_their_panel(tmp_path, demo_track):
     assert sections["descents"].count("<img ") == 1
     assert "2 descents (2 ok and valid)" in sections["descents"]
     assert "<td>3</td>" in sections["provenance"] and "aborted" in sections["provenance"]
+
+
+def test_a_day_with_a_cleared_start_gets_its_page(tmp_path, run_station):
+    """A start the operator cleared at the timer leaves a descent with no time at all: the
+    report drew its start from its first time and ended in a traceback."""
+    from tests.timing_helpers import write_config
+
+    cfg = write_config(tmp_path, "/dev/null", "alge", {"C0": "PC1", "C1": "PC9"})
+    cap = tmp_path / "day.txt"
+    cap.write_text(
+        " 0001 C0  09:00:00.0000 00\rc0001 C0  09:00:00.0000 00\r"
+        " 0002 C0  09:05:00.0000 00\r 0002 C1  09:05:30.0000 00\r",
+        newline="",
+    )
+    session = tmp_path / "s"
+    assert run_station("import", cap, "--config", cfg, "--session-dir", session).returncode == 0
+    r = run_station("report", session, "--out", tmp_path / "rep")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "rep" / "s.html").exists()

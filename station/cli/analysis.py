@@ -45,6 +45,12 @@ def cmd_annotate(args: argparse.Namespace) -> int:
     values = Metadata.from_values({f.key: getattr(args, f.key) for f in METADATA_FIELDS})
     if (args.descents is None) == (args.from_descent is None):
         raise InputError("give --descents N[,M,A-B] or --from N")
+    if args.invalid and args.valid:
+        raise InputError("--invalid and --valid contradict each other: give one")
+    if args.wind_from_deg is not None and not 0.0 <= args.wind_from_deg <= 360.0:
+        raise InputError(
+            f"--wind-from-deg {args.wind_from_deg:g}: a direction is 0 to 360 degrees from north"
+        )
     if args.wind_ms and args.wind_from_deg is None:
         raise InputError("--wind-ms needs --wind-from-deg (the direction the wind comes from)")
     records: list[Annotation] = []

@@ -210,6 +210,8 @@ def _numbers(text: str) -> list[int]:
             a, b = part.split("-", 1)
             if not (a.isdigit() and b.isdigit()):
                 raise InputError(f"--descents {text!r}: {part!r} is not a range like 3-6")
+            if int(b) < int(a):  # 5-3 would be no descent at all, silently
+                raise InputError(f"--descents {text!r}: {part!r} runs backwards; write {b}-{a}")
             out += list(range(int(a), int(b) + 1))
         elif part.isdigit():
             out.append(int(part))

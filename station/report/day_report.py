@@ -115,7 +115,7 @@ def descent_views(results: Sequence[Any]) -> list[DescentView]:
             DescentView(
                 number=row.descent,
                 start_time=str(row.start_time),
-                start_hours=d.times_us[0] / 3.6e9,
+                start_hours=d.start_us / 3.6e9,  # a descent whose times were all cleared has none
                 item=item_of(row),
                 status=str(row.status),
                 descent_status=str(row.descent_status),

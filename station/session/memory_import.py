@@ -52,16 +52,33 @@ def _is_impulse(p) -> bool:
     return isinstance(p, Impulse) or (isinstance(p, Edit) and p.kind == "repeated from memory")
 
 
-def _identities(data: bytes, protocol: str) -> list[tuple[str, tuple[str, int], int | None]]:
-    """(line text, (channel, time of day), device day) of every impulse line in the bytes."""
+def _identity(p: object) -> tuple[str, ...] | None:
+    """What makes a line the same line in the session and in the file: an impulse's channel and
+    time of day; an edit's kind, channel and time (a clear or an inserted time the operator
+    made at the timer belongs to the day as much as the impulses do). None: neither."""
+    if _is_impulse(p):
+        assert isinstance(p, (Impulse, Edit))
+        return ("impulse", p.channel, str(p.tod_us % DAY_US))
+    if isinstance(p, Edit):
+        return ("edit", p.kind, p.channel, str(p.tod_us % DAY_US))
+    return None
+
+
+def _identities(data: bytes, protocol: str) -> list[tuple[str, tuple[str, ...], int | None]]:
+    """(line text, identity, device day) of every impulse and edit line in the bytes, in order."""
     framer = LineFramer()
     parser = make_parser(protocol)
     out = []
     for line in framer.feed(data) + framer.flush():
         p = parser.parse(line)
-        if _is_impulse(p):
-            out.append((line, (p.channel, p.tod_us % DAY_US), p.day))
+        ident = _identity(p)
+        if ident is not None:
+            out.append((line, ident, getattr(p, "day", None)))
     return out
+
+
+def _impulses(found: list[tuple[str, tuple[str, ...], int | None]]) -> int:
+    return sum(ident[0] == "impulse" for _line, ident, _day in found)
 
 
 def _keep_bytes(session: str, src: str, data: bytes) -> str:
@@ -91,7 +108,7 @@ def import_new(path: str, config: StationConfig, session: str) -> ImportReport:
         log.write(time.time(), data)
     finally:
         log.close()
-    n = len(_identities(data, config.serial.protocol))
+    n = _impulses(_identities(data, config.serial.protocol))
     return ImportReport(session, n, 0, n, kept)
 
 
@@ -102,26 +119,31 @@ def import_into(path: str, session: str) -> ImportReport:
     config = sessions.load_session_config(session)
     protocol = config.serial.protocol
     data = read_import(path)
-    have: set[tuple[str, int]] = set()
+    have: set[tuple[str, ...]] = set()
     framer = LineFramer()
     parser = make_parser(protocol)
     for chunk in read_rawlog(os.path.join(session, sessions.RAW)):
         if chunk.event:
             continue
         for line in framer.feed(chunk.data):
-            p = parser.parse(line)
-            if _is_impulse(p):
-                have.add((p.channel, p.tod_us % DAY_US))
+            ident = _identity(parser.parse(line))
+            if ident is not None:
+                have.add(ident)
     found = _identities(data, protocol)
-    missing = [line for line, ident, _day in found if ident not in have]
+    new = [(line, ident) for line, ident, _day in found if ident not in have]
+    missing = [line for line, _ident in new]  # in the file's order: an impulse, then its clear
+    added = sum(ident[0] == "impulse" for _line, ident in new)
+    n = _impulses(found)
     kept = _keep_bytes(session, path, data)
     log = RawLogWriter(os.path.join(session, sessions.RAW))
     try:
-        log.event(time.time(), "import", f"{kept}: {len(missing)} of {len(found)} impulses added")
+        edits = len(missing) - added
+        log.event(time.time(), "import", f"{kept}: {added} of {n} impulses added"
+                  + (f", and {edits} edit line(s)" if edits else ""))  # fmt: skip
         if missing:
             # a line end first: a live line cut off at the end of the log stays cut off
             end = LINE_END[protocol]
             log.write(time.time(), end + b"".join(s.encode("latin-1") + end for s in missing))
     finally:
         log.close()
-    return ImportReport(session, len(found), len(found) - len(missing), len(missing), kept)
+    return ImportReport(session, n, n - added, added, kept)
