@@ -142,3 +142,34 @@ def test_tag_day_counter_orders_across_midnight():
     asm.feed(Impulse("C0", 86_399 * S, 10, "", "", 9000, ""), 1)
     asm.feed(Impulse("C1", 3 * S, 10, "", "", 9001, ""), 2)
     assert asm.current.times_us[1] - asm.current.times_us[0] == 4 * S
+
+
+def _clear(ch: str, t_s: float):
+    from station.timing.impulses import Edit
+
+    return Edit("cleared", ch, round(t_s * S) % DAY_US, "c", "")
+
+
+def test_a_false_finish_cleared_at_the_timer_lets_the_real_finish_join():
+    asm = make()
+    done = feed(asm, [("C0", 100), ("C1", 104), ("C2", 107), ("C3", 109), ("C4", 110)])
+    assert done[0].status == "complete"
+    assert asm.edit(_clear("C4", 110), 6) == []  # not a descent yet: open again
+    done = asm.feed(imp("C4", 111.5), 7)  # the real finish
+    assert len(done) == 1 and done[0].number == 1 and done[0].status == "complete"
+    assert done[0].times_us[-1] - done[0].times_us[0] == 11_500_000
+
+
+def test_a_clear_removes_an_impulse_still_waiting_to_be_confirmed():
+    """A start more than a time-out after the last impulse waits for the next one to confirm
+    its time; a clear of it then must take it out before it counts."""
+    asm = make()
+    feed(asm, [("C0", 100), ("C1", 104), ("C2", 107), ("C3", 109), ("C4", 111)])
+    asm.feed(imp("C0", 400), 6)  # far from the clock: held
+    asm.edit(_clear("C0", 400), 7)
+    assert "waiting to be confirmed" in asm.events[-1].reason
+    asm.feed(imp("C1", 404), 8)  # far from the clock too: held until the next confirms it
+    asm.feed(imp("C2", 407), 9)
+    assert not asm.open  # the cleared start opened nothing
+    late = [e for e in asm.events if e.line in (8, 9)]
+    assert late and all(not e.kept and "without a start" in e.reason for e in late)

@@ -190,7 +190,9 @@ def test_dialog_snapshot_at_80x24(snap_compare, tmp_path, demo_track, key):
         await wait_for(pilot, lambda: "joint fit" in app.comparison_text)
         app.clear_notifications()
         await pilot.press(key)
-        await pilot.pause(0.5)
+        await wait_for(pilot, lambda: app.screen is not app.main)  # the dialog is up
+        await pilot.pause(0.5)  # and drawn, on a loaded machine too
+        await pilot.wait_for_scheduled_animations()
 
     assert snap_compare(app, terminal_size=(80, 24), run_before=opened)
 

@@ -589,8 +589,22 @@ class DescentAssembler:
         return []
 
     def _remove(self, e: Edit, line: int, pc: str, bib: str) -> tuple[list[TimedDescent], bool]:
-        found = self._find(pc, e.tod_us, bib)
         when = format_tod(e.tod_us)
+        held = self._pending
+        if (
+            held is not None
+            and held[0].channel == e.channel
+            and held[0].tod_us == e.tod_us
+            and (not bib or not _bib(held[0]) or _bib(held[0]) == bib)
+        ):  # the impulse waits for the next one to confirm its time: it goes before it counts
+            self._pending = None
+            h_imp, h_line, _h_t = held
+            self._event(h_imp, h_line, pc, False, f"{e.kind} at the timer (line {line}) while "
+                        "waiting to be confirmed; joins nothing")  # fmt: skip
+            self._event(e, line, pc, False, f"{e.kind}: removed {pc} {when}, which was waiting "
+                        "to be confirmed; it joins nothing")  # fmt: skip
+            return [], True
+        found = self._find(pc, e.tod_us, bib)
         if found is None:
             self._event(
                 e, line, pc, False, f"{e.kind}: no kept impulse at {pc} {when}; nothing changed"
@@ -613,6 +627,17 @@ class DescentAssembler:
         if is_open:
             self._event(e, line, pc, False, f"{e.kind}: removed {pc} {when} from open descent "
                         f"{d.number}", d.number)  # fmt: skip
+            return [], True
+        if i == len(d.photocells) and d is self._last_done:
+            # the finish was false (cleared at the timer) and the descent was the last to end:
+            # it is open again, so the real finish joins it; it is fitted when it ends again
+            self.finished.remove(d)
+            d.status = "open"
+            d.missing = [p for p in d.missing if self.order[p] < self.order[pc]]
+            self.open.append(d)
+            self._last_done = None
+            why = f"{e.kind}: removed {pc} {when} from descent {d.number}, open again for its "
+            self._event(e, line, pc, False, why + "next impulse", d.number)
             return [], True
         if i == len(d.photocells):  # the last time went: the descent no longer reaches there
             d.missing = [p for p in d.missing if self.order[p] < self.order[pc]]
