@@ -13,10 +13,8 @@ the loop adds to it. Median of 3 runs each. Run: python benchmarks/acquisition_o
 
 from __future__ import annotations
 
-import os
 import statistics
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -25,17 +23,14 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from replay_speed import CONFIG  # noqa: E402  # the same station config as the replay benchmark
+from replay_speed import demo_station  # noqa: E402  # the replay benchmark's station
 
 from station.model.physics import Conditions, Params, StraightRun  # noqa: E402
 from station.session.acquisition import Acquisition  # noqa: E402
 from station.session.analysis import DescentResult, FitJob, error_result  # noqa: E402
-from station.session.config import load_config  # noqa: E402
 from station.session.day import Day  # noqa: E402
 from station.session.processor import Processor  # noqa: E402
 from station.session.rawlog import Chunk  # noqa: E402
-from station.survey.load import load_survey  # noqa: E402
-from station.survey.track import build_track  # noqa: E402
 from station.timing.wireformats import format_alge  # noqa: E402
 
 DESCENTS = 11_200
@@ -49,12 +44,7 @@ class NoFit:
 
 
 def main() -> int:
-    tmp = tempfile.mkdtemp(prefix="station-bench-")
-    cfg_path = os.path.join(tmp, "station.yaml")
-    with open(cfg_path, "w") as fh:
-        fh.write(CONFIG.format(survey=ROOT / "surveys" / "demo_run.yaml"))
-    cfg = load_config(cfg_path)
-    track = build_track(load_survey(cfg.survey_path))
+    cfg, track = demo_station()
     xs = np.array([pc.x for pc in track.photocells])
     times = (
         StraightRun(track.profile, xs)

@@ -41,13 +41,18 @@ air: {{density: 1.079}}
 """
 
 
-def main() -> int:
+def demo_station():
+    """The station config of these benchmarks (written to a temporary file) and its track."""
     tmp = tempfile.mkdtemp(prefix="station-bench-")
     cfg_path = os.path.join(tmp, "station.yaml")
     with open(cfg_path, "w") as fh:
         fh.write(CONFIG.format(survey=ROOT / "surveys" / "demo_run.yaml"))
     cfg = load_config(cfg_path)
-    track = build_track(load_survey(cfg.survey_path))
+    return cfg, build_track(load_survey(cfg.survey_path))
+
+
+def main() -> int:
+    cfg, track = demo_station()
     xs = np.array([pc.x for pc in track.photocells])
     run = StraightRun(track.profile, xs)
     times = run.solve(Params(0.22, 0.0085, 3.4), Conditions(88, 1.079), sensitivities=False).t
@@ -95,6 +100,7 @@ def main() -> int:
                 n += 1
                 out.append(format_alge(f"C{i}", tod + 50_000, n) + "\r")
         t0 += 40_000_000
+    tmp = os.path.dirname(cfg.path)  # the benchmark's temporary folder
     cap = os.path.join(tmp, "day.txt")
     with open(cap, "w", newline="") as fh:
         fh.write("".join(out))

@@ -27,8 +27,3 @@ def parse_number(text: str) -> float:
     if not math.isfinite(value):
         raise ValueError(f"{text!r} is too large")
     return value
-
-
-def is_number_text(text: str) -> bool:
-    """Whether ``text`` reads as a number (point or comma), e.g. to tell data from a header."""
-    return bool(_NUMBER.fullmatch(text.strip()))
