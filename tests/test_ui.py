@@ -346,7 +346,9 @@ async def test_a_results_csv_that_cannot_be_written_shows_in_the_status_line(
         monkeypatch.setattr(results, "write_results", full)
         for i, line in enumerate(cap.read_bytes().split(b"\r")[:9]):  # descent 1
             app.acq.receive(Chunk(1_770_000_000.0 + i, line + b"\r"))
-        await wait_for(pilot, lambda: "No space left" in app.problem)
+        # the worker writes the CSV before it hands the result over: wait for both
+        await wait_for(pilot, lambda: "No space left" in app.problem and 1 in app.results)
+        await pilot.pause(0.1)
         status = str(app.main.query_one("#status").render())
         assert "cannot write" in status and "raw log keeps recording" in app.problem
         status = app.main.query_one("#table").get_cell("1", "status")
