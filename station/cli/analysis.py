@@ -4,6 +4,7 @@ and which ski or wax glides better, by how much, and how sure."""
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from typing import Any
 
@@ -73,10 +74,43 @@ def cmd_annotate(args: argparse.Namespace) -> int:
     if not records:
         raise InputError("nothing to annotate: give metadata, --invalid, --valid or --model")
     _check_descents(args.session, targets)
-    for rec in records:
-        sessions.append_annotation(args.session, rec)
-    print(f"{len(records)} annotation(s) added to {args.session}", file=sys.stderr)
+    with sessions.annotations_locked(args.session):  # another annotate waits: one CSV each
+        for rec in records:
+            sessions.append_annotation(args.session, rec)
+        said = f"{len(records)} annotation(s) added to {args.session}"
+        state = sessions.recording_state(args.session)
+        if state in (sessions.Recording.NOW, sessions.Recording.UNKNOWN):
+            why = ("it is being recorded now" if state is sessions.Recording.NOW else
+                   "whether it is being recorded cannot be told (recording.lock)")  # fmt: skip
+            print(f"{said}; {why}, so results.csv is the recorder's and does not show them: "
+                  f"once the recording has ended, station export {args.session} --csv "
+                  f"{os.path.join(args.session, sessions.RESULTS)} writes it with them",
+                  file=sys.stderr)  # fmt: skip
+            return 0
+        path = rewrite_results(args.session)
+    print(f"{said}; {path} rewritten", file=sys.stderr)
     return 0
+
+
+def rewrite_results(session: str) -> str:
+    """Rewrite a session's results CSV from its raw log and annotations, as ``station export``
+    writes it (the same replay, the same writer), once the recorder no longer owns it. A CSV
+    that cannot be written is one line that says the annotations are saved all the same."""
+    from station.cli.recording import _replay_run, write_results_csv
+    from station.session import store as sessions
+
+    path = os.path.join(session, sessions.RESULTS)
+    ns = argparse.Namespace(source=session, config=None, fast=True, date=None)
+    try:
+        write_results_csv(_replay_run(ns, quiet=True), path, sessions.RESULTS)
+    except InputError as exc:
+        why = exc.message if exc.path == path else str(exc)
+        raise InputError(
+            f"the annotations are saved, but results.csv was not rewritten: {why}; "
+            f"station export {session} --csv FILE writes the results elsewhere",
+            path=path,
+        ) from None
+    return path
 
 
 def _check_descents(session: str, numbers: list[int]) -> None:

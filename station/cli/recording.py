@@ -98,6 +98,13 @@ def _write_times(acq: Any, args: argparse.Namespace) -> None:
         print(f"{n} crossing times -> {where}", file=sys.stderr)
 
 
+def write_results_csv(acq: Any, path: str, option: str) -> None:
+    """The results CSV of a replayed session (``export``, and ``annotate`` rewriting the
+    session's own): one code path, so both give the same bytes."""
+    with open_output(path, option) as fh:
+        acq.write_csv_to(fh)
+
+
 def cmd_export(args: argparse.Namespace) -> int:
     from station.session import store as sessions
 
@@ -109,8 +116,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     output_path(args.times, "--times")
     acq = _replay_run(args, quiet=True)
     if args.csv:
-        with open_output(args.csv, "--csv") as fh:
-            acq.write_csv_to(fh)
+        write_results_csv(acq, args.csv, "--csv")
         where = "standard output" if args.csv == "-" else args.csv
         print(f"{len(acq.results())} descents -> {where}", file=sys.stderr)
     _write_times(acq, args)

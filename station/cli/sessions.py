@@ -1,6 +1,10 @@
 """``station sessions [DIR]``: the recorded test days in a folder, with their date, descents,
 test items and status, read from each session's results CSV and annotations without
-replaying or fitting anything (the csv module, not pandas)."""
+replaying or fitting anything (the csv module, not pandas).
+
+Whether a session is being recorded is a fact, not a guess from the raw log's age: the
+recorder holds a lock on ``recording.lock`` in the session (:class:`station.session.store.
+RecordingLock`), which this command tries without waiting."""
 
 from __future__ import annotations
 
@@ -9,15 +13,11 @@ import csv
 import datetime as dt
 import json
 import os
-import time
 from dataclasses import asdict, dataclass
 from typing import Any
 
 from station.cli.common import _print_json
 from station.errors import InputError
-
-#: a raw log written to this recently belongs to a session being recorded now
-ACTIVE_S = 120.0
 
 
 @dataclass(frozen=True)
@@ -30,7 +30,7 @@ class SessionSummary:
     fitted: int  # descents with status ok
     invalid: int  # marked invalid by the engineer
     items: tuple[str, ...]
-    status: str  # recording | finished | no results
+    status: str  # recording | finished | interrupted | no results … | unknown
 
 
 def read_results_rows(session: str) -> list[dict[str, str]] | None:
@@ -40,7 +40,12 @@ def read_results_rows(session: str) -> list[dict[str, str]] | None:
     begins one with ``#`` stays part of its row."""
     from station.session import store as sessions
 
+    from station.files import MAX_OBSERVATIONS, check_regular
+
     path = os.path.join(session, sessions.RESULTS)
+    if not os.path.lexists(path):
+        return None
+    check_regular(path, MAX_OBSERVATIONS, "results CSV")  # a FIFO would block the open
     try:
         fh = open(path, encoding="utf-8", newline="")  # noqa: SIM115
     except FileNotFoundError:
@@ -61,8 +66,12 @@ def read_results_rows(session: str) -> list[dict[str, str]] | None:
 
 
 def session_descents(session: str) -> list[int]:
-    """The descent numbers a session has: from its results CSV, else by replaying it."""
-    rows = read_results_rows(session)
+    """The descent numbers a session has: from its results CSV, else (none, or one that
+    cannot be read) by replaying it: the raw log knows them."""
+    try:
+        rows = read_results_rows(session)
+    except InputError:
+        rows = None
     if rows is not None:
         return [int(r["descent"]) for r in rows if (r.get("descent") or "").isdigit()]
     from station.cli.recording import _replay_run
@@ -111,7 +120,26 @@ def _annotated(session: str, rows: list[dict[str, str]]) -> list[dict[str, Any]]
     return out
 
 
-def summarise(session: str, now: float | None = None) -> SessionSummary:
+def session_status(session: str, has_results: bool) -> str:
+    """``recording`` while a process holds the session's lock, whatever the timer does;
+    ``interrupted`` when its recorder died (killed, crashed) without ending it, so its
+    results CSV may lack the last descent; ``finished`` when it was ended (or is older than
+    the lock)."""
+    from station.session import store as sessions
+
+    state = sessions.recording_state(session)
+    if state is sessions.Recording.NOW:
+        return "recording"
+    if not has_results:
+        return "no results (station export SESSION --csv …)"
+    if state is sessions.Recording.INTERRUPTED:
+        return "interrupted"
+    if state is sessions.Recording.UNKNOWN:
+        return "unknown (its recording.lock cannot be tried)"
+    return "finished"
+
+
+def summarise(session: str) -> SessionSummary:
     from station.model.compare import item_name
     from station.session import store as sessions
 
@@ -121,14 +149,7 @@ def summarise(session: str, now: float | None = None) -> SessionSummary:
         it = item_name(r.get("ski"), r.get("wax"))
         if r.get("descent_status") != "aborted" and it not in items:
             items.append(it)
-    raw = os.path.join(session, sessions.RAW)
-    now = time.time() if now is None else now
-    if not os.path.exists(os.path.join(session, sessions.RESULTS)):
-        status = "no results (station export SESSION --csv …)"
-    elif now - os.path.getmtime(raw) < ACTIVE_S:
-        status = "recording"
-    else:
-        status = "finished"
+    status = session_status(session, os.path.exists(os.path.join(session, sessions.RESULTS)))
     return SessionSummary(
         path=session,
         started=recording_started(session),
@@ -168,11 +189,11 @@ def cmd_sessions(args: argparse.Namespace) -> int:
         return 0
     width = max(len("session"), *(len(s.path) for s in found))
     print(f"{'session':<{width}}  {'started':<16}  {'descents':>8}  {'ok':>3}  {'inval':>5}  "
-          "status     items")  # fmt: skip
+          "status       items")  # fmt: skip
     for s in found:
         items = "; ".join(s.items) or "—"
         print(f"{s.path:<{width}}  {s.started or '—':<16}  {s.descents:>8}  {s.fitted:>3}  "
-              f"{s.invalid:>5}  {s.status:<9}  {items}")  # fmt: skip
+              f"{s.invalid:>5}  {s.status:<11}  {items}")  # fmt: skip
     return 0
 
 

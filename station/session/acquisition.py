@@ -174,6 +174,8 @@ class Acquisition:
         self._csv_problem: str | None = None  # said once, not after every descent
         self._closing = False
         self._jobs: queue.Queue[object] = queue.Queue()
+        #: held while the session is recorded (``station sessions``, ``annotate`` try it)
+        self.recording_lock: sessions.RecordingLock | None = None
         self._worker: threading.Thread | None = None
         if threaded:
             self._worker = threading.Thread(target=self._work, name="fit-worker", daemon=True)
@@ -195,15 +197,23 @@ class Acquisition:
         copied into it), the day runs from that copy as its replay will, and the raw log and
         the results CSV are written there."""
         rawlog = None
+        lock = None
         if session_dir is not None:
             sessions.create(config, session_dir)
-            config = sessions.load_session_config(session_dir)
-        day = Day.start(config, build_track(load_survey(config.survey_path)), date)
-        if session_dir is not None:
-            rawlog = RawLogWriter(
-                os.path.join(session_dir, sessions.RAW),
-                header={"port": config.serial.port, "protocol": config.serial.protocol},
-            )
+            lock = sessions.RecordingLock.take(session_dir)  # held until close(): "recording"
+        try:
+            if session_dir is not None:
+                config = sessions.load_session_config(session_dir)
+            day = Day.start(config, build_track(load_survey(config.survey_path)), date)
+            if session_dir is not None:
+                rawlog = RawLogWriter(
+                    os.path.join(session_dir, sessions.RAW),
+                    header={"port": config.serial.port, "protocol": config.serial.protocol},
+                )
+        except BaseException:
+            if lock is not None:
+                lock.release()
+            raise
         acq = cls(
             day,
             listener,
@@ -213,6 +223,9 @@ class Acquisition:
             compare=compare,
             ski_rotation=ski_rotation,
         )
+        acq.recording_lock = lock
+        if lock is not None and lock.problem:
+            acq._tell(acq.listener.warning, lock.problem)
         if session_dir is not None:
             acq._submit(_WriteResults())
         if ski_rotation:
@@ -488,17 +501,21 @@ class Acquisition:
         if self._closed:
             return
         self._closed = True
-        self.stop()
-        self.end_of_input()
-        self._closing = True
-        if self._worker is not None:
-            self._jobs.put(_STOP)
-            self._worker.join()
-        with self.lock:
-            snapshot = self.day.snapshot()
-        self._write_session_csv(snapshot)
-        if self.rawlog is not None:
-            self.rawlog.close()
+        try:
+            self.stop()
+            self.end_of_input()
+            self._closing = True
+            if self._worker is not None:
+                self._jobs.put(_STOP)
+                self._worker.join()
+            with self.lock:
+                snapshot = self.day.snapshot()
+            self._write_session_csv(snapshot)
+            if self.rawlog is not None:
+                self.rawlog.close()
+        finally:
+            if self.recording_lock is not None:
+                self.recording_lock.release()  # the results CSV is final: no longer recording
 
     # ------------------------------------------------------------------ views
 

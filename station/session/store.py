@@ -6,6 +6,7 @@
       <survey files>   the survey YAML and its observation file, at the same relative paths
       results.csv      one row per descent, rewritten after each descent
       annotations.jsonl  what the engineer entered: metadata, invalid marks, refits
+      recording.lock   there while the session is recorded (:class:`RecordingLock`)
 
 Replaying a session (``station replay SESSION``) runs its own snapshot through the same
 processor and reproduces ``results.csv`` byte for byte.
@@ -21,11 +22,15 @@ from __future__ import annotations
 
 import contextlib
 import datetime as dt
+import enum
+import errno
 import hashlib
 import json
 import os
 import re
-from collections.abc import Callable
+import socket
+import time
+from collections.abc import Callable, Iterator
 
 from station.errors import InputError
 from station.files import MAX_OBSERVATIONS, MAX_YAML, read_bytes, read_text
@@ -40,6 +45,7 @@ RAW = "raw.jsonl"
 CONFIG = "config.yaml"
 RESULTS = "results.csv"
 ANNOTATIONS = "annotations.jsonl"
+LOCK = "recording.lock"
 
 
 def is_session(path: str) -> bool:
@@ -218,3 +224,130 @@ def read_annotations(session: str) -> list[Annotation]:
         if annotation is not None:
             out.append(annotation)
     return out
+
+
+# ----------------------------------------------------------------------------- being recorded
+
+
+class Recording(enum.Enum):
+    """Whether a session is being recorded now, as its lock file says (:class:`RecordingLock`)."""
+
+    NOW = "recording"  # a live process holds the lock
+    ENDED = "ended"  # no lock file: the recorder ended it (or a session older than the lock)
+    INTERRUPTED = "interrupted"  # a lock file nobody holds: the recorder was killed or crashed
+    UNKNOWN = "unknown"  # the lock cannot be read or tried (permissions, a file system without)
+
+
+_BUSY = (errno.EWOULDBLOCK, errno.EAGAIN)
+
+
+class RecordingLock:
+    """The fact that a session is being recorded: the recording process holds an exclusive
+    ``flock`` on ``SESSION/recording.lock`` from the creation of the session to
+    :meth:`Acquisition.close <station.session.acquisition.Acquisition.close>`.
+
+    Why a lock and not the raw log's age: a timer can be silent for minutes in a recording that
+    goes on, and a recording that ended a second ago is finished. The OS drops a flock when its
+    process ends however it ends (SIGKILL, a crash, a power cut), so a dead recorder never
+    leaves a session "recording". A clean end removes the file *before* it lets the lock go; a
+    file that is there and free was therefore left by a recorder that died: the session was
+    interrupted (its results CSV may lack the last descent; a replay has it).
+
+    The file holds the recorder's pid, host and start time as text, for a person who wonders."""
+
+    def __init__(self, path: str, fd: int | None, problem: str = "") -> None:
+        self.path = path
+        self._fd = fd
+        #: why the lock could not be taken ("" when held); the recording goes on without it
+        self.problem = problem
+
+    @classmethod
+    def take(cls, session: str) -> RecordingLock:
+        """Create the lock file and lock it. A file system without flock (some network or
+        FUSE mounts) must not cost the test day: the recording goes on and ``problem`` says
+        that ``station sessions`` cannot tell whether it is being recorded."""
+        path = os.path.join(session, LOCK)
+        try:
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        except OSError as exc:
+            raise InputError(
+                f"cannot make the recording lock: {exc.strerror or exc}; choose another "
+                "--session-dir",
+                path=path,
+            ) from None
+        info = {"pid": os.getpid(), "host": socket.gethostname(), "t": time.time()}
+        with contextlib.suppress(OSError):
+            os.write(fd, (json.dumps(info) + "\n").encode("ascii"))
+        try:
+            import fcntl
+
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except (ImportError, OSError) as exc:
+            why = getattr(exc, "strerror", None) or str(exc)
+            return cls(path, fd, f"cannot lock {path} ({why}): station sessions cannot tell "
+                       "whether this session is being recorded")  # fmt: skip
+        return cls(path, fd)
+
+    def release(self) -> None:
+        """The recording ended: remove the file, then let the lock go (in this order, so that a
+        free lock on a file still there means a recorder that died). Idempotent."""
+        if self._fd is None:
+            return
+        with contextlib.suppress(OSError):
+            os.unlink(self.path)
+        fd, self._fd = self._fd, None
+        os.close(fd)
+
+
+def recording_state(session: str) -> Recording:
+    """Is ``session`` being recorded now? A non-blocking try of its lock, released at once.
+
+    Opened read-only, so a read-only folder or medium (a session copied to a stick) is read as
+    well; a session from before the lock file has none and reads as ended."""
+    path = os.path.join(session, LOCK)
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except FileNotFoundError:
+        return Recording.ENDED
+    except OSError:
+        return Recording.UNKNOWN
+    try:
+        import fcntl
+
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except OSError as exc:
+            return Recording.NOW if exc.errno in _BUSY else Recording.UNKNOWN
+        # got it: was the file removed (the recorder ended) between our open and our lock?
+        try:
+            same = os.path.samestat(os.stat(path), os.fstat(fd))
+        except FileNotFoundError:
+            same = False
+        return Recording.INTERRUPTED if same else Recording.ENDED
+    except ImportError:
+        return Recording.UNKNOWN
+    finally:
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def annotations_locked(session: str) -> Iterator[None]:
+    """Hold an exclusive flock on the annotations file while appending to it and rewriting the
+    results CSV from it, so two ``station annotate`` at once cannot leave a CSV without the
+    other's annotation (the one that renamed its CSV last would win). Waits for the other; a
+    file system without flock goes on without it."""
+    path = os.path.join(session, ANNOTATIONS)
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise InputError(f"cannot write the annotation: {exc.strerror or exc}", path=path) from None
+    try:
+        try:
+            import fcntl
+
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except (ImportError, OSError):
+            pass  # no flock here: as before the lock
+        yield
+    finally:
+        os.close(fd)

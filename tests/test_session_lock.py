@@ -1,0 +1,216 @@
+"""Being recorded is a fact (the recorder's flock on ``recording.lock``), not the raw log's age;
+``station annotate`` rewrites the results CSV of a session nobody records, as export would.
+
+The lock is tried here from another open file description in the same process, which flock
+treats as another holder; tests/test_recording_lock_process.py does it with a real recorder."""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+
+import pytest
+
+from station.session import store
+from station.session.store import Recording, RecordingLock, recording_state
+from tests.session_helpers import make_session
+
+
+@pytest.fixture
+def session(tmp_path):
+    return make_session(tmp_path, order="ABA")
+
+
+def _one_line(r, *expect: str) -> str:
+    assert r.returncode == 2, (r.stdout, r.stderr)
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
+    for e in expect:
+        assert e in lines[0], lines[0]
+    return lines[0]
+
+
+def _status(run_station, session) -> str:
+    r = run_station("sessions", session, "--json")
+    assert r.returncode == 0, r.stderr
+    return json.loads(r.stdout)[0]["status"]
+
+
+def test_the_lock_says_recording_until_released_and_a_dead_holder_reads_interrupted(tmp_path):
+    folder = str(tmp_path)
+    assert recording_state(folder) is Recording.ENDED  # no lock file: a session from before it
+    lock = RecordingLock.take(folder)
+    assert lock.problem == ""
+    assert recording_state(folder) is Recording.NOW
+    assert recording_state(folder) is Recording.NOW  # trying it did not take it
+    info = json.loads((tmp_path / store.LOCK).read_text())
+    assert info["pid"] == os.getpid()
+    lock.release()
+    assert not (tmp_path / store.LOCK).exists()
+    assert recording_state(folder) is Recording.ENDED
+    lock.release()  # idempotent
+    # a recorder that died leaves its file, and the OS has dropped its lock
+    (tmp_path / store.LOCK).write_text('{"pid": 1}\n')
+    assert recording_state(folder) is Recording.INTERRUPTED
+
+
+def test_a_second_lock_on_the_same_session_is_refused(tmp_path):
+    lock = RecordingLock.take(str(tmp_path))
+    try:
+        with pytest.raises(store.InputError, match="recording lock"):
+            RecordingLock.take(str(tmp_path))
+        assert recording_state(str(tmp_path)) is Recording.NOW
+    finally:
+        lock.release()
+
+
+def test_an_acquisition_holds_the_lock_from_creation_to_close(tmp_path):
+    from station.session.acquisition import Acquisition
+    from station.session.config import load_config
+    from tests.timing_helpers import write_config
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/ttyUSB0")))
+    session = tmp_path / "s"
+    acq = Acquisition.open(cfg, session_dir=str(session), threaded=False)
+    try:
+        assert recording_state(str(session)) is Recording.NOW
+        assert (session / store.LOCK).exists() and store.is_session(str(session))
+    finally:
+        acq.close()
+    assert recording_state(str(session)) is Recording.ENDED
+    # the finished session holds what it held before there was a lock: no lock file
+    assert store.LOCK not in os.listdir(session) and (session / store.RESULTS).exists()
+    acq.close()  # idempotent, and does not touch a lock it no longer has
+
+
+def test_sessions_status_is_the_lock_not_the_raw_logs_age(run_station, session):
+    raw = session / store.RAW
+    os.utime(raw, (time.time(), time.time()))  # written a second ago: it used to say recording
+    assert _status(run_station, session) == "finished"
+    lock = RecordingLock.take(str(session))
+    try:
+        old = time.time() - 3600  # a timer silent for an hour
+        os.utime(raw, (old, old))
+        assert _status(run_station, session) == "recording"
+        r = run_station("sessions", session.parent)
+        assert r.returncode == 0 and "recording" in r.stdout
+    finally:
+        lock.release()
+    assert _status(run_station, session) == "finished"
+    (session / store.LOCK).write_text("")  # left by a killed recorder
+    assert _status(run_station, session) == "interrupted"
+
+
+def test_a_left_lock_file_breaks_nothing_and_a_read_only_session_is_read(run_station, session):
+    (session / store.LOCK).write_text('{"pid": 1}\n')  # a recorder killed: its file stays
+    out = session.parent / "export.csv"
+    r = run_station("export", session, "--csv", out)
+    assert r.returncode == 0, r.stderr
+    assert out.read_bytes() == (session / store.RESULTS).read_bytes()
+    r = run_station("replay", session)
+    assert r.returncode == 0, r.stderr
+    os.chmod(session / store.LOCK, 0o444)
+    os.chmod(session, 0o555)
+    try:
+        assert _status(run_station, session) == "interrupted"
+        r = run_station("export", session, "--csv", out)
+        assert r.returncode == 0, r.stderr
+    finally:
+        os.chmod(session, 0o755)
+
+
+def test_annotate_rewrites_results_csv_as_export_writes_it(run_station, session, tmp_path):
+    before = (session / store.RESULTS).read_bytes()
+    r = run_station("annotate", session, "--descents", "2", "--invalid", "fell at PC4")
+    assert r.returncode == 0, r.stderr
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "rewritten" in lines[0] and "results.csv" in lines[0], r.stderr
+    after = (session / store.RESULTS).read_bytes()
+    assert after != before
+    exported = tmp_path / "export.csv"
+    assert run_station("export", session, "--csv", exported).returncode == 0
+    assert exported.read_bytes() == after
+    from station.cli.sessions import read_results_rows
+
+    rows = read_results_rows(str(session))
+    assert [r["invalid_reason"] for r in rows] == ["", "fell at PC4", ""]
+    # ski and wax too, and a refit with another model
+    r = run_station("annotate", session, "--descents", "1,3", "--ski", "pair C", "--model",
+                    "velocity")  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    rows = read_results_rows(str(session))
+    assert [r["ski"] for r in rows] == ["pair C", "pair B", "pair C"]
+    assert [r["model"] for r in rows] == ["velocity", "constant", "velocity"]
+    assert run_station("export", session, "--csv", exported).returncode == 0
+    assert exported.read_bytes() == (session / store.RESULTS).read_bytes()
+
+
+def test_annotate_while_recording_saves_and_says_the_csv_is_the_recorders(run_station, session):
+    before = (session / store.RESULTS).read_bytes()
+    n = len((session / store.ANNOTATIONS).read_text().splitlines())
+    lock = RecordingLock.take(str(session))
+    try:
+        r = run_station("annotate", session, "--descents", "2", "--invalid", "fell")
+    finally:
+        lock.release()
+    assert r.returncode == 0, r.stderr
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "being recorded now" in lines[0], r.stderr
+    assert "station export" in lines[0]
+    assert (session / store.RESULTS).read_bytes() == before  # the recorder's file, untouched
+    assert len((session / store.ANNOTATIONS).read_text().splitlines()) == n + 1
+
+
+def test_a_results_csv_that_cannot_be_written_is_one_line_and_the_annotation_stays(
+    run_station, session
+):
+    (session / store.RESULTS).unlink()
+    (session / store.RESULTS).mkdir()  # not writable as a file, even for root
+    n = len((session / store.ANNOTATIONS).read_text().splitlines())
+    r = run_station("annotate", session, "--descents", "2", "--invalid", "fell")
+    line = _one_line(r, "annotations are saved", "results.csv was not rewritten", "is a folder")
+    assert str(session / store.RESULTS) in line
+    saved = (session / store.ANNOTATIONS).read_text().splitlines()
+    assert len(saved) == n + 1 and json.loads(saved[-1])["reason"] == "fell"
+    r = run_station("sessions", session)  # a results CSV that is a folder: one line, too
+    _one_line(r, "is a folder, not a results CSV")
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes a read-only file")
+def test_a_read_only_results_csv_is_one_line_and_the_annotation_stays(run_station, session):
+    os.chmod(session / store.RESULTS, 0o444)
+    r = run_station("annotate", session, "--from", "2", "--ski", "X")
+    _one_line(r, "annotations are saved", "not writable")
+    assert json.loads((session / store.ANNOTATIONS).read_text().splitlines()[-1])["values"]["ski"] == "X"
+
+
+def test_two_annotates_at_once_both_reach_the_csv(session):
+    """The second waits for the first's lock on the annotations file; its CSV has both."""
+    import threading
+
+    from station.cli.analysis import rewrite_results
+    from station.session.records import InvalidMark
+
+    order = []
+    with store.annotations_locked(str(session)):
+        store.append_annotation(str(session), InvalidMark(1, "first", 0.0))
+
+        def second():
+            with store.annotations_locked(str(session)):
+                order.append("second")
+                store.append_annotation(str(session), InvalidMark(3, "second", 0.0))
+                rewrite_results(str(session))
+
+        t = threading.Thread(target=second)
+        t.start()
+        time.sleep(0.2)
+        assert order == []  # waiting
+        rewrite_results(str(session))
+        order.append("first")
+    t.join(timeout=60)
+    assert order == ["first", "second"]
+    from station.cli.sessions import read_results_rows
+
+    rows = read_results_rows(str(session))
+    assert [r["invalid_reason"] for r in rows] == ["first", "", "second"]
