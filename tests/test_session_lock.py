@@ -182,7 +182,8 @@ def test_a_read_only_results_csv_is_one_line_and_the_annotation_stays(run_statio
     os.chmod(session / store.RESULTS, 0o444)
     r = run_station("annotate", session, "--from", "2", "--ski", "X")
     _one_line(r, "annotations are saved", "not writable")
-    assert json.loads((session / store.ANNOTATIONS).read_text().splitlines()[-1])["values"]["ski"] == "X"
+    last = json.loads((session / store.ANNOTATIONS).read_text().splitlines()[-1])
+    assert last["values"]["ski"] == "X"
 
 
 def test_two_annotates_at_once_both_reach_the_csv(session):

@@ -38,9 +38,8 @@ def read_results_rows(session: str) -> list[dict[str, str]] | None:
 
     The ``#`` header lines are skipped only at the top, so a quoted note that spans lines and
     begins one with ``#`` stays part of its row."""
-    from station.session import store as sessions
-
     from station.files import MAX_OBSERVATIONS, check_regular
+    from station.session import store as sessions
 
     path = os.path.join(session, sessions.RESULTS)
     if not os.path.lexists(path):
