@@ -224,8 +224,9 @@ class Acquisition:
             ski_rotation=ski_rotation,
         )
         acq.recording_lock = lock
-        if lock is not None and lock.problem:
-            acq._tell(acq.listener.warning, lock.problem)
+        for problem in (lock.problem if lock is not None else "", day.analyser.site_warning):
+            if problem:
+                acq._tell(acq.listener.warning, problem)
         if session_dir is not None:
             acq._submit(_WriteResults())
         if ski_rotation:

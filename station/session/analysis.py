@@ -16,7 +16,7 @@ import numpy as np
 from station.model.fit import FitResult, fit_descent
 from station.model.physics import G_STANDARD, Conditions, Params, StraightRun, gravity_for
 from station.model.track_error import survey_error
-from station.session.config import StationConfig
+from station.session.config import StationConfig, site_track
 from station.session.records import (
     DescentStatus,
     DescentTimes,
@@ -103,8 +103,10 @@ class Analyser:
         self.config = config
         self.track = track
         self._runs: dict[tuple[str, ...], StraightRun] = {}
-        # the g `station fit` uses too: normal gravity at the survey's latitude_deg, else 9.80665
-        self.gravity = gravity_for(track)
+        # the g `station fit` uses too: normal gravity at the survey's latitude_deg, else the
+        # station config's, else 9.80665; a config that contradicts the survey is said once
+        site, self.site_warning = site_track(track, config)
+        self.gravity = gravity_for(site)
         # the survey's covariance of the crossing times, per set of photocells: computed by
         # the first good fit on them (linearised at its parameters), then reused, so the
         # intervals of every descent carry the track without ~60 model solves each

@@ -21,6 +21,8 @@
     descent: {debounce_s: 0.3, timeout_s: null, min_speed_ms: 1.0, pairing: auto}
     items: {12: {ski: A, wax: blue}}   # optional: what the bib on a start names
     fit: {model: constant}        # constant | velocity
+    latitude_deg: 46.9            # optional: the site, for local gravity, when the survey
+    altitude_m: 1650              #   has none (the survey's, measured on the run, comes first)
 
 Unknown keys, wrong types and numbers that are not finite or outside a physical range (the
 ``RANGES`` below) are one clear line naming the file, line and key. A range is wide enough for
@@ -31,7 +33,8 @@ any real test day and narrow enough to catch a typo or a wrong unit (``mass_kg: 
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 from station.errors import InputError
 from station.files import MAX_YAML, check_regular
@@ -39,6 +42,9 @@ from station.model.air import air_density
 from station.timing.assembly import PAIRINGS
 from station.timing.wireformats import PARSERS
 from station.yamlfile import Section, parse_yaml, read_yaml_text
+
+if TYPE_CHECKING:
+    from station.survey.track import Track
 
 PARITIES = {"N", "E", "O", "M", "S"}
 
@@ -53,7 +59,13 @@ RANGES: dict[str, tuple[float, float, str]] = {
     "descent.debounce_s": (0, 5, "s"),  # double triggers of legs and poles: < 0.5 s
     "descent.timeout_s": (1, 3600, "s"),
     "descent.min_speed_ms": (0.1, 20, "m/s"),  # above it every descent would time out
+    "latitude_deg": (-90, 90, "°"),  # geodetic, + north: local gravity
+    "altitude_m": (-500, 9000, "m"),  # of the run above sea level
 }
+
+#: a station config's latitude this far from the survey's is worth a line (0.1° moves g by
+#: up to 1.7e-4 m/s², μ by ~2e-6: more is a different site, or a sign error)
+LATITUDE_MISMATCH_DEG = 0.1
 
 
 def _ranged(sec: Section, key: str, default=None, *, required: bool = False, kind=float):
@@ -95,10 +107,13 @@ class StationConfig:
     metadata: dict[str, str] = field(default_factory=dict)
     text: str = ""
     items: dict[str, dict[str, str]] = field(default_factory=dict)  # bib -> ski, wax, …
+    #: the site, for local gravity when the survey has no latitude_deg / altitude_m
+    latitude_deg: float | None = None
+    altitude_m: float | None = None
 
 
 _TOP = {"serial", "survey", "photocells", "skier", "ski", "wax", "notes", "air", "descent", "fit",
-        "items"}  # fmt: skip
+        "items", "latitude_deg", "altitude_m"}  # fmt: skip
 
 
 def load_config(path: str) -> StationConfig:
@@ -247,7 +262,34 @@ def load_config(path: str) -> StationConfig:
         metadata=metadata,
         text=text,
         items=items,
+        latitude_deg=_ranged(top, "latitude_deg"),
+        altitude_m=_ranged(top, "altitude_m"),
     )
+
+
+def site_track(track: Track, config: StationConfig | None) -> tuple[Track, str]:
+    """The track with the station config's latitude and altitude where the survey gives none,
+    for local gravity (:func:`station.model.physics.gravity_for`); and a warning line ("" for
+    none) when both give a latitude and they differ by more than ``LATITUDE_MISMATCH_DEG``.
+    The survey's wins, field by field: it was measured on the run; the config's is what a
+    station set up for a day on a known site says about it."""
+    if config is None:
+        return track, ""
+    warning = ""
+    lat, alt = track.latitude_deg, track.altitude_m
+    if lat is None:
+        lat = config.latitude_deg
+    elif config.latitude_deg is not None and abs(config.latitude_deg - lat) > LATITUDE_MISMATCH_DEG:
+        warning = (
+            f"latitude_deg: the survey's {lat:.3f}° ({os.path.basename(config.survey_path)}, "
+            f"measured on the run) is used for gravity, not the station config's "
+            f"{config.latitude_deg:.3f}° ({os.path.basename(config.path)})"
+        )
+    if alt is None:
+        alt = config.altitude_m
+    if (lat, alt) == (track.latitude_deg, track.altitude_m):
+        return track, warning
+    return replace(track, latitude_deg=lat, altitude_m=alt), warning
 
 
 def _items(top: Section) -> dict[str, dict[str, str]]:
