@@ -215,3 +215,19 @@ def test_two_annotates_at_once_both_reach_the_csv(session):
 
     rows = read_results_rows(str(session))
     assert [r["invalid_reason"] for r in rows] == ["first", "", "second"]
+
+
+def test_a_memory_download_is_not_merged_into_a_session_being_recorded(run_station, session):
+    """Two writers of one raw log (the recorder and the merge) would interleave their records."""
+    capture = session.parent / "memory.txt"
+    capture.write_bytes(b" 0001 C0  10:00:00.0000 00\r")
+    raw = (session / store.RAW).read_bytes()
+    lock = RecordingLock.take(str(session))
+    try:
+        r = run_station("import", capture, "--config", session / "config.yaml", "--into", session)
+    finally:
+        lock.release()
+    _one_line(r, "being recorded now", str(session))
+    assert (session / store.RAW).read_bytes() == raw
+    r = run_station("import", capture, "--config", session / "config.yaml", "--into", session)
+    assert r.returncode == 0, r.stderr
