@@ -231,3 +231,40 @@ def test_a_memory_download_is_not_merged_into_a_session_being_recorded(run_stati
     assert (session / store.RAW).read_bytes() == raw
     r = run_station("import", capture, "--config", session / "config.yaml", "--into", session)
     assert r.returncode == 0, r.stderr
+
+
+def test_a_file_system_without_flock_costs_a_warning_not_the_recording(
+    tmp_path, monkeypatch, run_station
+):
+    """Some network and FUSE mounts refuse flock (ENOLCK): the day is recorded all the same,
+    one warning says why, and ``station sessions`` says it cannot tell."""
+    import errno
+    import fcntl
+
+    from station.session.acquisition import Acquisition, Listener
+    from station.session.config import load_config
+    from tests.timing_helpers import write_config
+
+    def no_flock(fd, op):
+        raise OSError(errno.ENOLCK, os.strerror(errno.ENOLCK))
+
+    class Heard(Listener):
+        def __init__(self):
+            self.warnings = []
+
+        def warning(self, text):
+            self.warnings.append(text)
+
+    monkeypatch.setattr(fcntl, "flock", no_flock)
+    cfg = load_config(str(write_config(tmp_path, "/dev/ttyUSB0")))
+    heard = Heard()
+    session = tmp_path / "s"
+    acq = Acquisition.open(cfg, heard, session_dir=str(session), threaded=False)
+    try:
+        assert len(heard.warnings) == 1 and "cannot tell whether" in heard.warnings[0]
+        assert store.is_session(str(session))
+        assert recording_state(str(session)) is Recording.UNKNOWN
+        assert _status(run_station, session).startswith("unknown")
+    finally:
+        acq.close()
+    assert recording_state(str(session)) is Recording.ENDED

@@ -275,18 +275,19 @@ class RecordingLock:
                 "--session-dir",
                 path=path,
             ) from None
-        info = {"pid": os.getpid(), "host": socket.gethostname(), "t": time.time()}
-        with contextlib.suppress(OSError):
-            os.write(fd, (json.dumps(info) + "\n").encode("ascii"))
+        problem = ""
         try:
             import fcntl
 
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except (ImportError, OSError) as exc:
             why = getattr(exc, "strerror", None) or str(exc)
-            return cls(path, fd, f"cannot lock {path} ({why}): station sessions cannot tell "
-                       "whether this session is being recorded")  # fmt: skip
-        return cls(path, fd)
+            problem = (f"cannot lock {path} ({why}): station sessions cannot tell whether this "
+                       "session is being recorded")  # fmt: skip
+        info = {"pid": os.getpid(), "host": socket.gethostname(), "t": time.time()}
+        with contextlib.suppress(OSError):  # for a person; the lock is the fact
+            os.write(fd, (json.dumps(info) + "\n").encode("ascii"))
+        return cls(path, fd, problem)
 
     def release(self) -> None:
         """The recording ended: remove the file, then let the lock go (in this order, so that a
