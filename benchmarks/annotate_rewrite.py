@@ -1,0 +1,59 @@
+"""What ``station annotate`` costs now that it rewrites the session's results CSV (a replay of
+the day with every fit, as ``station export`` does), and what ``station sessions`` pays to try
+a session's recording lock.
+
+Sessions of 8 and 40 descents are made as tests/session_helpers.py makes them (the model's
+own times as ALGE lines in a raw log). Each figure is the median of 3 runs, in this process
+(the command's own start-up, ``benchmarks/startup.py``, not included).
+
+Run: python benchmarks/annotate_rewrite.py
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from station.cli.main import main  # noqa: E402
+from station.session.store import RecordingLock, recording_state  # noqa: E402
+from tests.session_helpers import make_session  # noqa: E402
+
+
+def _run(*args: str) -> float:
+    t0 = time.perf_counter()
+    with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
+        code = main(list(args))
+    assert code == 0, args
+    return time.perf_counter() - t0
+
+
+def main_() -> None:
+    for n in (8, 40):
+        with tempfile.TemporaryDirectory() as tmp:
+            session = str(make_session(Path(tmp), order="AB" * (n // 2)))
+            runs = [_run("annotate", session, "--descents", "2", "--invalid", f"r{k}")
+                    for k in range(3)]  # fmt: skip
+            lock = RecordingLock.take(session)
+            held = [_run("annotate", session, "--descents", "2", "--valid") for _ in range(3)]
+            lock.release()
+            print(
+                f"{n:3d} descents: annotate + rewrite results.csv {statistics.median(runs):6.2f} s"
+                f"   while recorded (no rewrite) {statistics.median(held) * 1e3:6.1f} ms"
+            )
+            t0 = time.perf_counter()
+            for _ in range(1000):
+                recording_state(session)
+            per = (time.perf_counter() - t0) / 1000
+            print(f"             recording_state (try the lock) {per * 1e6:6.1f} µs per session")
+
+
+if __name__ == "__main__":
+    main_()
