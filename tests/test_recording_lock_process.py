@@ -25,9 +25,10 @@ def _status(run_station, session) -> str:
     return json.loads(r.stdout)[0]["status"]
 
 
-def _recording(tmp_path):
-    """A recorder on a silent simulated timer, once its session and results CSV exist."""
-    sim, port, _ = start_sim(tmp_path, *SILENT)
+def _recording(tmp_path, sim_args=SILENT):
+    """A recorder on a simulated timer (silent by default), once its session and results CSV
+    exist."""
+    sim, port, _ = start_sim(tmp_path, *sim_args)
     cfg = write_config(tmp_path, port)
     session = tmp_path / "session"
     rec = subprocess.Popen(
@@ -66,6 +67,7 @@ def test_recording_while_the_recorder_runs_and_finished_at_once_after_sigterm(
         r = run_station("annotate", session, "--from", "1", "--ski", "pair 7")
         assert r.returncode == 0, r.stderr
         assert "being recorded now" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+        assert "takes them up" in r.stderr
         assert (session / store.RESULTS).read_bytes() == before
         rec.send_signal(signal.SIGTERM)
         assert rec.wait(timeout=30) == 0, rec.stderr.read()
@@ -97,5 +99,31 @@ def test_a_killed_recorder_leaves_no_session_recording(tmp_path, run_station):
         r = run_station("annotate", session, "--from", "1", "--ski", "pair 7")
         assert r.returncode == 0 and "rewritten" in r.stderr, r.stderr
         assert _status(run_station, session) == "interrupted"
+    finally:
+        _stop(rec, sim)
+
+
+@pytest.mark.slow  # a recorder on a simulated timer's pty
+def test_the_recorder_takes_up_an_annotate_and_its_csv_is_the_replays(tmp_path, run_station):
+    from tests.test_annotations_taken_up import _rows
+
+    one = ["--speed", "10", "--first-after", "2", "--hold", "600", "--descents", "1", "--seed", "5"]
+    sim, rec, session = _recording(tmp_path, one)
+    try:
+        deadline = time.monotonic() + 60
+        while len(_rows(session)) < 1:
+            assert rec.poll() is None and time.monotonic() < deadline, rec.stderr.read()
+            time.sleep(0.1)
+        r = run_station("annotate", session, "--descents", "1", "--invalid", "fell", "--wax", "X")
+        assert r.returncode == 0 and "takes them up" in r.stderr, r.stderr
+        deadline = time.monotonic() + 20
+        while (_rows(session)[0]["invalid_reason"], _rows(session)[0]["wax"]) != ("fell", "X"):
+            assert time.monotonic() < deadline, _rows(session)
+            time.sleep(0.1)
+        rec.send_signal(signal.SIGTERM)
+        assert rec.wait(timeout=30) == 0, rec.stderr.read()
+        out = tmp_path / "export.csv"
+        assert run_station("export", session, "--csv", out).returncode == 0
+        assert out.read_bytes() == (session / store.RESULTS).read_bytes()
     finally:
         _stop(rec, sim)

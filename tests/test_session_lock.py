@@ -146,7 +146,7 @@ def test_annotate_rewrites_results_csv_as_export_writes_it(run_station, session,
     assert exported.read_bytes() == (session / store.RESULTS).read_bytes()
 
 
-def test_annotate_while_recording_saves_and_says_the_csv_is_the_recorders(run_station, session):
+def test_annotate_while_recording_saves_and_leaves_the_csv_to_the_recorder(run_station, session):
     before = (session / store.RESULTS).read_bytes()
     n = len((session / store.ANNOTATIONS).read_text().splitlines())
     lock = RecordingLock.take(str(session))
@@ -157,7 +157,7 @@ def test_annotate_while_recording_saves_and_says_the_csv_is_the_recorders(run_st
     assert r.returncode == 0, r.stderr
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and "being recorded now" in lines[0], r.stderr
-    assert "station export" in lines[0]
+    assert "the recording takes them up" in lines[0]
     assert (session / store.RESULTS).read_bytes() == before  # the recorder's file, untouched
     assert len((session / store.ANNOTATIONS).read_text().splitlines()) == n + 1
 

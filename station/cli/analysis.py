@@ -79,13 +79,15 @@ def cmd_annotate(args: argparse.Namespace) -> int:
             sessions.append_annotation(args.session, rec)
         said = f"{len(records)} annotation(s) added to {args.session}"
         state = sessions.recording_state(args.session)
-        if state in (sessions.Recording.NOW, sessions.Recording.UNKNOWN):
-            why = ("it is being recorded now" if state is sessions.Recording.NOW else
-                   "whether it is being recorded cannot be told (recording.lock)")  # fmt: skip
-            print(f"{said}; {why}, so results.csv is the recorder's and does not show them: "
-                  f"once the recording has ended, station export {args.session} --csv "
-                  f"{os.path.join(args.session, sessions.RESULTS)} writes it with them",
-                  file=sys.stderr)  # fmt: skip
+        if state is sessions.Recording.NOW:  # the recorder takes them up (Acquisition)
+            print(f"{said}; it is being recorded now: the recording takes them up and its "
+                  "results.csv shows them in a moment", file=sys.stderr)  # fmt: skip
+            return 0
+        if state is sessions.Recording.UNKNOWN:
+            print(f"{said}; whether it is being recorded cannot be told (recording.lock), so "
+                  "results.csv was left alone: station export "
+                  f"{args.session} --csv {os.path.join(args.session, sessions.RESULTS)} "
+                  "writes it with them", file=sys.stderr)  # fmt: skip
             return 0
         path = rewrite_results(args.session)
     print(f"{said}; {path} rewritten", file=sys.stderr)

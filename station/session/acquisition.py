@@ -16,6 +16,9 @@ replay (CLI and UI) run.
   end of a capture does (the processor's ``finish``), waits for the fits and writes the CSV.
   Quitting the UI, Ctrl-C or SIGTERM in ``record``, and the end of a replay all go through it,
   so a session replays to the same CSV however it was ended.
+- **Annotations from elsewhere**: what ``station annotate`` appends to the session being
+  recorded is taken up by the fit worker (when idle, and by :meth:`Acquisition.close`), applied
+  with the recorder's own in the order of the annotations file, as a replay applies them.
 - **Snapshots only**: the outside world hears of the day through a :class:`Listener`, called
   with immutable records (:mod:`station.session.records`), never with the day itself.
 
@@ -49,6 +52,7 @@ from station.session.records import (
     LineCounts,
     Metadata,
     MetadataAnnotation,
+    ModelChange,
     Progress,
 )
 from station.session.replay import replay_chunks, source_date
@@ -126,6 +130,9 @@ class _Fit:
 @dataclass(frozen=True)
 class _Annotate:
     annotation: Annotation
+    #: already applied to the day (a session's annotations are, in the order of its file):
+    #: the job only fits again and shows what it concerns
+    applied: bool = False
 
 
 @dataclass(frozen=True)
@@ -140,6 +147,13 @@ class _WriteResults:
 
 
 _STOP = object()
+
+#: how often an idle fit worker looks for annotations another process (``station annotate``)
+#: appended to the session being recorded
+ANNOTATIONS_POLL_S = 0.5
+#: how long the recorder waits for another writer of the annotations file (it appends one
+#: record) before it appends its own without the lock
+ANNOTATIONS_WAIT_S = 2.0
 _Job = _Fit | _Annotate | _End | _WriteResults
 
 
@@ -176,6 +190,9 @@ class Acquisition:
         self._jobs: queue.Queue[object] = queue.Queue()
         #: held while the session is recorded (``station sessions``, ``annotate`` try it)
         self.recording_lock: sessions.RecordingLock | None = None
+        self._ann_offset = 0  # bytes of annotations.jsonl taken up (own and others' records)
+        self._own_lines: list[str] = []  # own records appended, not yet read back
+        self._last_poll = 0.0
         self._worker: threading.Thread | None = None
         if threaded:
             self._worker = threading.Thread(target=self._work, name="fit-worker", daemon=True)
@@ -347,16 +364,16 @@ class Acquisition:
         """With the lock held: what the chunk did, for the listener; the finished descents."""
         proc = self.day.processor
         cur = proc.assembler.current
+        jobs: list[_Job] = []
         if cur is not None and cur.number != self._announced:
             self._announced = cur.number
-            self._descent_started(cur.number)
+            jobs += self._descent_started(cur.number)
         if self.listener.live_view:
             new = tuple(proc.events[first_event:])
             if new:
                 self._tell(self.listener.impulses, new, proc.line_counts())
             if new or done:
                 self._tell(self.listener.progress, self.day.progress())
-        jobs: list[_Job] = []
         for d in done:
             times = DescentTimes.of(d)
             if times.status != DescentStatus.ABORTED:
@@ -364,11 +381,12 @@ class Acquisition:
             jobs.append(_Fit(times))
         return jobs
 
-    def _descent_started(self, number: int) -> None:
+    def _descent_started(self, number: int) -> list[_Job]:
         """The demo's skis: when a descent starts, the next pair is already waiting."""
-        if self.ski_rotation:
-            ski = self.ski_rotation[number % len(self.ski_rotation)]
-            self._add_metadata_locked({"ski": ski}, number + 1)
+        if not self.ski_rotation:
+            return []
+        ski = self.ski_rotation[number % len(self.ski_rotation)]
+        return self._add_metadata_locked({"ski": ski}, number + 1)[1]
 
     # ------------------------------------------------------------------ annotations
 
@@ -376,26 +394,99 @@ class Acquisition:
         """Metadata for the next descent on (or from ``from_descent``), stored and applied at
         once, so the descent it is for sees it; returns the number it applies from."""
         with self.lock:
-            start = self._add_metadata_locked(values, from_descent)
+            start, jobs = self._add_metadata_locked(values, from_descent)
             progress = self.day.progress()
+        self._submit_all(jobs)
         if self.listener.live_view:
             self._tell(self.listener.progress, progress)
         return start
 
-    def _add_metadata_locked(self, values: Mapping[str, Any], from_descent: int | None) -> int:
+    def _add_metadata_locked(
+        self, values: Mapping[str, Any], from_descent: int | None
+    ) -> tuple[int, list[_Job]]:
         start = from_descent if from_descent is not None else self.day.next_number()
         a = MetadataAnnotation(Metadata.from_values(values), from_descent=start, t=time.time())
-        if self.session_dir is not None:
-            sessions.append_annotation(self.session_dir, a)
-        self.day.annotate(a)
-        return start
+        if self.session_dir is None:
+            self.day.annotate(a)
+            return start, []
+        return start, self._record_locked(a)
 
     def annotate(self, a: Annotation) -> None:
-        """An invalid mark, a valid mark or a refit: stored now, applied by the fit worker after
-        the descents already queued."""
-        if self.session_dir is not None:
-            sessions.append_annotation(self.session_dir, a)
-        self._submit(_Annotate(a))
+        """An invalid mark, a valid mark or a refit: stored now, fitted again by the fit worker
+        after the descents already queued."""
+        if self.session_dir is None:
+            self._submit(_Annotate(a))  # applied by the worker, in its turn
+            return
+        with self.lock:
+            jobs = self._record_locked(a)
+        self._submit_all(jobs)
+
+    # -- annotations another process appends (``station annotate`` while this records)
+    #
+    # Every writer appends to annotations.jsonl only under its flock
+    # (:func:`station.session.store.annotations_locked`). The recorder applies every record,
+    # its own and the others', to the day at once and in the order of the file, as a replay
+    # applies them; the fits they call for go to the worker, which sees by then every fit
+    # already under way. The worker looks for others' records when idle; :meth:`close` takes
+    # up the last of them and lets the recording lock go inside the flock, so an annotate
+    # finds the session either recorded (its record is taken up here) or ended (it rewrites
+    # the results CSV itself).
+
+    def _record_locked(self, own: Annotation) -> list[_Job]:
+        """With the lock held: store ``own`` after what others appended before it, and apply
+        both in the file's order. A writer holding the file longer than ANNOTATIONS_WAIT_S
+        does not stop the day: the record is appended without the file lock then."""
+        assert self.session_dir is not None
+        with sessions.annotations_locked(self.session_dir, ANNOTATIONS_WAIT_S):
+            return self._take_up_locked(own)
+
+    def _take_up_locked(self, own: Annotation | None = None) -> list[_Job]:
+        """With the lock and the annotations file held: the records others appended since the
+        last look, then ``own``, applied to the day; the jobs that fit again and show them."""
+        assert self.session_dir is not None
+        records, self._ann_offset = sessions.read_annotations_after(
+            self.session_dir, self._ann_offset
+        )
+        taken: list[Annotation] = []
+        for rec in records:
+            if rec.line in self._own_lines:  # ours, applied when it was written
+                self._own_lines.remove(rec.line)
+            elif rec.problem:
+                self._tell(self.listener.warning, f"{sessions.ANNOTATIONS}: {rec.problem}; "
+                           "passed over")  # fmt: skip
+            elif rec.annotation is not None:
+                taken.append(rec.annotation)
+        if own is not None:
+            self._own_lines.append(sessions.append_annotation(self.session_dir, own))
+            taken.append(own)
+        jobs: list[_Job] = []
+        for a in taken:
+            self.day.annotate(a)
+            if not (isinstance(a, MetadataAnnotation) and a.descents is None):
+                jobs.append(_Annotate(a, applied=True))  # a change from N on: nothing to refit
+        return jobs
+
+    def _poll_annotations(self) -> None:
+        """The worker, idle: take up what another process appended (without waiting for the
+        file: a writer holding it is asked again at the next look)."""
+        self._last_poll = time.monotonic()
+        if self.session_dir is None or self._closing:
+            return
+        try:
+            grown = os.path.getsize(os.path.join(self.session_dir, sessions.ANNOTATIONS))
+        except OSError:
+            return
+        if grown <= self._ann_offset:
+            return
+        jobs: list[_Job] = []
+        with self.lock, sessions.annotations_locked(self.session_dir, 0.0) as held:
+            if held is not False:
+                jobs = self._take_up_locked()
+            progress = self.day.progress()
+        for job in jobs:
+            self._jobs.put(job)  # this worker runs them next, in order
+        if jobs and self.listener.live_view:
+            self._tell(self.listener.progress, progress)
 
     # ------------------------------------------------------------------ consumers
 
@@ -411,12 +502,25 @@ class Acquisition:
 
     def _work(self) -> None:
         while True:
-            job = self._jobs.get()
+            try:
+                job = self._jobs.get(timeout=ANNOTATIONS_POLL_S)
+            except queue.Empty:
+                self._run_poll()
+                continue
             if job is _STOP:
                 return
             self._run(job)  # type: ignore[arg-type]
             if self.compare and self._jobs.empty() and not self._closing:
                 self._compare()
+            if time.monotonic() - self._last_poll > 2 * ANNOTATIONS_POLL_S:
+                self._run_poll()  # a busy worker looks too
+
+    def _run_poll(self) -> None:
+        try:
+            self._poll_annotations()
+        except Exception as exc:  # noqa: BLE001 - the day goes on
+            self._tell(self.listener.warning, f"reading {sessions.ANNOTATIONS} failed: "
+                       f"{type(exc).__name__}: {exc}")  # fmt: skip
 
     def _run(self, job: _Job) -> None:
         """One job; whatever it raises is reported, never passed to the reader."""
@@ -445,7 +549,8 @@ class Acquisition:
                 effect = Effect(refit=(job.descent.number,))
                 fit_jobs = [day.fit_job(job.descent)]
             else:
-                effect = day.annotate(job.annotation)
+                a = job.annotation
+                effect = _effect_now(day, a) if job.applied else day.annotate(a)
                 fit_jobs = [day.fit_job(day.results[n].descent) for n in effect.refit]
         fitted = [day.analyser.run(j) for j in fit_jobs]  # outside the lock: the reader goes on
         with self.lock:
@@ -509,11 +614,25 @@ class Acquisition:
             if self._worker is not None:
                 self._jobs.put(_STOP)
                 self._worker.join()
-            with self.lock:
-                snapshot = self.day.snapshot()
-            self._write_session_csv(snapshot)
-            if self.rawlog is not None:
-                self.rawlog.close()
+            with contextlib.ExitStack() as held:
+                jobs: list[_Job] = []
+                if self.session_dir is not None:  # the last records others appended
+                    try:
+                        with self.lock:
+                            held.enter_context(sessions.annotations_locked(self.session_dir))
+                            jobs = self._take_up_locked()
+                    except Exception as exc:  # noqa: BLE001 - the CSV and the raw log first
+                        self._tell(self.listener.warning, f"annotations entered elsewhere may "
+                                   f"be missing from the results CSV: {exc}")  # fmt: skip
+                for job in jobs:
+                    self._run(job)
+                with self.lock:
+                    snapshot = self.day.snapshot()
+                self._write_session_csv(snapshot)
+                if self.rawlog is not None:
+                    self.rawlog.close()
+                if self.recording_lock is not None:  # inside the annotations lock: see above
+                    self.recording_lock.release()
         finally:
             if self.recording_lock is not None:
                 self.recording_lock.release()  # the results CSV is final: no longer recording
@@ -541,6 +660,19 @@ class Acquisition:
 
         header = sessions.results_header(self.config, self.day.track.name)
         write_result_rows_to(fh, [r.row for r in self.results()], header)
+
+
+def _effect_now(day: Day, a: Annotation) -> Effect:
+    """What an annotation the day already has calls for, now: the descents it concerns that
+    are fitted by now (one fitted meanwhile was fitted before it, or with it: fitted again)."""
+    if isinstance(a, MetadataAnnotation):
+        numbers = sorted(a.descents or ())
+        return Effect(refit=tuple(n for n in numbers if n in day.results))
+    if a.descent not in day.results:
+        return Effect()
+    if isinstance(a, ModelChange):
+        return Effect(refit=(a.descent,))
+    return Effect(changed=(a.descent,))
 
 
 def comparison_text(track: Any, results: Sequence[DescentResult]) -> str:

@@ -31,6 +31,7 @@ import re
 import socket
 import time
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 
 from station.errors import InputError
 from station.files import MAX_OBSERVATIONS, MAX_YAML, read_bytes, read_text
@@ -185,17 +186,20 @@ def results_header(cfg: StationConfig, survey_name: str) -> dict[str, str]:
     }
 
 
-def append_annotation(session: str, annotation: Annotation) -> None:
-    """Append one annotation (flushed and fsync'd: it is the engineer's word)."""
+def append_annotation(session: str, annotation: Annotation) -> str:
+    """Append one annotation (flushed and fsync'd: it is the engineer's word); returns the
+    line written (without its line end), by which its writer knows it when it reads it back."""
     path = os.path.join(session, ANNOTATIONS)
     record = annotation_to_json(annotation)
+    line = json.dumps(record, ensure_ascii=False, sort_keys=True)
     try:
         with open(path, "a", encoding="utf-8") as fh:
-            fh.write(json.dumps(record, ensure_ascii=False, sort_keys=True) + "\n")
+            fh.write(line + "\n")
             fh.flush()
             os.fsync(fh.fileno())
     except OSError as exc:
         raise InputError(f"cannot write the annotation: {exc.strerror or exc}", path=path) from None
+    return line
 
 
 def read_annotations(session: str) -> list[Annotation]:
@@ -224,6 +228,45 @@ def read_annotations(session: str) -> list[Annotation]:
         if annotation is not None:
             out.append(annotation)
     return out
+
+
+@dataclass(frozen=True)
+class AppendedRecord:
+    """One whole line of the annotations file read back: the annotation, or why not."""
+
+    line: str
+    annotation: Annotation | None  # None: blank, a kind this version does not know, or bad
+    problem: str = ""
+
+
+def read_annotations_after(session: str, offset: int) -> tuple[list[AppendedRecord], int]:
+    """The whole records appended at or after byte ``offset`` of the annotations file, and the
+    offset after the last of them: a record still being written (no line end yet) is left
+    for the next read. For the recorder, which takes up what ``station annotate`` appends."""
+    path = os.path.join(session, ANNOTATIONS)
+    try:
+        with open(path, "rb") as fh:
+            fh.seek(offset)
+            data = fh.read(MAX_ANNOTATIONS)
+    except FileNotFoundError:
+        return [], offset
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror or exc}", path=path) from None
+    end = data.rfind(b"\n") + 1
+    out = []
+    for raw in data[:end].split(b"\n")[:-1]:
+        line = raw.decode("utf-8", "replace")
+        if not line.strip():
+            out.append(AppendedRecord(line, None))
+            continue
+        try:
+            rec = json.loads(line)
+            annotation = annotation_from_json(rec) if isinstance(rec, dict) else None
+        except (ValueError, InputError) as exc:
+            out.append(AppendedRecord(line, None, f"not an annotation record ({exc})"))
+            continue
+        out.append(AppendedRecord(line, annotation))
+    return out, offset + end
 
 
 # ----------------------------------------------------------------------------- being recorded
@@ -332,23 +375,44 @@ def recording_state(session: str) -> Recording:
 
 
 @contextlib.contextmanager
-def annotations_locked(session: str) -> Iterator[None]:
-    """Hold an exclusive flock on the annotations file while appending to it and rewriting the
-    results CSV from it, so two ``station annotate`` at once cannot leave a CSV without the
-    other's annotation (the one that renamed its CSV last would win). Waits for the other; a
-    file system without flock goes on without it."""
+def annotations_locked(session: str, timeout_s: float | None = None) -> Iterator[bool | None]:
+    """Hold an exclusive flock on the annotations file. Every writer of it appends only while
+    holding it (``station annotate``, the recorder), so whoever holds it sees whole records and
+    no one appends meanwhile:
+
+    - two ``station annotate`` at once cannot leave a CSV without the other's annotation (the
+      one that renamed its CSV last would win);
+    - the recorder reads what others appended in the order of the file, and at its end takes
+      up the last of them and lets its recording lock go *inside* this lock, so an annotate
+      either finds the session recorded (and the recorder takes its record up) or ended (and
+      rewrites the CSV itself), never in between.
+
+    Yields True when held; False when ``timeout_s`` (None: wait as long as it takes) passed
+    first; None on a file system without flock (the caller goes on as before the lock)."""
     path = os.path.join(session, ANNOTATIONS)
     try:
         fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
     except OSError as exc:
         raise InputError(f"cannot write the annotation: {exc.strerror or exc}", path=path) from None
     try:
-        try:
-            import fcntl
-
-            fcntl.flock(fd, fcntl.LOCK_EX)
-        except (ImportError, OSError):
-            pass  # no flock here: as before the lock
-        yield
+        yield _flock_within(fd, timeout_s)
     finally:
-        os.close(fd)
+        os.close(fd)  # lets the lock go
+
+
+def _flock_within(fd: int, timeout_s: float | None) -> bool | None:
+    try:
+        import fcntl
+    except ImportError:
+        return None
+    deadline = None if timeout_s is None else time.monotonic() + timeout_s
+    while True:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | (0 if deadline is None else fcntl.LOCK_NB))
+            return True
+        except OSError as exc:
+            if exc.errno not in _BUSY:
+                return None
+        if deadline is None or time.monotonic() >= deadline:
+            return False
+        time.sleep(0.01)
