@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -44,6 +45,45 @@ def test_the_readme_fit_loads_no_pandas_scipy_stats_ui_or_serial_port():
     loaded = loaded_after(FIT)
     assert loaded["status"] == 0 and loaded["numpy"]
     assert [m for m in HEAVY if loaded[m]] == []
+
+
+#: run in a fresh interpreter: main(argv), then the threads of each BLAS library loaded, as JSON
+BLAS_SCRIPT = """
+import contextlib, io, json, sys
+from station.cli.main import main
+with contextlib.redirect_stdout(io.StringIO()):
+    status = main(json.loads(sys.argv[1]))
+from threadpoolctl import threadpool_info
+blas = [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+print(json.dumps({"status": status, "blas_threads": blas}))
+"""
+
+
+def blas_threads_after(argv: list[str], **env: str) -> list[int]:
+    """Run ``station argv`` in a fresh interpreter with the BLAS thread variables of ``env``
+    only; the number of threads of every BLAS library it loaded."""
+    clean = {k: v for k, v in os.environ.items() if k not in BLAS_THREAD_VARS}
+    out = subprocess.run(
+        [sys.executable, "-c", BLAS_SCRIPT, json.dumps(argv)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=True,
+        env={**clean, **env},
+    )
+    loaded = json.loads(out.stdout)
+    assert loaded["status"] == 0 and loaded["blas_threads"]  # numpy's OpenBLAS, scipy's
+    return loaded["blas_threads"]
+
+
+BLAS_THREAD_VARS = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS")
+
+
+def test_the_fit_runs_on_one_blas_thread_unless_the_user_chose_another_number():
+    """A pool of BLAS threads stalls the spline's eigh for 70-90 ms on a busy machine and
+    spins beside the imports; the station's matrices are too small to gain from it."""
+    assert set(blas_threads_after(FIT)) == {1}
+    assert set(blas_threads_after(FIT, OPENBLAS_NUM_THREADS="2")) == {2}
 
 
 def test_a_usage_error_loads_no_numerics():
