@@ -259,7 +259,10 @@ def solve_grid(
                 break
         converged = not active.any()
 
-    f, f_e, v, nm = parts(energy)
+    if sensitivities:
+        _, f_e, v, nm = parts(energy)
+    else:  # the speed only (as parts() computes it): the times need no derivatives
+        v = np.sqrt(2.0 * np.maximum(energy, E_FLOOR))
     dt_nodes = 2.0 * grid.ds / (v[..., 1:] + v[..., :-1])
     time = np.concatenate([np.zeros(v.shape[:-1] + (1,)), np.cumsum(dt_nodes, axis=-1)], axis=-1)
     dtime = None
