@@ -11,6 +11,11 @@ Both commands run alternately (so a change in the machine's load hits both alike
 times each; it prints the median and the minimum wall time of each, the ratio of the medians,
 and which heavy optional modules (scipy.stats, pandas, textual, serial) the fit loaded.
 
+``station`` runs OpenBLAS on one thread (station/cli/main.py, ``one_blas_thread``), which also
+makes its import of numpy and scipy cheaper than the bare import with the default pool. So that
+the ratio cannot hide station's own overhead behind that, the bare import also runs with
+``OPENBLAS_NUM_THREADS=1`` (alternating with the others) and the ratio to it is printed too.
+
 Run: python benchmarks/startup.py [--repeats N]
 """
 
@@ -48,9 +53,9 @@ def station_script() -> list[str]:
     return [found]
 
 
-def wall(cmd: list[str]) -> float:
+def wall(cmd: list[str], env: dict[str, str] | None = None) -> float:
     t0 = time.perf_counter()
-    done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=env)
     dt = time.perf_counter() - t0
     if done.returncode != 0:
         sys.exit(f"startup: {' '.join(cmd)} failed ({done.returncode}): {done.stderr.strip()}")
@@ -71,12 +76,14 @@ def main() -> None:
     args = ap.parse_args()
     script = station_script()
     fit = [*script, *FIT_ARGS]
+    one = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
     wall(fit), wall(BARE)  # warm the file cache; not counted
-    t_fit, t_bare = [], []
+    t_fit, t_bare, t_one = [], [], []
     for _ in range(args.repeats):
         t_fit.append(wall(fit))
         t_bare.append(wall(BARE))
-    m_fit, m_bare = statistics.median(t_fit), statistics.median(t_bare)
+        t_one.append(wall(BARE, one))
+    m_fit, m_bare, m_one = (statistics.median(t) for t in (t_fit, t_bare, t_one))
     print(f"python {sys.version.split()[0]}, {os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}")
     print(f"runs of each, alternating: {args.repeats}")
     print(f"station {' '.join(FIT_ARGS)}")
@@ -84,6 +91,9 @@ def main() -> None:
     print(f"python -c {BARE[2]!r}")
     print(f"  median {m_bare * 1e3:7.0f} ms   min {min(t_bare) * 1e3:7.0f} ms")
     print(f"ratio of medians  {m_fit / m_bare:.2f}x   (min/min {min(t_fit) / min(t_bare):.2f}x)")
+    print("the same import with OPENBLAS_NUM_THREADS=1 (as station loads the libraries)")
+    print(f"  median {m_one * 1e3:7.0f} ms   min {min(t_one) * 1e3:7.0f} ms")
+    print(f"ratio of medians  {m_fit / m_one:.2f}x   (min/min {min(t_fit) / min(t_one):.2f}x)")
     loaded = heavy_modules(script)
     print(f"heavy modules the fit loads: {', '.join(loaded) if loaded else 'none'}")
 

@@ -174,6 +174,44 @@ def test_sensitivities_match_central_differences(demo_track, demo_xs):
 
 
 @pytest.mark.parametrize(
+    ("p", "wind"),
+    [
+        (Params(0.22, 0.0085, 3.4), 0.0),  # linear: one pass
+        (Params(0.25, 0.02, 5.0), -2.5),  # iterated
+        (Params(0.25, 0.02, 0.5, mu1=2e-4), 1.5),  # iterated, a slow start
+    ],
+)
+def test_a_batch_of_tracks_is_solved_row_by_row_as_each_track_alone(demo_track, demo_xs, p, wind):
+    """The survey's finite differences solve some 60 perturbed profiles as one batch: each row
+    must be the very number the lone track gives (differences of 1e-6 s are taken of them)."""
+    from scipy.interpolate import BSpline
+
+    from station.model.physics import grid_nodes, grid_on_nodes, make_grid, solve_grid
+    from station.survey.track import spline_profile
+
+    unc = demo_track.uncertainty
+    rng = np.random.default_rng(3)
+    draws = [unc.coef + unc.factor @ rng.standard_normal(unc.factor.shape[1]) * k for k in (1, 30)]
+    # a gentler run (the heights scaled by 0.3) needs one iteration more than the others
+    coefs = [unc.coef, *draws, 0.3 * unc.coef]
+    c = Conditions(88.0, 1.04, wind_ms=wind)
+    x, idx = grid_nodes(demo_xs, 0.5)
+    xm = 0.5 * (x[1:] + x[:-1])
+    spl = BSpline(unc.knots, np.array(coefs).T, 3)
+    d1, d2 = spl.derivative(1), spl.derivative(2)
+    slopes = [np.ascontiguousarray(f(at).T) for f, at in ((d1, x), (d2, x), (d1, xm))]
+    batch = solve_grid(grid_on_nodes(x, idx, *slopes), p, c, 3, sensitivities=False)
+    assert batch.converged and batch.time.shape == (len(coefs), len(x))
+    for row, coef in enumerate(coefs):
+        alone_grid = make_grid(spline_profile(BSpline(unc.knots, coef, 3), 0.0, 1e3), demo_xs, 0.5)
+        alone = solve_grid(alone_grid, p, c, 3, sensitivities=False)
+        assert np.array_equal(batch.time[row], alone.time)
+        assert np.array_equal(batch.energy[row], alone.energy)
+    with pytest.raises(ValueError, match="one track"):
+        solve_grid(grid_on_nodes(x, idx, *slopes), p, c, 3)
+
+
+@pytest.mark.parametrize(
     ("p_hpa", "t_c", "rh", "rho"),
     [
         (1013.25, 15, 0, 1.225),

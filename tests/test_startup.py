@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -44,6 +45,118 @@ def test_the_readme_fit_loads_no_pandas_scipy_stats_ui_or_serial_port():
     loaded = loaded_after(FIT)
     assert loaded["status"] == 0 and loaded["numpy"]
     assert [m for m in HEAVY if loaded[m]] == []
+
+
+#: run in a fresh interpreter: main(argv), then the threads of each BLAS library loaded, as JSON
+BLAS_SCRIPT = """
+import contextlib, io, json, sys
+from station.cli.main import main
+with contextlib.redirect_stdout(io.StringIO()):
+    status = main(json.loads(sys.argv[1]))
+from threadpoolctl import threadpool_info
+blas = [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+print(json.dumps({"status": status, "blas_threads": blas}))
+"""
+
+
+def blas_threads_after(argv: list[str], **env: str) -> list[int]:
+    """Run ``station argv`` in a fresh interpreter with the BLAS thread variables of ``env``
+    only; the number of threads of every BLAS library it loaded."""
+    clean = {k: v for k, v in os.environ.items() if k not in BLAS_THREAD_VARS}
+    out = subprocess.run(
+        [sys.executable, "-c", BLAS_SCRIPT, json.dumps(argv)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=True,
+        env={**clean, **env},
+    )
+    loaded = json.loads(out.stdout)
+    assert loaded["status"] == 0 and loaded["blas_threads"]  # numpy's OpenBLAS, scipy's
+    return loaded["blas_threads"]
+
+
+BLAS_THREAD_VARS = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS")
+
+
+def test_the_fit_runs_on_one_blas_thread_unless_the_user_chose_another_number():
+    """A pool of BLAS threads stalls the spline's eigh for 70-90 ms on a busy machine and
+    spins beside the imports; the station's matrices are too small to gain from it."""
+    assert set(blas_threads_after(FIT)) == {1}
+    assert set(blas_threads_after(FIT, OPENBLAS_NUM_THREADS="2")) == {2}
+
+
+#: the station modules the README fit needs: a module imported beyond these (a plot, the
+#: session records, the points-CSV reader, the comparison) is start-up time for every fit
+FIT_MODULES = {
+    "station", "station.errors", "station.files", "station.numbers", "station.yamlfile",
+    "station.cli", "station.cli.main", "station.cli.common", "station.cli.survey",
+    "station.model", "station.model.air", "station.model.fit", "station.model.physics",
+    "station.model.track_error",
+    "station.survey", "station.survey.gsi", "station.survey.load", "station.survey.polar",
+    "station.survey.smoothing", "station.survey.track",
+    "station.timing", "station.timing.timesfile",
+}  # fmt: skip
+
+#: run in a fresh interpreter: main(argv) (or nothing), then every module loaded, as JSON
+MODULES_SCRIPT = """
+import contextlib, io, json, sys
+argv = json.loads(sys.argv[1])
+if argv:
+    from station.cli.main import main
+    with contextlib.redirect_stdout(io.StringIO()):
+        status = main(argv)
+else:
+    import numpy, scipy.optimize, scipy.interpolate
+    status = 0
+print(json.dumps({"status": status, "modules": sorted(sys.modules)}))
+"""
+
+
+def modules_after(argv: list[str]) -> set[str]:
+    """Every module ``station argv`` loads in a fresh interpreter (``[]``: the bare import of
+    numpy, scipy.optimize and scipy.interpolate, the floor of benchmarks/startup.py)."""
+    out = subprocess.run(
+        [sys.executable, "-c", MODULES_SCRIPT, json.dumps(argv)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    loaded = json.loads(out.stdout)
+    assert loaded["status"] == 0
+    return set(loaded["modules"])
+
+
+def test_the_readme_fit_loads_the_libraries_of_a_fit_yaml_and_its_own_modules_only():
+    """Beyond what the bare import of numpy, scipy.optimize and scipy.interpolate loads, the
+    fit may load yaml (the survey) and the station modules in FIT_MODULES, nothing else."""
+    extra = modules_after(FIT) - modules_after([])
+    unexpected = {
+        m
+        for m in extra
+        if m not in FIT_MODULES and m.split(".")[0] not in ("yaml", "_yaml")
+        and not m.startswith("_cython_")  # the Cython runtime a scipy routine loads on use
+    }  # fmt: skip
+    assert unexpected == set(), "import these where they are used, not on the fit's way"
+    assert {"station.model.fit", "station.survey.track", "yaml"} <= extra  # it did the work
+
+
+def test_a_survey_of_coordinates_reads_no_gsi_and_draws_no_plot(tmp_path):
+    rows = ["id,e,n,h"]
+    for i in range(40):  # a plane falling 0.3 m per metre, the photocells' posts beside it
+        rows.append(f"P{i:02d},{5.0 * i:.1f},0.0,{1000.0 - 1.5 * i:.2f}")
+    rows += ["C1L,40.0,3.0,988.0", "C1R,40.0,-3.0,988.0"]
+    rows += ["C2L,150.0,3.0,955.0", "C2R,150.0,-3.0,955.0"]
+    (tmp_path / "pts.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
+    survey = tmp_path / "run.yaml"
+    survey.write_text(
+        'name: plane\npoints: pts.csv\nprofile_pattern: "^P\\\\d+$"\nphotocells:\n'
+        "  - {id: C1, points: [C1L, C1R]}\n  - {id: C2, points: [C2L, C2R]}\n"
+    )
+    loaded = modules_after(["survey", str(survey), "--json"])
+    assert "station.survey.coords" in loaded
+    assert not {"station.survey.gsi", "station.report.track_plot", "matplotlib"} & loaded
 
 
 def test_a_usage_error_loads_no_numerics():

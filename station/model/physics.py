@@ -137,6 +137,14 @@ def make_grid(profile: Profile, xs: Array, step: float, refine: int = 1) -> Grid
     Arc length per interval by Simpson's rule with the midpoint (O(h⁵) per interval), so the
     distances the skier travels are exact to far below a millimetre.
     """
+    x, idx = grid_nodes(xs, step, refine)
+    xm = 0.5 * (x[1:] + x[:-1])
+    return grid_on_nodes(x, idx, profile.dh(x), profile.d2h(x), profile.dh(xm))
+
+
+def grid_nodes(xs: Array, step: float, refine: int = 1) -> tuple[Array, Array]:
+    """The nodes of :func:`make_grid` and the node index of each photocell: they depend on the
+    photocells only, so perturbed profiles on the same photocells share them."""
     xs = np.asarray(xs, dtype=float)
     if np.any(np.diff(xs) <= 0):
         raise ValueError("photocell positions must increase down the run")
@@ -153,14 +161,20 @@ def make_grid(profile: Profile, xs: Array, step: float, refine: int = 1) -> Grid
         else:
             pieces.append(np.linspace(a, b, n + 1)[:-1])
         idx.append(idx[-1] + n)
-    x = np.concatenate([*pieces, xs[-1:]])
-    d1 = profile.dh(x)
-    d2 = profile.d2h(x)
+    return np.concatenate([*pieces, xs[-1:]]), np.array(idx)
+
+
+def grid_on_nodes(x: Array, cell_index: Array, d1: Array, d2: Array, d1_mid: Array) -> Grid:
+    """The grid on nodes ``x`` from the profile's h′ and h″ there and h′ at the midpoints.
+
+    The slopes may carry a leading axis, one row per profile (shape (R, n), (R, n), (R, n − 1)):
+    then the grid holds R tracks on the same nodes and :func:`solve_grid` solves them at once,
+    each row exactly as it would be solved alone (the survey's finite differences need that).
+    """
     root = np.sqrt(1.0 + d1 * d1)
-    xm = 0.5 * (x[1:] + x[:-1])
-    fm = np.sqrt(1.0 + profile.dh(xm) ** 2)
-    ds = np.diff(x) / 6.0 * (root[:-1] + 4.0 * fm + root[1:])
-    s = np.concatenate([[0.0], np.cumsum(ds)])
+    fm = np.sqrt(1.0 + d1_mid**2)
+    ds = np.diff(x) / 6.0 * (root[..., :-1] + 4.0 * fm + root[..., 1:])
+    s = np.concatenate([np.zeros(ds.shape[:-1] + (1,)), np.cumsum(ds, axis=-1)], axis=-1)
     return Grid(
         x=x,
         s=s,
@@ -168,7 +182,7 @@ def make_grid(profile: Profile, xs: Array, step: float, refine: int = 1) -> Grid
         sin_a=d1 / root,
         cos_a=1.0 / root,
         kappa=d2 / root**3,
-        cell_index=np.array(idx),
+        cell_index=cell_index,
     )
 
 
@@ -206,7 +220,11 @@ def solve_grid(
     grid: Grid, p: Params, c: Conditions, n_params: int = 3, sensitivities: bool = True
 ) -> GridSolution:
     """Integrate one descent on one grid; sensitivities for the first ``n_params`` of
-    (cda, mu, v0, mu1)."""
+    (cda, mu, v0, mu1).
+
+    A grid of R tracks (:func:`grid_on_nodes`) gives energy, speed and time as (R, n) arrays,
+    without sensitivities; ``converged`` then says whether every track converged.
+    """
     g = c.g
     k = c.air_density / c.mass_kg
     w = c.wind_ms
@@ -228,21 +246,29 @@ def solve_grid(
     energy = _solve_linear(grid.ds, a0[None, :], b0, np.array([e0]))[0]
     converged = True
     if not linear:
-        converged = False
+        # each track iterates until it has converged, and no further (so a row of a batch is
+        # the very number it would be alone)
+        active = np.ones(energy.shape[:-1], dtype=bool)
         for _ in range(30):
             f, f_e, _, _ = parts(energy)
             new = _solve_linear(grid.ds, (f - f_e * energy)[None, :], -f_e, np.array([e0]))[0]
-            delta = np.max(np.abs(new - energy))
-            energy = new
-            if delta <= 1e-12 * max(1.0, float(np.max(np.abs(energy)))):
-                converged = True
+            delta = np.max(np.abs(new - energy), axis=-1)
+            energy = np.where(active[..., None], new, energy)
+            active &= ~(delta <= 1e-12 * np.maximum(1.0, np.max(np.abs(new), axis=-1)))
+            if not active.any():
                 break
+        converged = not active.any()
 
-    f, f_e, v, nm = parts(energy)
-    dt_nodes = 2.0 * grid.ds / (v[1:] + v[:-1])
-    time = np.concatenate([[0.0], np.cumsum(dt_nodes)])
+    if sensitivities:
+        _, f_e, v, nm = parts(energy)
+    else:  # the speed only (as parts() computes it): the times need no derivatives
+        v = np.sqrt(2.0 * np.maximum(energy, E_FLOOR))
+    dt_nodes = 2.0 * grid.ds / (v[..., 1:] + v[..., :-1])
+    time = np.concatenate([np.zeros(v.shape[:-1] + (1,)), np.cumsum(dt_nodes, axis=-1)], axis=-1)
     dtime = None
     if sensitivities:
+        if v.ndim != 1:
+            raise ValueError("sensitivities are for one track at a time")
         vr = v - w
         rows = [
             -0.5 * k * vr * np.abs(vr),  # ∂F/∂CdA

@@ -25,8 +25,6 @@ import re
 from dataclasses import dataclass, field, replace
 
 from station.errors import InputError
-from station.survey.coords import read_points_csv
-from station.survey.gsi import read_gsi
 from station.survey.polar import (
     KnownPoint,
     Observation,
@@ -241,6 +239,8 @@ _TOP_KEYS = {
 def load_survey(path: str) -> Survey:
     """Load a survey YAML (or a bare .gsi file, which has no photocells) and reduce it."""
     if path.lower().endswith(".gsi"):
+        from station.survey.gsi import read_gsi  # here: a survey of coordinates needs no GSI
+
         blocks = read_gsi(path)
         obs = interpret_gsi(blocks, path)
         reduced = reduce_all(obs)
@@ -291,6 +291,8 @@ def load_survey(path: str) -> Survey:
             )
         if not os.path.exists(full):
             raise top.error("observations", f"observation file {obs_path!r} not found")
+        from station.survey.gsi import read_gsi
+
         obs = interpret_gsi(read_gsi(full), full, default_setup)
     elif has_inline:
         obs = _inline_observations(top, path, unit)
@@ -302,6 +304,8 @@ def load_survey(path: str) -> Survey:
         full = os.path.join(os.path.dirname(os.path.abspath(path)), csv_path)
         if not os.path.exists(full):
             raise top.error("points", f"coordinate file {csv_path!r} not found")
+        from station.survey.coords import read_points_csv  # only a survey with points needs it
+
         reduced += read_points_csv(full, precision.target_mm * 1e-3)
 
     photocells: list[PhotocellDef] = []

@@ -18,9 +18,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from station.errors import InputError
-from station.survey.gsi import GsiBlock
+
+if TYPE_CHECKING:  # a survey of coordinates only never reads GSI
+    from station.survey.gsi import GsiBlock
 
 EARTH_RADIUS_M = 6_371_000.0
 ARCSEC = math.pi / (180.0 * 3600.0)
