@@ -385,8 +385,11 @@ async def test_a_results_csv_that_cannot_be_written_shows_in_the_status_line(
     async with app.run_test(size=(160, 40)) as pilot:
         await wait_for(pilot, lambda: app.acq is not None)
         monkeypatch.setattr(results, "write_results", full)
+        # host times of now: the reader's idle tick ends a descent whose time-out passed, and
+        # by a host time months back, descent 1 timed out between two of its lines
+        now = time.time()
         for i, line in enumerate(cap.read_bytes().split(b"\r")[:9]):  # descent 1
-            app.acq.receive(Chunk(1_770_000_000.0 + i, line + b"\r"))
+            app.acq.receive(Chunk(now + i * 0.01, line + b"\r"))
         # the worker writes the CSV before it hands the result over: wait for both
         await wait_for(pilot, lambda: "No space left" in app.problem and 1 in app.results)
         await pilot.pause(0.1)
