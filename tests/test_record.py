@@ -86,11 +86,11 @@ def test_sigkill_mid_descent_loses_nothing_that_was_flushed(tmp_path, run_statio
         freeze.wait()
         assert raw_lines(session) < 27  # the third descent is on the run
         os.kill(rec.pid, signal.SIGKILL)
-        rec.wait(timeout=10)
+        rec.wait(timeout=30)
     finally:
         freeze.thaw()
         sim.terminate()
-        sim.wait(timeout=10)
+        sim.wait(timeout=30)
     live = pd.read_csv(session / "results.csv", comment="#")
     assert len(live) == 2
     out = tmp_path / "replay.csv"
@@ -208,7 +208,7 @@ def test_sigterm_mid_descent_ends_it_as_the_end_of_a_capture_and_replays_the_sam
     finally:
         freeze.thaw()
         sim.terminate()
-        sim.wait(timeout=10)
+        sim.wait(timeout=30)
     assert rec.returncode == 0, err
     live = pd.read_csv(session / "results.csv", comment="#")
     assert list(live["descent_status"]) == ["complete", "incomplete"]

@@ -330,7 +330,7 @@ async def test_quitting_mid_descent_ends_it_as_record_does(tmp_path, run_station
     finally:
         freeze.thaw()
         sim.terminate()
-        sim.wait(timeout=10)
+        sim.wait(timeout=30)
     df = pd.read_csv(session / "results.csv", comment="#")
     assert list(df["descent_status"]) == ["complete", "incomplete"]
     assert "the recording ended" in df.loc[1, "flags"] and df.loc[1, "status"] != "error"
