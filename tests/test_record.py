@@ -74,7 +74,7 @@ def test_sigkill_mid_descent_loses_nothing_that_was_flushed(tmp_path, run_statio
         text=True,
     )
     # the timer stops with the third skier five photocells down the run (a fixed sleep
-    # "into the third descent" overshot it on a busy machine)
+    # "into the third descent" could overshoot it on a busy machine)
     freeze = SimFreeze(sim, session, 18 + 5)
     try:
         printed = []
@@ -195,7 +195,7 @@ def test_sigterm_mid_descent_ends_it_as_the_end_of_a_capture_and_replays_the_sam
         text=True,
     )
     # the timer stops once descent 2 has passed five photocells (enough to fit): polling the
-    # raw log alone let a busy machine read the rest of the descent before the signal
+    # raw log alone could let a busy machine read the rest of the descent before the signal
     freeze = SimFreeze(sim, session, 9 + 5)
     try:
         end = time.monotonic() + 60

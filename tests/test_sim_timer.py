@@ -77,7 +77,7 @@ def test_tag_bibs_and_a_memory_download_are_not_doubled(tmp_path):
     )  # fmt: skip
     try:
         # recorded until the download's end is in the raw log, then ended as Ctrl-C ends it
-        # (a fixed --duration 6 ended it before the download on a busy machine)
+        # (a fixed --duration 6, about twice what the day takes, could end it before the download)
         end = time.monotonic() + 90
         while not (raw_log.exists() and "DE 01" in raw_log.read_text()):
             assert time.monotonic() < end and rec.poll() is None, rec.stderr.read()
