@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from tests.conftest import station_cmd
-from tests.timing_helpers import record_with_sim, start_sim, write_config
+from tests.timing_helpers import SimFreeze, raw_lines, record_with_sim, start_sim, write_config
 
 SIM_FAST = ["--speed", "10", "--first-after", "2", "--hold", "1"]
 
@@ -73,6 +73,9 @@ def test_sigkill_mid_descent_loses_nothing_that_was_flushed(tmp_path, run_statio
         stderr=subprocess.PIPE,
         text=True,
     )
+    # the timer stops with the third skier five photocells down the run (a fixed sleep
+    # "into the third descent" could overshoot it on a busy machine)
+    freeze = SimFreeze(sim, session, 18 + 5)
     try:
         printed = []
         while len(printed) < 2:
@@ -80,12 +83,14 @@ def test_sigkill_mid_descent_loses_nothing_that_was_flushed(tmp_path, run_statio
             assert line, rec.stderr.read()
             if line.startswith("descent"):
                 printed.append(line)
-        time.sleep(0.8)  # into the third descent (17 s of device time take 1.7 s)
+        freeze.wait()
+        assert raw_lines(session) < 27  # the third descent is on the run
         os.kill(rec.pid, signal.SIGKILL)
-        rec.wait(timeout=10)
+        rec.wait(timeout=30)
     finally:
+        freeze.thaw()
         sim.terminate()
-        sim.wait(timeout=10)
+        sim.wait(timeout=30)
     live = pd.read_csv(session / "results.csv", comment="#")
     assert len(live) == 2
     out = tmp_path / "replay.csv"
@@ -173,15 +178,6 @@ def test_record_against_a_port_that_does_not_exist_says_so_and_lists_the_ports(t
     assert not (tmp_path / "s").exists()
 
 
-def raw_lines(session) -> int:
-    """Timer lines in a session's raw log so far."""
-    path = session / "raw.jsonl"
-    if not path.exists():
-        return 0
-    text = path.read_text()
-    return sum(json.loads(x).get("rx", "").count("\r") for x in text.splitlines() if x.strip())
-
-
 @pytest.mark.slow  # the simulated timer on a pty, in real time
 def test_sigterm_mid_descent_ends_it_as_the_end_of_a_capture_and_replays_the_same(
     tmp_path, run_station
@@ -198,17 +194,21 @@ def test_sigterm_mid_descent_ends_it_as_the_end_of_a_capture_and_replays_the_sam
         stderr=subprocess.PIPE,
         text=True,
     )
+    # the timer stops once descent 2 has passed five photocells (enough to fit): polling the
+    # raw log alone could let a busy machine read the rest of the descent before the signal
+    freeze = SimFreeze(sim, session, 9 + 5)
     try:
         end = time.monotonic() + 60
-        while raw_lines(session) < 9 + 5:  # descent 2 has passed five photocells: enough to fit
+        while not freeze.frozen.is_set():
             assert time.monotonic() < end and rec.poll() is None, rec.stderr.read()
             time.sleep(0.05)
         assert raw_lines(session) < 18
         rec.send_signal(signal.SIGTERM)
         out, err = rec.communicate(timeout=30)
     finally:
+        freeze.thaw()
         sim.terminate()
-        sim.wait(timeout=10)
+        sim.wait(timeout=30)
     assert rec.returncode == 0, err
     live = pd.read_csv(session / "results.csv", comment="#")
     assert list(live["descent_status"]) == ["complete", "incomplete"]

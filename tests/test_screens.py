@@ -5,6 +5,7 @@ changed is saved."""
 from __future__ import annotations
 
 import asyncio
+import time
 from pathlib import Path
 
 import pytest
@@ -32,17 +33,39 @@ class FormApp(App):
         self.result = values
 
 
+async def _until(pilot, condition, timeout: float = 40.0) -> None:
+    """Poll ``condition`` while the app runs; a fixed pause stood in for "the form has caught
+    up", which a busy machine does not honour. After ``timeout`` the test's checks say what
+    was missing."""
+    end = time.monotonic() + timeout
+    while not condition() and time.monotonic() < end:
+        await pilot.pause(0.05)
+
+
+def _answered(app) -> bool:
+    """Enter has had its effect: the form was dismissed, or it refused (its error line says
+    so; a field's own message shows while typing already) and the message is drawn."""
+    if app.result != "not dismissed":
+        return True
+    if not isinstance(app.screen, MetadataScreen):
+        return False
+    if not str(app.screen.query_one("#error").render()):
+        return False
+    subtitle = str(getattr(app.screen.focused, "border_subtitle", "") or "")
+    return bool(subtitle) and subtitle.replace(" ", "&#160;") in app.export_screenshot()
+
+
 async def _fill(size, entries: dict[str, str]):
     app = FormApp()
     async with app.run_test(size=size) as pilot:
-        await pilot.pause(0.2)
+        await _until(pilot, lambda: isinstance(app.screen, MetadataScreen))
         for key, text in entries.items():
             field = app.screen.query_one(f"#f_{key}")
             field.focus()
             field.value = ""
             await pilot.press(*text)
         await pilot.press("enter")
-        await pilot.pause(0.3)
+        await _until(pilot, lambda: _answered(app))
         shot = app.export_screenshot() if app.result == "not dismissed" else ""
         focused = app.screen.focused
         info = None

@@ -95,22 +95,30 @@ def test_reader_reconnects_within_half_a_second_and_loses_nothing_queued():
     reader = SerialReader(
         SerialConfig(port=port.link, protocol="alge"), lambda t, d: chunks.append(d), on_event
     )
+
+    def until(condition) -> None:
+        """Poll: a fixed sleep stood in for "the reader has caught up", too short when busy."""
+        end = time.monotonic() + 30
+        while not condition():
+            assert time.monotonic() < end, (chunks, events)
+            time.sleep(0.01)
+
     reader.start()
     try:
-        assert connected.wait(2)
+        assert connected.wait(30)
         port.write(b"A1\r")
-        time.sleep(0.3)
+        until(lambda: b"".join(chunks) == b"A1\r")  # read before the cable comes out
         port.unplug()
-        time.sleep(0.5)
+        until(lambda: [e for _, e in events] == ["connected", "disconnected"])
         connected.clear()
         port.plug()
         plugged = time.monotonic()
         port.write(b"B2\r")  # sent before the reader has reopened: queued by the OS
-        assert connected.wait(2)
+        assert connected.wait(30)
         reopened = [t for t, e in events if e == "connected"][-1]
         assert reopened - plugged < 0.5
         port.write(b"C3\r")
-        time.sleep(0.3)
+        until(lambda: len(b"".join(chunks)) >= 9)
     finally:
         reader.stop()
         reader.join(2)

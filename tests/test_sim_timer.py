@@ -4,7 +4,9 @@ the run at once (counter mode and bibs), operator edits, a TAG memory download."
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
+import time
 
 import pandas as pd
 
@@ -68,16 +70,25 @@ def test_tag_bibs_and_a_memory_download_are_not_doubled(tmp_path):
         "--download", "--seed", "5",
     )  # fmt: skip
     cfg = write_config(tmp_path, port, "tag", TAG, extra="descent: {pairing: bib}\n")
+    raw_log = tmp_path / "s" / "raw.jsonl"
+    rec = subprocess.Popen(
+        [*station_cmd(), "record", "--config", str(cfg), "--session-dir", str(tmp_path / "s")],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
     try:
-        r = subprocess.run(
-            [*station_cmd(), "record", "--config", str(cfg), "--session-dir",
-             str(tmp_path / "s"), "--duration", "6"],
-            capture_output=True, text=True, timeout=120,
-        )  # fmt: skip
+        # recorded until the download's end is in the raw log, then ended as Ctrl-C ends it
+        # (a fixed --duration 6, about twice what the day takes, could end it before the download)
+        end = time.monotonic() + 90
+        while not (raw_log.exists() and "DE 01" in raw_log.read_text()):
+            assert time.monotonic() < end and rec.poll() is None, rec.stderr.read()
+            time.sleep(0.05)
+        rec.send_signal(signal.SIGINT)
+        _, err = rec.communicate(timeout=60)
     finally:
+        rec.kill()
         sim.wait(timeout=60)
-    assert r.returncode == 0, r.stderr
-    raw = (tmp_path / "s" / "raw.jsonl").read_text()
+    assert rec.returncode == 0, err
+    raw = raw_log.read_text()
     assert "AN " in raw and "DE 01" in raw
     df = pd.read_csv(tmp_path / "s" / "results.csv", comment="#")
     assert list(df["status"]) == ["ok"] * 3

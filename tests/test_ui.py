@@ -20,8 +20,9 @@ from station.model.physics import Conditions, Params, StraightRun
 from station.session.config import load_config
 from station.timing.wireformats import format_alge
 from station.ui.app import StationApp
+from station.ui.screens import ComparisonScreen, HelpScreen, MetadataScreen, ReasonScreen
 from tests.conftest import station_cmd
-from tests.timing_helpers import start_sim, write_config
+from tests.timing_helpers import SimFreeze, raw_lines, start_sim, write_config
 
 
 def run_async(fn):
@@ -40,6 +41,31 @@ async def wait_for(pilot, condition, timeout: float = 40.0) -> None:
     while not condition():
         assert time.monotonic() < end, "timed out waiting for the UI"
         await pilot.pause(0.1)
+
+
+async def wait_for_screen(pilot, app, screen_type) -> None:
+    """Until a dialog is up: a key pressed before it is would go to the screen below."""
+    await wait_for(pilot, lambda: isinstance(app.screen, screen_type))
+
+
+async def wait_for_replay(pilot, app) -> None:
+    """Until the replay has finished and the UI shows the comparison of the whole day. The fit
+    worker compares again whenever its queue runs empty: a comparison of part of the day can
+    come before "replay finished", and the whole day's after it."""
+    from station.session.acquisition import comparison_text
+
+    await wait_for(pilot, lambda: "replay finished" in app.connection)
+    whole_day = comparison_text(app.acq.track, app.acq.results())
+    await wait_for(pilot, lambda: app.comparison_text == whole_day)
+
+
+def steady_cursors(app) -> None:
+    """Text fields stop blinking (the cursor stays on): a snapshot cannot depend on the blink
+    phase the screenshot happens to catch."""
+    from textual.widgets import Input
+
+    for field in app.screen.query(Input):
+        field.cursor_blink = False
 
 
 def make_capture(path, demo_track) -> None:
@@ -79,6 +105,9 @@ async def test_live_ui_against_the_simulated_timer(tmp_path, run_station):
     cfg = load_config(str(write_config(tmp_path, port)))
     session = tmp_path / "session"
     app = StationApp(cfg, mode="live", session_dir=str(session))
+    # the timer stops after descent 1 until the metadata is entered: on a busy machine the
+    # form took so long that descent 3 had started and the metadata applied to none of them
+    freeze = SimFreeze(sim, session, 9)
     try:
         async with app.run_test(size=(100, 30)) as pilot:
             await wait_for(pilot, lambda: len(app.results) >= 1)
@@ -90,18 +119,21 @@ async def test_live_ui_against_the_simulated_timer(tmp_path, run_station):
             assert "PC9" in str(app.main.query_one("#residuals").render())
             # metadata for the following descents
             await pilot.press("m")
-            await pilot.pause(0.3)
+            await wait_for_screen(pilot, app, MetadataScreen)
             app.screen.query_one("#f_ski").value = "pair 7"
             app.screen.query_one("#f_wax").value = "LF blue"
             await pilot.press("enter")
             await wait_for(pilot, lambda: app.metadata_from is not None)
             start = app.metadata_from
+            freeze.wait()
+            assert raw_lines(session) < 18  # descent 3 has not started: it gets the metadata
+            freeze.thaw()
             # mark descent 1 invalid with a reason (selected once descent 2 is in: the cursor
             # follows new descents only while it is on the last row)
             await wait_for(pilot, lambda: table.row_count >= 2)
             table.move_cursor(row=0)
             await pilot.press("i")
-            await pilot.pause(0.3)
+            await wait_for_screen(pilot, app, ReasonScreen)
             await pilot.press(*"fell at PC7", "enter")
             await wait_for(pilot, lambda: app.results[1].row.invalid_reason == "fell at PC7")
             await wait_for(pilot, lambda: "INV" in str(table.get_cell("1", "status")))
@@ -112,6 +144,7 @@ async def test_live_ui_against_the_simulated_timer(tmp_path, run_station):
             await pilot.press("e")
             await pilot.pause(0.3)
     finally:
+        freeze.thaw()
         sim.wait(timeout=30)
     df = pd.read_csv(session / "results.csv", comment="#")
     assert df.loc[0, "invalid_reason"] == "fell at PC7" and df.loc[0, "model"] == "velocity"
@@ -135,16 +168,22 @@ async def test_ui_shows_an_unplugged_timer_and_goes_on(tmp_path):
     )  # fmt: skip
     cfg = load_config(str(write_config(tmp_path, port)))
     app = StationApp(cfg, mode="live", session_dir=str(tmp_path / "s"))
-    seen = []
+    # what the UI showed at each change of the status line: polling the screen can miss the
+    # second offline altogether on a busy machine, "disconnected" and "connected" both handled
+    # between two looks
+    seen: list[tuple[bool, str]] = []
+    update_status = app._update_status
+
+    def recording() -> None:
+        update_status()
+        seen.append((app.has_class("offline"), str(app.main.query_one("#status").render())))
+
+    app._update_status = recording  # type: ignore[method-assign]
     try:
         async with app.run_test(size=(80, 24)) as pilot:
-
-            def offline() -> bool:
-                seen.append(app.has_class("offline"))
-                return any(seen)
-
-            await wait_for(pilot, offline)
-            assert "TIMER DISCONNECTED" in str(app.main.query_one("#status").render())
+            await wait_for(pilot, lambda: any(offline for offline, _ in seen))
+            shown = [status for offline, status in seen if offline]
+            assert all("TIMER DISCONNECTED" in status for status in shown), shown
             await wait_for(pilot, lambda: len(app.results) >= 2, timeout=60)
             assert not app.has_class("offline")
     finally:
@@ -172,10 +211,11 @@ def test_main_screen_snapshot(snap_compare, tmp_path, demo_track, size):
     app = replay_app(tmp_path, demo_track)
 
     async def finished(pilot) -> None:
-        await wait_for(pilot, lambda: "replay finished" in app.connection)
+        await wait_for_replay(pilot, app)
         await pilot.pause(0.3)
         app.clear_notifications()  # the toast's time-out is not part of the picture
         await pilot.press("up", "up")
+        await wait_for(pilot, lambda: app.shown == 2)  # the panel follows the selection
         await pilot.pause(0.5)
 
     assert snap_compare(app, terminal_size=size, run_before=finished)
@@ -186,11 +226,12 @@ def test_dialog_snapshot_at_80x24(snap_compare, tmp_path, demo_track, key):
     app = replay_app(tmp_path, demo_track)
 
     async def opened(pilot) -> None:
-        await wait_for(pilot, lambda: "replay finished" in app.connection)
-        await wait_for(pilot, lambda: "joint fit" in app.comparison_text)
+        await wait_for_replay(pilot, app)
+        assert "joint fit" in app.comparison_text
         app.clear_notifications()
         await pilot.press(key)
         await wait_for(pilot, lambda: app.screen is not app.main)  # the dialog is up
+        steady_cursors(app)
         await pilot.pause(0.5)  # and drawn, on a loaded machine too
         await pilot.wait_for_scheduled_animations()
 
@@ -248,21 +289,16 @@ def test_station_demo_in_tmux_shows_a_fitted_row(tmp_path):
 
 @run_async
 async def test_comparison_view_updates_after_each_descent(tmp_path, demo_track):
-    from station.ui.screens import ComparisonScreen
-
     app = replay_app(tmp_path, demo_track)
     async with app.run_test(size=(120, 40)) as pilot:
-        await wait_for(pilot, lambda: "replay finished" in app.connection)
-        await wait_for(pilot, lambda: "joint fit of 2 descents" in app.comparison_text)
+        await wait_for_replay(pilot, app)
         await pilot.press("c")
-        await pilot.pause(0.3)
-        assert isinstance(app.screen, ComparisonScreen)
+        await wait_for_screen(pilot, app, ComparisonScreen)
         text = str(app.screen.query_one("#comparison_text").render())
         assert "joint fit of 2 descents" in text and "(no item)" in text
         assert "descent 3 left out: aborted" in text
         await pilot.press("escape")
-        await pilot.pause(0.2)
-        assert not isinstance(app.screen, ComparisonScreen)
+        await wait_for(pilot, lambda: app.screen is app.main)
 
 
 @run_async
@@ -277,6 +313,9 @@ async def test_quitting_mid_descent_ends_it_as_record_does(tmp_path, run_station
     cfg = load_config(str(write_config(tmp_path, port)))
     session = tmp_path / "session"
     app = StationApp(cfg, mode="live", session_dir=str(session))
+    # the skier is held on the run after four photocells: on a busy machine the UI, lagging
+    # behind the timer, could show four while the descent had already finished
+    freeze = SimFreeze(sim, session, 9 + 4)
     try:
         async with app.run_test(size=(100, 30)) as pilot:
 
@@ -285,11 +324,13 @@ async def test_quitting_mid_descent_ends_it_as_record_does(tmp_path, run_station
                 return p is not None and p.number == 2 and len(p.passed) >= 4
 
             await wait_for(pilot, on_the_run, timeout=60)
-            assert len(app.progress.passed) < 9
+            freeze.wait()
+            assert raw_lines(session) < 18 and len(app.progress.passed) < 9
             await pilot.press("q")
     finally:
+        freeze.thaw()
         sim.terminate()
-        sim.wait(timeout=10)
+        sim.wait(timeout=30)
     df = pd.read_csv(session / "results.csv", comment="#")
     assert list(df["descent_status"]) == ["complete", "incomplete"]
     assert "the recording ended" in df.loc[1, "flags"] and df.loc[1, "status"] != "error"
@@ -323,7 +364,7 @@ async def test_a_fit_that_raises_shows_as_error_and_the_replay_goes_on(
         assert statuses == ["error", "ok", "aborted", "too-few-photocells"]
         assert "fit failed: LinAlgError: Singular matrix" in str(table.get_cell("1", "flags"))
         table.move_cursor(row=0)
-        await pilot.pause(0.2)
+        await wait_for(pilot, lambda: app.shown == 1)  # the highlight is a message of its own
         assert "error: fit failed" in str(app.main.query_one("#result").render())
 
 
@@ -344,8 +385,11 @@ async def test_a_results_csv_that_cannot_be_written_shows_in_the_status_line(
     async with app.run_test(size=(160, 40)) as pilot:
         await wait_for(pilot, lambda: app.acq is not None)
         monkeypatch.setattr(results, "write_results", full)
+        # host times of now: the reader's idle tick ends a descent whose time-out passed, and
+        # by a host time months back, descent 1 timed out between two of its lines
+        now = time.time()
         for i, line in enumerate(cap.read_bytes().split(b"\r")[:9]):  # descent 1
-            app.acq.receive(Chunk(1_770_000_000.0 + i, line + b"\r"))
+            app.acq.receive(Chunk(now + i * 0.01, line + b"\r"))
         # the worker writes the CSV before it hands the result over: wait for both
         await wait_for(pilot, lambda: "No space left" in app.problem and 1 in app.results)
         await pilot.pause(0.1)
@@ -366,8 +410,6 @@ def _panel(app) -> str:
 async def test_the_panel_shows_the_selected_row_and_keys_work_at_once(tmp_path, demo_track):
     """One notion of "the descent": ↑/↓ work without Tab (the table has the focus), the panel
     shows the selected row, and i acts on the descent the panel shows."""
-    from station.ui.screens import ReasonScreen
-
     app = replay_app(tmp_path, demo_track)
     async with app.run_test(size=(80, 24)) as pilot:
         await wait_for(pilot, lambda: "replay finished" in app.connection)
@@ -378,12 +420,13 @@ async def test_the_panel_shows_the_selected_row_and_keys_work_at_once(tmp_path, 
         assert table.cursor_row == 3 and app.shown == 4
         assert _panel(app).startswith("descent 4 ")
         await pilot.press("up", "up")
-        await pilot.pause(0.2)
-        assert app.shown == 2 and _panel(app).startswith("descent 2 ")
+        await wait_for(pilot, lambda: app.shown == 2)  # the highlight is a message of its own
+        assert table.cursor_row == 1 and _panel(app).startswith("descent 2 ")
         await pilot.press("i")
-        await pilot.pause(0.2)
-        assert isinstance(app.screen, ReasonScreen) and app.screen.number == 2
+        await wait_for_screen(pilot, app, ReasonScreen)
+        assert app.screen.number == 2
         await pilot.press("escape")
+        await wait_for(pilot, lambda: app.screen is app.main)  # v would be typed as the reason
         await pilot.press("v")  # refits the descent shown, and the panel shows its μ1
         await wait_for(pilot, lambda: app.results[2].row.model == "velocity")
         await pilot.pause(0.2)
@@ -417,8 +460,7 @@ async def test_a_selection_is_kept_when_a_new_descent_arrives(tmp_path, demo_tra
         await pilot.pause(0.2)
         assert app.shown == 2  # on the last row: followed
         await pilot.press("up")
-        await pilot.pause(0.2)
-        assert app.shown == 1
+        await wait_for(pilot, lambda: app.shown == 1)  # the highlight is a message of its own
         feed(lines[17:])  # descents 3 and 4
         app.acq.end_of_input()
         await wait_for(pilot, lambda: len(app.results) >= 4)
@@ -446,13 +488,15 @@ async def test_the_table_scrolls_to_new_descents_at_80x24(tmp_path, demo_track):
                 app.acq.receive(Chunk(now + 60 * k + i, shifted + b"\r"))
         app.acq.end_of_input()
         await wait_for(pilot, lambda: len(app.results) >= 12)
-        await pilot.pause(0.3)
         table = app.main.query_one("#table")
         assert table.cursor_row == table.row_count - 1 == 11
-        # the last row is inside the visible region of the table
-        visible = table.scrollable_content_region.height - 1  # the header row
-        assert table.scroll_y + visible >= 12 > table.scroll_y
         assert app.shown == 12
+
+        def last_row_in_sight() -> bool:  # scrolling to the cursor waits for a refresh
+            visible = table.scrollable_content_region.height - 1  # the header row
+            return table.scroll_y + visible >= 12 > table.scroll_y
+
+        await wait_for(pilot, last_row_in_sight)
 
 
 # ----------------------------------------------------------------------------- 80x24
@@ -521,27 +565,38 @@ async def test_dialogs_fit_the_terminal(tmp_path, demo_track, size):
     """Help and the metadata form need no scrolling at 80×24; the Close button of the
     comparison is in sight however long the text."""
     app = replay_app(tmp_path, demo_track)
+
+    async def laid_out(screen_type, button: str) -> None:
+        """The dialog is up and laid out: before its first layout every region is empty and
+        nothing scrolls, so the checks below would pass for any dialog."""
+        await wait_for_screen(pilot, app, screen_type)
+        await wait_for(pilot, lambda: _inside(app.screen.query_one(button), size))
+        await pilot.pause()
+
     async with app.run_test(size=size) as pilot:
-        await wait_for(pilot, lambda: "replay finished" in app.connection)
-        await wait_for(pilot, lambda: "joint fit" in app.comparison_text)
+        await wait_for_replay(pilot, app)
+        assert "joint fit" in app.comparison_text
         await pilot.press("question_mark")
-        await pilot.pause(0.3)
+        await laid_out(HelpScreen, "#close")
         body = app.screen.query_one(".dialog-body")
         assert body.max_scroll_y == 0 and body.max_scroll_x == 0
         assert _inside(app.screen.query_one("#close"), size)
-        await pilot.press("escape", "m")
-        await pilot.pause(0.3)
+        await pilot.press("escape")
+        await wait_for(pilot, lambda: app.screen is app.main)
+        await pilot.press("m")
+        await laid_out(MetadataScreen, "#save")
         form = app.screen.query_one("#form")
         assert form.max_scroll_y == 0
         assert _inside(app.screen.query_one("#save"), size)
         assert _inside(app.screen.query_one("#f_notes"), size)
-        await pilot.press("escape", "c")
-        await pilot.pause(0.3)
+        await pilot.press("escape")
+        await wait_for(pilot, lambda: app.screen is app.main)
+        await pilot.press("c")
+        await laid_out(ComparisonScreen, "#close")
         assert _inside(app.screen.query_one("#close"), size)
         assert "joint fit" in str(app.screen.query_one("#comparison_text").render())
         await pilot.click("#close")
-        await pilot.pause(0.2)
-        assert app.screen is app.main
+        await wait_for(pilot, lambda: app.screen is app.main)
 
 
 @run_async
@@ -550,7 +605,6 @@ async def test_metadata_form_names_the_next_descent_and_saves_only_changes(tmp_p
     left as it was pre-filled (the demo's next pair of skis) is not written again."""
     from station.session.rawlog import Chunk
     from station.session.store import read_annotations
-    from station.ui.screens import MetadataScreen
 
     cfg = load_config(str(write_config(tmp_path, "loop://")))
     session = tmp_path / "s"
@@ -566,8 +620,7 @@ async def test_metadata_form_names_the_next_descent_and_saves_only_changes(tmp_p
             app.acq.receive(Chunk(now + i * 0.01, line + b"\r"))
         await wait_for(pilot, lambda: app.progress is not None and app.progress.number == 1)
         await pilot.press("m")
-        await pilot.pause(0.3)
-        assert isinstance(app.screen, MetadataScreen)
+        await wait_for_screen(pilot, app, MetadataScreen)
         title = str(app.screen.query_one("#title").render())
         assert "from descent 2 on" in title
         assert app.screen.query_one("#f_ski").value == "pair B"  # pre-filled
@@ -587,6 +640,7 @@ async def test_plots_fit_their_boxes_and_grow_with_the_terminal(tmp_path, demo_t
     async with app.run_test(size=size) as pilot:
         await wait_for(pilot, lambda: "replay finished" in app.connection)
         await pilot.press("up", "up")  # descent 2: a fit with a speed profile
+        await wait_for(pilot, lambda: app.shown == 2)  # the highlight is a message of its own
         await pilot.pause(0.5)
         for wid in ("#residuals", "#speed"):
             box = app.main.query_one(wid)
