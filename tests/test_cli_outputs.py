@@ -115,11 +115,42 @@ def test_annotating_a_descent_the_session_does_not_have_is_refused(run_station, 
     [
         (["fit", "--masss", "88"], "unrecognized arguments: --masss (did you mean --mass?)"),
         (["fit", "--survey", "s", "--times", "t", "--mas", "88"], "--mas (did you mean --mass?)"),
-        (["fit", "--survey", "s", "--times", "t", "--mass", "8", "--masss", "8"], "--mass?"),
+        (["fit", "--survey", "s", "--times", "t", "--mass", "88", "--masss", "8"], "--mass?"),
     ],
 )
 def test_an_option_must_be_spelt_out(run_station, args, expect):
     _one_line(run_station(*args), expect)
+
+
+@pytest.mark.parametrize(
+    ("args", "expect"),
+    [
+        (["fit", "--survey", "s", "--times", "t", "--mass", "880"], "'880' kg is out of range"),
+        (
+            ["fit", "--survey", "s", "--times", "t", "--mass", "88", "--pressure-hpa", "8350"],
+            "'8350' hPa is out of range (300 .. 1100)",
+        ),
+        (
+            ["simulate", "--survey", "s", "--mass", "88", "--air-density", "12"],
+            "'12' kg/m³ is out of range",
+        ),
+        (["annotate", "s", "--descents", "1", "--mass", "880"], "--mass: '880' kg"),
+        (["annotate", "s", "--descents", "1", "--pressure-hpa", "8350"], "'8350' hPa"),
+    ],
+)
+def test_a_typed_number_out_of_its_plausible_range_is_refused(run_station, args, expect):
+    """The same ranges as the station config and the UI form: a typo is not a measurement."""
+    _one_line(run_station(*args), expect)
+
+
+def test_a_negative_number_with_a_decimal_comma_is_a_value(run_station, tmp_path):
+    """``--temperature-c -4,5`` (a cold morning, a German laptop) is -4.5 °C, not an option."""
+    session = make_session(tmp_path, order="AB")
+    r = run_station("annotate", session, "--descents", "1", "--air-temperature-c", "-4,5")
+    assert r.returncode == 0, r.stderr
+    assert '"air_temperature_c": -4.5' in (session / "annotations.jsonl").read_text()
+    r = run_station("annotate", session, "--descents", "1", "--snow-temperature-c", "-,5")
+    assert r.returncode == 0, r.stderr
 
 
 def test_every_option_has_help():

@@ -6,7 +6,8 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from typing import Any
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 from station import __version__
 from station.cli.common import (
@@ -20,9 +21,13 @@ from station.cli.common import (
     _warn,
     open_output,
     output_path,
+    plausible,
     unique_prefix,
 )
 from station.errors import InputError
+
+if TYPE_CHECKING:
+    from station.session.records import Annotation
 
 
 def cmd_annotate(args: argparse.Namespace) -> int:
@@ -32,7 +37,6 @@ def cmd_annotate(args: argparse.Namespace) -> int:
     from station.session import store as sessions
     from station.session.records import (
         METADATA_FIELDS,
-        Annotation,
         FitModel,
         InvalidMark,
         Metadata,
@@ -74,24 +78,31 @@ def cmd_annotate(args: argparse.Namespace) -> int:
     if not records:
         raise InputError("nothing to annotate: give metadata, --invalid, --valid or --model")
     _check_descents(args.session, targets)
-    with sessions.annotations_locked(args.session):  # another annotate waits: one CSV each
-        for rec in records:
-            sessions.append_annotation(args.session, rec)
-        said = f"{len(records)} annotation(s) added to {args.session}"
-        state = sessions.recording_state(args.session)
-        if state is sessions.Recording.NOW:  # the recorder takes them up (Acquisition)
-            print(f"{said}; it is being recorded now: the recording takes them up and its "
-                  "results.csv shows them in a moment", file=sys.stderr)  # fmt: skip
-            return 0
-        if state is sessions.Recording.UNKNOWN:
-            print(f"{said}; whether it is being recorded cannot be told (recording.lock), so "
-                  "results.csv was left alone: station export "
-                  f"{args.session} --csv {os.path.join(args.session, sessions.RESULTS)} "
-                  "writes it with them", file=sys.stderr)  # fmt: skip
-            return 0
-        path = rewrite_results(args.session)
-    print(f"{said}; {path} rewritten", file=sys.stderr)
+    print(save_annotations(args.session, records), file=sys.stderr)
     return 0
+
+
+def save_annotations(session: str, records: Sequence[Annotation]) -> str:
+    """Append annotations to a session and bring its results.csv up to date: rewritten here,
+    or taken up by the recorder when one is recording the session (``annotate``, and what
+    was entered in a replay of the session). Returns the line that says what happened."""
+    from station.session import store as sessions
+
+    with sessions.annotations_locked(session):  # another annotate waits: one CSV each
+        for rec in records:
+            sessions.append_annotation(session, rec)
+        said = f"{len(records)} annotation(s) added to {session}"
+        state = sessions.recording_state(session)
+        if state is sessions.Recording.NOW:  # the recorder takes them up (Acquisition)
+            return (f"{said}; it is being recorded now: the recording takes them up and its "
+                    "results.csv shows them in a moment")  # fmt: skip
+        if state is sessions.Recording.UNKNOWN:
+            return (f"{said}; whether it is being recorded cannot be told (recording.lock), "
+                    "so results.csv was left alone: station export "
+                    f"{session} --csv {os.path.join(session, sessions.RESULTS)} "
+                    "writes it with them")  # fmt: skip
+        path = rewrite_results(session)
+    return f"{said}; {path} rewritten"
 
 
 def rewrite_results(session: str) -> str:
@@ -210,11 +221,13 @@ def add_parsers(sub: Any) -> None:
     who.add_argument("--descents", metavar="LIST", help="e.g. 1,4,5-8")
     who.add_argument("--from", dest="from_descent", type=int, metavar="N",
                      help="this and all later descents")  # fmt: skip
+    from station.limits import PLAUSIBLE
     from station.session.records import METADATA_FIELDS
 
     for f in METADATA_FIELDS:  # the one table of metadata keys
         text = (f.help or f.title).replace("%", "%%")  # argparse formats help with %
-        p.add_argument(f.option, dest=f.key, type=_CHECKS[f.check], help=text)
+        check = plausible(f.key) if f.key in PLAUSIBLE else _CHECKS[f.check]
+        p.add_argument(f.option, dest=f.key, type=check, help=text)
     p.add_argument("--invalid", metavar="REASON", help="mark the descents invalid")
     p.add_argument("--valid", action="store_true", help="mark them valid again")
     p.add_argument(

@@ -9,10 +9,11 @@ import contextlib
 import datetime as dt
 import json
 import os
+import re
 import stat
 import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import IO, Any, NoReturn
 
 from station.errors import InputError
@@ -35,6 +36,9 @@ class _Parser(argparse.ArgumentParser):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         kwargs.setdefault("allow_abbrev", False)
         super().__init__(*args, **kwargs)
+        # a negative number with a decimal comma (``--temperature-c -4,5``, the cold
+        # trackside's usual value) is a value, not an option, as ``-4.5`` is to argparse
+        self._negative_number_matcher = re.compile(r"^-(\d+([.,]\d*)?|[.,]\d+)$")
 
     _argv: list[str] | None = None
 
@@ -102,6 +106,23 @@ def _celsius(text: str) -> float:
     return value
 
 
+def plausible(key: str) -> Callable[[str], float]:
+    """The option parser of a number with a plausible range (:data:`station.limits.PLAUSIBLE`):
+    ``--mass 880`` is a typo, refused as the config and the UI form refuse it."""
+    from station.limits import PLAUSIBLE
+
+    lo, hi, unit = PLAUSIBLE[key]
+
+    def check(text: str) -> float:
+        value = _number(text)
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"{text!r} {unit} is out of range ({lo:g} .. {hi:g})")
+        return value
+
+    check.__name__ = key
+    return check
+
+
 def _number(text: str) -> float:
     """A finite number with a decimal point or a decimal comma (``--mass 72,5``)."""
     try:
@@ -116,10 +137,12 @@ def _warn(message: str) -> None:
 
 def _add_air(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("air (station pressure, not sea-level QNH)")
-    g.add_argument("--pressure-hpa", type=_positive, metavar="P", help="station pressure, hPa")
+    g.add_argument("--pressure-hpa", type=plausible("pressure_hpa"), metavar="P",
+                   help="station pressure, hPa")  # fmt: skip
     g.add_argument("--temperature-c", type=_celsius, metavar="T", help="air temperature, °C")
     g.add_argument("--humidity-pct", type=_percent, metavar="H", help="relative humidity, %%")
-    g.add_argument("--air-density", type=_positive, metavar="RHO", help="kg/m³, instead of P, T, H")
+    g.add_argument("--air-density", type=plausible("air_density"), metavar="RHO",
+                   help="kg/m³, instead of P, T, H")  # fmt: skip
 
 
 def _density(args: argparse.Namespace) -> float:

@@ -20,6 +20,7 @@ from station.cli.common import (
     _warn,
     open_output,
     output_path,
+    plausible,
 )
 from station.errors import InputError
 
@@ -448,7 +449,7 @@ def add_parsers(sub: Any) -> None:
     p.add_argument(
         "--survey", required=True, help="survey YAML with the photocells (surveys/README.md)"
     )
-    p.add_argument("--mass", type=_positive, required=True, metavar="KG",
+    p.add_argument("--mass", type=plausible("mass_kg"), required=True, metavar="KG",
                    help="skier with equipment, kg")  # fmt: skip
     p.add_argument("--cda", type=_nonnegative, required=True, metavar="M2",
                    help="drag area CdA, m²")  # fmt: skip
@@ -481,7 +482,7 @@ def add_parsers(sub: Any) -> None:
     p.add_argument(
         "--times", required=True, help="CSV with columns photocell,time (s or hh:mm:ss.ssss)"
     )
-    p.add_argument("--mass", type=_positive, required=True, metavar="KG",
+    p.add_argument("--mass", type=plausible("mass_kg"), required=True, metavar="KG",
                    help="skier with equipment, kg")  # fmt: skip
     p.add_argument("--model", choices=["constant", "velocity"], default="constant",
                    help="friction μ constant, or μ + μ1·v (μ1 in s/m)")  # fmt: skip
@@ -525,7 +526,7 @@ def add_parsers(sub: Any) -> None:
         help="direction of travel, degrees measured from the horizontal (the paper's '40° to "
         "the horizontal' is B = 50°)",
     )
-    p.add_argument("--mass", type=_positive, required=True, metavar="KG",
+    p.add_argument("--mass", type=plausible("mass_kg"), required=True, metavar="KG",
                    help="skier with equipment, kg")  # fmt: skip
     p.add_argument("--json", action="store_true", help="machine-readable output")
     _add_air(p)

@@ -23,7 +23,25 @@ def _replay_ui(args: argparse.Namespace) -> int:
     require_terminal("replay --ui", "without --ui, replay prints the results")
     date = source_date(args.source, _date(args.date))
     speed = None if args.fast else args.speed
-    return _run_ui(StationApp(cfg, mode="replay", source=args.source, speed=speed, date=date))
+    app = StationApp(cfg, mode="replay", source=args.source, speed=speed, date=date)
+    return _run_ui(app, then=lambda: _save_kept(app))
+
+
+def _save_kept(app: Any) -> int:
+    """What the engineer entered while replaying a session, saved in it as ``station annotate``
+    saves it (results.csv rewritten unless a recorder owns it): a replay records nothing, and
+    a mark that vanished at quit would be a result silently different from the one seen."""
+    if not app.kept:
+        return 0
+    from station.cli.analysis import save_annotations
+
+    try:
+        said = save_annotations(app.source, app.kept)
+    except InputError as exc:
+        print(f"station replay: error: what was entered is not saved: {exc}", file=sys.stderr)
+        return 2
+    print(said, file=sys.stderr, flush=True)
+    return 0
 
 
 def require_terminal(command: str, instead: str) -> None:
@@ -43,10 +61,11 @@ def require_terminal(command: str, instead: str) -> None:
             )
 
 
-def _run_ui(app: Any) -> int:
+def _run_ui(app: Any, then: Any = None) -> int:
     app.run()
     if app.return_code:  # an error inside the app: Textual has printed it
         return int(app.return_code)
+    status = then() if then is not None else 0
     folder = getattr(app, "session_dir", None)
     if folder is not None:
         acq = getattr(app, "acq", None)  # closed by now: its results include the open descent
@@ -61,7 +80,8 @@ def _run_ui(app: Any) -> int:
     # annotations are written and the simulator has ended; what is left is the interpreter
     # taking numpy, scipy and Textual apart (0.4-0.6 s), which nobody needs to wait for.
     sys.stdout.flush()
-    os._exit(0)
+    sys.stderr.flush()
+    os._exit(status)
 
 
 def cmd_live(args: argparse.Namespace) -> int:

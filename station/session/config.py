@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING
 
 from station.errors import InputError
 from station.files import MAX_YAML, check_regular
+from station.limits import PLAUSIBLE
 from station.model.air import air_density
 from station.timing.assembly import PAIRINGS
 from station.timing.wireformats import PARSERS
@@ -46,16 +47,17 @@ from station.yamlfile import Section, parse_yaml, read_yaml_text
 if TYPE_CHECKING:
     from station.survey.track import Track
 
+
 PARITIES = {"N", "E", "O", "M", "S"}
 
 #: field -> (lowest, highest, unit): the physically sane range of every number in the config
 RANGES: dict[str, tuple[float, float, str]] = {
     "serial.baudrate": (50, 4_000_000, "baud"),
-    "skier.mass_kg": (20, 200, "kg"),  # skier with equipment
-    "air.pressure_hpa": (300, 1100, "hPa"),  # station pressure from sea level to 9 000 m
-    "air.temperature_c": (-60, 50, "°C"),
-    "air.humidity_pct": (0, 100, "%"),
-    "air.density": (0.3, 2.0, "kg/m³"),
+    "skier.mass_kg": PLAUSIBLE["mass_kg"],
+    "air.pressure_hpa": PLAUSIBLE["pressure_hpa"],
+    "air.temperature_c": PLAUSIBLE["air_temperature_c"],
+    "air.humidity_pct": PLAUSIBLE["humidity_pct"],
+    "air.density": PLAUSIBLE["air_density"],
     "descent.debounce_s": (0, 5, "s"),  # double triggers of legs and poles: < 0.5 s
     "descent.timeout_s": (1, 3600, "s"),
     "descent.min_speed_ms": (0.1, 20, "m/s"),  # above it every descent would time out

@@ -12,6 +12,7 @@ from __future__ import annotations
 import datetime as dt
 import math
 import os
+import time
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -26,9 +27,12 @@ from station.session.acquisition import Acquisition
 from station.session.analysis import DescentResult
 from station.session.config import StationConfig
 from station.session.records import (
+    Annotation,
     FitModel,
     InvalidMark,
     LineCounts,
+    Metadata,
+    MetadataAnnotation,
     ModelChange,
     Progress,
     ResultRow,
@@ -251,6 +255,9 @@ class StationApp(App):
         self.progress: Progress | None = None
         self.counts = LineCounts()
         self.metadata_from: int | None = None  # where the latest metadata entered applies from
+        #: marks and metadata entered while replaying: a replay records nothing, so they are
+        #: kept here and saved in the replayed session when the UI ends (station annotate's way)
+        self.kept: list[Annotation] = []
         self.latest: int | None = None
         self.shown: int | None = None  # the descent the result panel shows: the selected row
         self.columns: list[Column] = []
@@ -551,7 +558,8 @@ class StationApp(App):
             if values is None or self.acq is None:
                 return
             start = self.metadata_from = self.acq.add_metadata(values)
-            self.notify(f"metadata applies from descent {start} on")
+            a = MetadataAnnotation(Metadata.from_values(values), from_descent=start, t=time.time())
+            self.notify(f"metadata applies from descent {start} on{self._keep(a)}")
 
         self.push_screen(MetadataScreen(current, nxt), done)
 
@@ -562,13 +570,14 @@ class StationApp(App):
         res = self.results.get(n)
         if res is not None and res.row.invalid:
             self.acq.annotate(ValidMark(n))
-            self.notify(f"descent {n} valid again")
+            self.notify(f"descent {n} valid again{self._keep(ValidMark(n))}")
             return
 
         def done(reason: str | None) -> None:
             if reason is not None and self.acq is not None:
                 self.acq.annotate(InvalidMark(n, reason))
-                self.notify(f"descent {n} marked invalid: {reason}")
+                kept = self._keep(InvalidMark(n, reason))
+                self.notify(f"descent {n} marked invalid: {reason}{kept}")
 
         self.push_screen(ReasonScreen(n), done)
 
@@ -580,7 +589,22 @@ class StationApp(App):
         current = res.row.model if res is not None else FitModel(self.config.model)
         model = FitModel.CONSTANT if current == FitModel.VELOCITY else FitModel.VELOCITY
         self.acq.annotate(ModelChange(n, model))
-        self.notify(f"refitting descent {n} with the {model} model")
+        kept = self._keep(ModelChange(n, model))
+        self.notify(f"refitting descent {n} with the {model} model{kept}")
+
+    def _keep(self, a: Annotation) -> str:
+        """A recording saves what the engineer enters as it goes; a replay records nothing, so
+        what is entered while replaying a session is kept and saved in that session when the
+        UI ends. A plain capture has no session to save it in: said at once, not lost silently.
+        Returns what the notification adds."""
+        if self.mode != "replay":
+            return ""
+        from station.session import store as sessions
+
+        if self.source is not None and sessions.is_session(self.source):
+            self.kept.append(a if a.t is not None else replace(a, t=time.time()))
+            return " (saved in the session when you quit)"
+        return " (this replay only: a capture file has no session; e exports the results)"
 
     def action_export(self) -> None:
         if self.acq is None:

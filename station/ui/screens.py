@@ -12,6 +12,7 @@ from textual.screen import ModalScreen
 from textual.validation import ValidationResult, Validator
 from textual.widgets import Button, Input, Label, Static
 
+from station.limits import PLAUSIBLE
 from station.numbers import parse_number
 from station.session.records import METADATA_FIELDS
 
@@ -53,16 +54,8 @@ class HelpScreen(ModalScreen[None]):
         self.dismiss(None)
 
 
-#: plausible ranges of the number fields (min, max, unit shown in the message)
-RANGES: dict[str, tuple[float, float]] = {
-    "mass_kg": (20.0, 200.0),
-    "air_temperature_c": (-60.0, 50.0),
-    "snow_temperature_c": (-60.0, 5.0),
-    "pressure_hpa": (300.0, 1100.0),
-    "humidity_pct": (0.0, 100.0),
-    "wind_ms": (0.0, 60.0),
-    "wind_from_deg": (0.0, 360.0),
-}
+#: plausible ranges of the number fields (min, max), the station's one table
+RANGES: dict[str, tuple[float, float]] = {k: (lo, hi) for k, (lo, hi, _) in PLAUSIBLE.items()}
 
 
 class NumberField(Validator):

@@ -1,0 +1,61 @@
+"""What the engineer enters while replaying a day in the UI is saved in the replayed session, as
+``station annotate`` saves it; in the replay of a plain capture it is said at once to be for
+this replay only. Before, both were accepted, shown, and lost without a word at quit."""
+
+from __future__ import annotations
+
+import datetime as dt
+
+from station.cli.terminal import _save_kept
+from station.session import store
+from station.session.records import InvalidMark
+from station.ui.app import StationApp
+from station.ui.screens import ReasonScreen
+from tests.session_helpers import make_session, read_json_lines
+from tests.test_ui import replay_app, run_async, wait_for, wait_for_replay, wait_for_screen
+
+
+async def _mark_invalid(app, pilot, reason: str) -> None:
+    table = app.main.query_one("#table")
+    table.move_cursor(row=0)
+    await wait_for(pilot, lambda: app.shown == 1)
+    await pilot.press("i")
+    await wait_for_screen(pilot, app, ReasonScreen)
+    await pilot.press(*reason, "enter")
+    await wait_for(pilot, lambda: app.results[1].row.invalid)
+
+
+@run_async
+async def test_a_mark_made_while_replaying_a_session_is_saved_in_it(tmp_path):
+    session = make_session(tmp_path, order="ABAB")
+    before = (session / store.ANNOTATIONS).read_text()
+    cfg = store.load_session_config(str(session))
+    app = StationApp(cfg, mode="replay", source=str(session), date=dt.date(2026, 2, 2))
+    async with app.run_test(size=(100, 30)) as pilot:
+        await wait_for_replay(pilot, app)
+        await _mark_invalid(app, pilot, "wrong mass")
+        await wait_for(pilot, lambda: bool(app._notifications))
+        said = " ".join(str(n.message) for n in app._notifications)
+        assert "saved in the session when you quit" in said
+    assert [type(a) for a in app.kept] == [InvalidMark] and app.kept[0].t is not None
+    assert (session / store.ANNOTATIONS).read_text() == before  # saved at the end, not before
+
+    assert _save_kept(app) == 0
+    records = read_json_lines(session / store.ANNOTATIONS)
+    assert records[-1]["type"] == "invalid" and records[-1]["reason"] == "wrong mass"
+    csv_text = (session / store.RESULTS).read_text()
+    first = next(line for line in csv_text.splitlines() if line.startswith("1,"))
+    assert "wrong mass" in first  # results.csv rewritten with the mark
+
+
+@run_async
+async def test_a_mark_in_the_replay_of_a_capture_says_it_is_not_saved(tmp_path, demo_track):
+    app = replay_app(tmp_path, demo_track)
+    async with app.run_test(size=(100, 30)) as pilot:
+        await wait_for_replay(pilot, app)
+        await _mark_invalid(app, pilot, "test")
+        await wait_for(pilot, lambda: bool(app._notifications))
+        said = " ".join(str(n.message) for n in app._notifications)
+        assert "this replay only" in said
+    assert app.kept == []
+    assert _save_kept(app) == 0
