@@ -89,7 +89,8 @@ def test_the_fit_runs_on_one_blas_thread_unless_the_user_chose_another_number():
 #: the station modules the README fit needs: a module imported beyond these (a plot, the
 #: session records, the points-CSV reader, the comparison) is start-up time for every fit
 FIT_MODULES = {
-    "station", "station.errors", "station.files", "station.numbers", "station.yamlfile",
+    "station", "station.errors", "station.files", "station.limits", "station.numbers",
+    "station.yamlfile",
     "station.cli", "station.cli.main", "station.cli.common", "station.cli.survey",
     "station.model", "station.model.air", "station.model.fit", "station.model.physics",
     "station.model.track_error",

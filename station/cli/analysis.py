@@ -226,7 +226,9 @@ def add_parsers(sub: Any) -> None:
 
     for f in METADATA_FIELDS:  # the one table of metadata keys
         text = (f.help or f.title).replace("%", "%%")  # argparse formats help with %
-        check = plausible(f.key) if f.key in PLAUSIBLE else _CHECKS[f.check]
+        # the wind's direction keeps its own check, after parsing: it says which way is which
+        ranged = f.key in PLAUSIBLE and f.key != "wind_from_deg"
+        check = plausible(f.key) if ranged else _CHECKS[f.check]
         p.add_argument(f.option, dest=f.key, type=check, help=text)
     p.add_argument("--invalid", metavar="REASON", help="mark the descents invalid")
     p.add_argument("--valid", action="store_true", help="mark them valid again")
