@@ -184,3 +184,20 @@ def test_a_survey_that_is_a_special_file_is_refused_at_the_survey_line(tmp_path)
     with pytest.raises(InputError) as err:
         _load(tmp_path, "survey: ", "survey: /dev/zero #")
     assert ":2: field survey: survey file '/dev/zero': is a character device" in str(err.value)
+
+
+def test_a_config_that_does_not_fit_its_survey_makes_no_session(tmp_path, run_station):
+    """Found by a new-user trial: the error named the session's copy of the config, and the
+    half-made folder made the corrected second try fail as "not empty"."""
+    cfg = write_config(tmp_path, "loop://")
+    good = cfg.read_text()
+    cfg.write_text(good.replace("'C8': PC9", "'C8': PC42", 1))
+    session = tmp_path / "day1"
+    r = run_station("record", "--config", cfg, "--session-dir", session, "--duration", "0.2")
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert str(cfg) in r.stderr and "photocell 'PC42' is not in the survey" in r.stderr
+    assert not session.exists()
+    cfg.write_text(good)
+    r = run_station("record", "--config", cfg, "--session-dir", session, "--duration", "0.2")
+    assert r.returncode == 0, r.stderr
+    assert (session / "raw.jsonl").exists()

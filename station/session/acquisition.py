@@ -216,6 +216,10 @@ class Acquisition:
         rawlog = None
         lock = None
         if session_dir is not None:
+            # the user's own config and survey first: a photocell the survey lacks is said
+            # naming their files, before a folder is made that the next try would find not
+            # empty (the day itself then runs from the session's copy, as its replay will)
+            Day.start(config, build_track(load_survey(config.survey_path)), date)
             sessions.create(config, session_dir)
             lock = sessions.RecordingLock.take(session_dir)  # held until close(): "recording"
         try:
