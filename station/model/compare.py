@@ -684,12 +684,15 @@ def format_comparison(res: JointResult, n_desc: int) -> str:
         sep = "" if res.drift_separable else "  NOT SEPARABLE FROM ITEM"
         lines.append(f"  drift of μ: {d:+.5f} per hour [{lo:+.5f}, {hi:+.5f}]{sep}")
     lines.append("")
-    lines.append(f"{'rank':<5}{'item':<28}{'descents':>9}{'μ':>10}   90 % CI{'':<14}P(best)")
+    # the item column as wide as the names (at most the 28 of long names): the table fits an
+    # 80-column terminal and the UI's comparison dialog with the names people use
+    w = min(28, max([6, *(len(i.item) + 2 for i in res.items)]))
+    lines.append(f"{'rank':<5}{'item':<{w}}{'descents':>9}{'μ':>10}   90 % CI{'':<14}P(best)")
     for k, name in enumerate(res.ranking, start=1):
         it = next(i for i in res.items if i.item == name)
         pb = f"{it.p_best:.3f}" if it.p_best is not None else "—"
         ci = f"[{it.ci90[0]:.5f}, {it.ci90[1]:.5f}]"
-        lines.append(f"{k:<5}{it.item:<28}{len(it.descents):>9}{it.mu:>10.5f}   {ci:<21}{pb}")
+        lines.append(f"{k:<5}{it.item:<{w}}{len(it.descents):>9}{it.mu:>10.5f}   {ci:<21}{pb}")
         if it.mu1 is not None and it.mu1_ci90 is not None:
             flag = "  (not distinguishable from 0)" if it.mu1_ci90[0] <= 0 <= it.mu1_ci90[1] else ""
             lines.append(f"{'':<5}  μ1 {it.mu1:.2e} s/m [{it.mu1_ci90[0]:.2e}, "

@@ -227,7 +227,7 @@ class ComparisonScreen(ModalScreen[None]):
     def compose(self) -> ComposeResult:
         # the text scrolls, the Close button stays in sight below it at any size
         with Vertical(id="comparison"):
-            with ScrollableContainer(classes="dialog-body"):  # long lines scroll sideways
+            with ScrollableContainer(classes="dialog-body"):  # long lines wrap; it scrolls
                 yield Static(self.text, id="comparison_text", markup=False)
             yield Button("Close", id="close", compact=True)
 
