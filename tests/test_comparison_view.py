@@ -29,3 +29,26 @@ async def test_the_comparison_needs_no_sideways_scrolling_at_80x24(tmp_path):
         await pilot.pause(0.2)
         assert body.virtual_size.width <= body.size.width  # nothing off to the right
         assert body.max_scroll_x == 0
+
+
+@run_async
+async def test_the_result_panel_is_never_cut_between_80_and_200_columns(tmp_path, demo_track):
+    """μ and CdA with their intervals share a line: the log of impulses beside the panel
+    appears only where that line still fits (at 110 columns CdA's interval was cut)."""
+    from station.ui.app import NARROW
+    from tests.test_ui import replay_app
+
+    app = replay_app(tmp_path, demo_track)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for_replay(pilot, app)
+        app.main.query_one("#table").move_cursor(row=0)  # descent 1: fitted, with intervals
+        await wait_for(pilot, lambda: app.shown == 1)
+        for width in (80, 100, 110, 120, NARROW - 1, NARROW, 160, 200):
+            await pilot.resize_terminal(width, 30)
+            await pilot.pause(0.2)
+            panel = app.main.query_one("#result")
+            await wait_for(pilot, lambda p=panel, w=width: p.size.width > 0 and app.size.width == w)
+            text = str(panel.render())
+            mu_cda = next(line for line in text.splitlines() if line.startswith("μ "))
+            assert "CdA" in mu_cda and mu_cda.endswith("]"), text  # the panel shows an interval
+            assert len(mu_cda) <= panel.content_region.width, (width, mu_cda)

@@ -65,8 +65,9 @@ class Column:
     number: bool = False
 
 
-#: below this width the log of impulses is hidden
-NARROW = 110
+#: below this width the log of impulses is hidden: the result panel beside its 46 columns
+#: needs 84 for μ and CdA with their intervals on one line (at 110 it cut CdA's interval)
+NARROW = 130
 #: below this width the table takes its narrow set of columns
 NARROW_TABLE = 130
 #: the vertical scrollbar of the table, kept free so the last column is never under it
