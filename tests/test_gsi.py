@@ -126,3 +126,22 @@ def test_bare_cr_line_numbers_count_each_line_end():
     with pytest.raises(InputError) as err:
         parse_gsi(text, "old.gsi")
     assert str(err.value).startswith("old.gsi:5:")
+
+
+def test_a_file_that_starts_with_its_station_block_has_no_default_setup():
+    """Found by a new-user trial: the demo GSI (ST1 on line 1) was said to have 4 setups,
+    one of them a 'default' at 0, 0, 0 that no observation used."""
+    from pathlib import Path
+
+    demo = Path(__file__).resolve().parent.parent / "surveys" / "demo_run.gsi"
+    obs = interpret_gsi(read_gsi(str(demo)), "demo")
+    assert [s.station for s in obs.setups] == ["ST1", "ST2", "ST3"]
+
+
+def test_observations_before_any_station_block_keep_the_default_setup(real):
+    """The Total Open Station file has no station block: its observations are reduced from
+    the default station at 0, 0, 0, which must stay listed."""
+    blocks = read_gsi(str(real / "leica_gsi" / "leica_gsi16_gurob.gsi"))
+    obs = interpret_gsi(blocks, "gurob")
+    used = {o.setup.station for o in obs.observations}
+    assert {s.station for s in obs.setups} >= used and obs.setups

@@ -84,10 +84,18 @@ def cmd_survey_points(args: argparse.Namespace) -> int:
         )
     for w in survey.warnings:
         _warn(w)
+    before = any(s.station == "default" and s.line is None for s in survey.setups)
     _warn(
-        "a bare observation file has no photocells; blocks before the first station block "
-        "were reduced from station 0, 0, 0 with instrument height 0. Write a survey YAML "
-        "(surveys/README.md) to name the photocells and the first setup and get the track"
+        "a bare observation file has no photocells"
+        + (
+            "; blocks before the first station block were reduced from station 0, 0, 0 with "
+            "instrument height 0"
+            if before
+            else ""
+        )
+        + ". Write a survey YAML (surveys/README.md) to name the photocells"
+        + (" and the first setup" if before else "")
+        + " and get the track"
     )
     return 0
 

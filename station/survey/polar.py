@@ -215,6 +215,9 @@ def interpret_gsi(
                     line=b.line,
                 )
             )
+    first = out.setups[0]
+    if not any(o.setup is first for o in out.observations):
+        out.setups.remove(first)  # a file that starts with its station block: no such setup
     return out
 
 
