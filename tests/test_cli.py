@@ -125,7 +125,7 @@ def _bad_survey(tmp_path, gsi_line: str):
         ("non_increasing", "t.csv:4: field time: time at PC3 is not later than at PC2"),
         ("too_few_rows", "t.csv:2: 1 time(s); a descent needs at least two photocells"),
         ("bad_time", "t.csv:3: field time: 'four' is not a number"),
-        ("negative_mass", "argument --mass: must be a number greater than 0"),
+        ("negative_mass", "argument --mass: '-80' kg is out of range (20 .. 200)"),
         ("unknown_option", "unrecognized arguments: --masss"),
         ("missing_file", "cannot read times file"),
         ("bad_humidity", "argument --humidity-pct: must lie between 0 and 100"),

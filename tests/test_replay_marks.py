@@ -59,3 +59,36 @@ async def test_a_mark_in_the_replay_of_a_capture_says_it_is_not_saved(tmp_path, 
         assert "this replay only" in said
     assert app.kept == []
     assert _save_kept(app) == 0
+
+
+def test_the_printed_lines_say_invalid_and_updated(run_station, tmp_path):
+    """Headless, a descent marked invalid printed as plain "ok", and a refit printed the same
+    line again with nothing to say why."""
+    from station.session.acquisition import PrintListener
+
+    session = make_session(tmp_path, order="AB")
+    assert run_station("annotate", session, "--descents", "2", "--invalid", "fell").returncode == 0
+    r = run_station("replay", session)
+    assert r.returncode == 0, r.stderr
+    out = r.stdout + r.stderr
+    line2 = next(x for x in out.splitlines() if x.startswith("descent   2"))
+    assert line2.endswith("INVALID: fell")
+    assert "1 marked invalid" in out
+    line1 = next(x for x in out.splitlines() if x.startswith("descent   1"))
+    assert "INVALID" not in line1
+
+    import argparse
+
+    from station.cli.recording import _replay_run
+
+    acq = _replay_run(
+        argparse.Namespace(source=str(session), config=None, fast=True, date=None), quiet=True
+    )
+    printed: list[str] = []
+    listener = PrintListener(printed.append)
+    first = acq.results()[0]
+    listener.result(first)
+    listener.result(first)
+    assert "updated" not in printed[0] and printed[1].endswith(
+        "(updated: an annotation or a refit)"
+    )

@@ -33,8 +33,9 @@ def describe(res: DescentResult) -> str:
     when = local_time(res.start_time)
     used = f"{len(d.photocells)}/{len(d.photocells) + len(d.missing)}"
     head = f"descent {d.number:>3}  {when}  {used} photocells"
+    mark = f"  INVALID: {row.invalid_reason or 'marked invalid'}" if row.invalid else ""
     if f is None:
-        return f"{head}  {row.status}: {'; '.join(row.flags)}"
+        return f"{head}  {row.status}: {'; '.join(row.flags)}{mark}"
     e, ci = f.estimates, f.ci90
 
     def part(name: str, key: str, spec: str) -> str:
@@ -50,7 +51,7 @@ def describe(res: DescentResult) -> str:
     )
     if row.flags:
         text += f"  ({'; '.join(row.flags)})"
-    return text
+    return text + mark
 
 
 def summary(counts: LineCounts, results: Sequence[DescentResult]) -> str:
@@ -59,8 +60,11 @@ def summary(counts: LineCounts, results: Sequence[DescentResult]) -> str:
     for r in results:
         st[r.row.status.value] = st.get(r.row.status.value, 0) + 1
     parts = ", ".join(f"{v} {k}" for k, v in sorted(st.items()))
+    invalid = sum(1 for r in results if r.row.invalid)
     return (
         f"{counts.lines} lines: {counts.impulses} impulses, {counts.edits} edits, "
         f"{counts.skipped} other timer lines, {counts.unparsed} unparsed; "
-        f"{len(results)} descents" + (f" ({parts})" if parts else "")
+        f"{len(results)} descents"
+        + (f" ({parts})" if parts else "")
+        + (f", {invalid} marked invalid" if invalid else "")
     )

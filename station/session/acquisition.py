@@ -102,6 +102,7 @@ class PrintListener(Listener):
     def __init__(self, out: Callable[[str], None] = _print, port: str = "") -> None:
         self.out = out
         self.port = port
+        self._told: set[int] = set()  # descents already printed: a second line is an update
 
     def connection(self, state: str, detail: str) -> None:
         if state == "disconnected":
@@ -116,7 +117,10 @@ class PrintListener(Listener):
     def result(self, result: DescentResult) -> None:
         from station.report.text import describe
 
-        self.out(describe(result))
+        n = result.descent.number
+        again = "  (updated: an annotation or a refit)" if n in self._told else ""
+        self._told.add(n)
+        self.out(describe(result) + again)
 
     def warning(self, text: str) -> None:
         self.out(f"warning: {text}")
