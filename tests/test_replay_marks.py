@@ -92,3 +92,22 @@ def test_the_printed_lines_say_invalid_and_updated(run_station, tmp_path):
     assert "updated" not in printed[0] and printed[1].endswith(
         "(updated: an annotation or a refit)"
     )
+
+
+@run_async
+async def test_the_metadata_form_saved_unchanged_records_nothing(tmp_path):
+    from station.ui.screens import MetadataScreen
+
+    session = make_session(tmp_path, order="AB")
+    cfg = store.load_session_config(str(session))
+    app = StationApp(cfg, mode="replay", source=str(session), date=dt.date(2026, 2, 2))
+    async with app.run_test(size=(100, 30)) as pilot:
+        await wait_for_replay(pilot, app)
+        await pilot.press("m")
+        await wait_for_screen(pilot, app, MetadataScreen)
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: app.screen is app.main)
+        await wait_for(pilot, lambda: bool(app._notifications))
+        said = " ".join(str(n.message) for n in app._notifications)
+        assert "nothing saved" in said
+    assert app.kept == []

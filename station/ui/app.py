@@ -558,6 +558,9 @@ class StationApp(App):
         def done(values: dict[str, Any] | None) -> None:
             if values is None or self.acq is None:
                 return
+            if not values:  # saved as it was: nothing to record, nothing to apply
+                self.notify("metadata unchanged: nothing saved")
+                return
             start = self.metadata_from = self.acq.add_metadata(values)
             a = MetadataAnnotation(Metadata.from_values(values), from_descent=start, t=time.time())
             self.notify(f"metadata applies from descent {start} on{self._keep(a)}")
