@@ -226,3 +226,15 @@ def test_annotations_that_would_do_nothing_or_contradict_are_refused(run_station
     _one_line(run_station("annotate", session, "--descents", "2", "--wind-ms", "2",
                           "--wind-from-deg", "400"), "0 to 360")  # fmt: skip
     assert (session / "annotations.jsonl").read_bytes() == before
+
+
+def test_station_without_a_command_lists_the_commands(run_station):
+    r = run_station()
+    _one_line(r, "give a command: survey, simulate, fit")
+    assert "demo" in r.stderr and "sessions" in r.stderr
+
+
+def test_the_summary_counts_in_words_people_use():
+    from station.report.text import count
+
+    assert [count(n, "descent") for n in (0, 1, 2)] == ["0 descents", "1 descent", "2 descents"]

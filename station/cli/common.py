@@ -54,6 +54,10 @@ class _Parser(argparse.ArgumentParser):
                 message = f"unrecognized arguments: {' '.join(unknown)}"
         if message.startswith("unrecognized arguments"):
             message += self._suggestion(message)
+        if message == "the following arguments are required: command":  # bare ``station``
+            for action in self._actions:
+                if isinstance(action, argparse._SubParsersAction):
+                    message = f"give a command: {', '.join(action.choices)}"
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see --help)\n")
 
     def _unknown_options(self) -> list[str]:

@@ -17,6 +17,11 @@ def num(v: float | None, spec: str) -> str:
     return "—" if v is None or v != v else format(v, spec)
 
 
+def count(n: int, word: str) -> str:
+    """``1 descent``, ``2 descents``: a line people read says it as they would."""
+    return f"{n} {word}{'s' * (n != 1)}"
+
+
 def local_time(iso: str) -> str:
     """A start time for people at the trackside: date and local time to 1/100 s, without the
     UTC offset the results CSV carries (``2026-02-02T10:41:07.234500+01:00`` ->
@@ -62,9 +67,10 @@ def summary(counts: LineCounts, results: Sequence[DescentResult]) -> str:
     parts = ", ".join(f"{v} {k}" for k, v in sorted(st.items()))
     invalid = sum(1 for r in results if r.row.invalid)
     return (
-        f"{counts.lines} lines: {counts.impulses} impulses, {counts.edits} edits, "
-        f"{counts.skipped} other timer lines, {counts.unparsed} unparsed; "
-        f"{len(results)} descents"
+        f"{count(counts.lines, 'line')}: {count(counts.impulses, 'impulse')}, "
+        f"{count(counts.edits, 'edit')}, {count(counts.skipped, 'other timer line')}, "
+        f"{counts.unparsed} unparsed; "
+        f"{count(len(results), 'descent')}"
         + (f" ({parts})" if parts else "")
         + (f", {invalid} marked invalid" if invalid else "")
     )

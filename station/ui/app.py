@@ -625,7 +625,8 @@ class StationApp(App):
         except OSError as exc:
             self.notify(f"{path} not written: {exc}", severity="error")
             return
-        self.notify(f"{len(self.results)} descents exported to {path}")
+        n = len(self.results)
+        self.notify(f"{n} descent{'s' * (n != 1)} exported to {path}")
 
     def on_unmount(self) -> None:
         """Quitting ends the day as Ctrl-C ends ``station record``: the open descent is ended
