@@ -15,6 +15,18 @@ from tests.session_helpers import make_session, read_json_lines
 from tests.test_ui import replay_app, run_async, wait_for, wait_for_replay, wait_for_screen
 
 
+def session_replay_app(session) -> StationApp:
+    """The UI replaying a recorded session folder (not a capture file), with its own config."""
+    cfg = store.load_session_config(str(session))
+    return StationApp(cfg, mode="replay", source=str(session), date=dt.date(2026, 2, 2))
+
+
+async def _notified(app, pilot) -> str:
+    """The notifications on screen, once there is one."""
+    await wait_for(pilot, lambda: bool(app._notifications))
+    return " ".join(str(n.message) for n in app._notifications)
+
+
 async def _mark_invalid(app, pilot, reason: str) -> None:
     table = app.main.query_one("#table")
     table.move_cursor(row=0)
@@ -29,13 +41,11 @@ async def _mark_invalid(app, pilot, reason: str) -> None:
 async def test_a_mark_made_while_replaying_a_session_is_saved_in_it(tmp_path):
     session = make_session(tmp_path, order="ABAB")
     before = (session / store.ANNOTATIONS).read_text()
-    cfg = store.load_session_config(str(session))
-    app = StationApp(cfg, mode="replay", source=str(session), date=dt.date(2026, 2, 2))
+    app = session_replay_app(session)
     async with app.run_test(size=(100, 30)) as pilot:
         await wait_for_replay(pilot, app)
         await _mark_invalid(app, pilot, "wrong mass")
-        await wait_for(pilot, lambda: bool(app._notifications))
-        said = " ".join(str(n.message) for n in app._notifications)
+        said = await _notified(app, pilot)
         assert "saved in the session when you quit" in said
     assert [type(a) for a in app.kept] == [InvalidMark] and app.kept[0].t is not None
     assert (session / store.ANNOTATIONS).read_text() == before  # saved at the end, not before
@@ -54,8 +64,7 @@ async def test_a_mark_in_the_replay_of_a_capture_says_it_is_not_saved(tmp_path, 
     async with app.run_test(size=(100, 30)) as pilot:
         await wait_for_replay(pilot, app)
         await _mark_invalid(app, pilot, "test")
-        await wait_for(pilot, lambda: bool(app._notifications))
-        said = " ".join(str(n.message) for n in app._notifications)
+        said = await _notified(app, pilot)
         assert "this replay only" in said
     assert app.kept == []
     assert _save_kept(app) == 0
@@ -99,15 +108,13 @@ async def test_the_metadata_form_saved_unchanged_records_nothing(tmp_path):
     from station.ui.screens import MetadataScreen
 
     session = make_session(tmp_path, order="AB")
-    cfg = store.load_session_config(str(session))
-    app = StationApp(cfg, mode="replay", source=str(session), date=dt.date(2026, 2, 2))
+    app = session_replay_app(session)
     async with app.run_test(size=(100, 30)) as pilot:
         await wait_for_replay(pilot, app)
         await pilot.press("m")
         await wait_for_screen(pilot, app, MetadataScreen)
         await pilot.press("enter")
         await wait_for(pilot, lambda: app.screen is app.main)
-        await wait_for(pilot, lambda: bool(app._notifications))
-        said = " ".join(str(n.message) for n in app._notifications)
+        said = await _notified(app, pilot)
         assert "nothing saved" in said
     assert app.kept == []
