@@ -68,10 +68,12 @@ def _run_ui(app: Any, then: Any = None) -> int:
     status = then() if then is not None else 0
     folder = getattr(app, "session_dir", None)
     if folder is not None:
+        from station.report.text import count
+
         acq = getattr(app, "acq", None)  # closed by now: its results include the open descent
         n = len(acq.results()) if acq is not None else len(getattr(app, "results", {}))
         print(
-            f"session saved in {os.path.abspath(folder)} ({n} descent{'s' * (n != 1)}: raw.jsonl, "
+            f"session saved in {os.path.abspath(folder)} ({count(n, 'descent')}: raw.jsonl, "
             f"results.csv); replay it with: station replay {folder} --ui",
             file=sys.stderr,
             flush=True,

@@ -22,7 +22,7 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, RichLog, Static
 
-from station.report.text import local_time
+from station.report.text import count, local_time
 from station.session.acquisition import Acquisition
 from station.session.analysis import DescentResult
 from station.session.config import StationConfig
@@ -625,8 +625,7 @@ class StationApp(App):
         except OSError as exc:
             self.notify(f"{path} not written: {exc}", severity="error")
             return
-        n = len(self.results)
-        self.notify(f"{n} descent{'s' * (n != 1)} exported to {path}")
+        self.notify(f"{count(len(self.results), 'descent')} exported to {path}")
 
     def on_unmount(self) -> None:
         """Quitting ends the day as Ctrl-C ends ``station record``: the open descent is ended
