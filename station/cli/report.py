@@ -46,16 +46,18 @@ def cmd_report(args: argparse.Namespace) -> int:
     if reference is not None:
         reference = unique_prefix(reference, sorted({d.item for d in data}), "item", "--reference")
     try:
-        res = joint_fit(acq.track, data, drift=args.drift, reference=reference)
+        res = joint_fit(
+            acq.track,
+            data,
+            drift=args.drift,
+            reference=reference,
+            excluded=excluded,
+            wind_flagged=windy,
+            wind_limit_ms=args.wind_limit,
+        )
     except CompareError as exc:
         day.comparison_error = str(exc)
     else:
-        res.excluded, res.wind_flagged = excluded, windy
-        if windy:
-            res.warnings.append(
-                f"descents {', '.join(map(str, windy))} had more than {args.wind_limit:g} m/s "
-                "of along-track wind: check them, or mark them invalid"
-            )
         day.comparison, day.compared = res, data
     page = build_day_report(day)
     with open_output(path, "--out") as fh:

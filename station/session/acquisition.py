@@ -691,10 +691,9 @@ def comparison_text(track: Any, results: Sequence[DescentResult]) -> str:
     if len(data) < 2:
         return "no comparison yet: it needs at least two fitted descents"
     try:
-        res = joint_fit(track, data)
+        res = joint_fit(track, data, excluded=excluded, wind_flagged=windy)
     except CompareError as exc:
         return f"no comparison yet: {exc}"
-    res.excluded, res.wind_flagged = excluded, windy
     return format_comparison(res, len(data)) + "".join(f"\n! {w}" for w in res.warnings)
 
 
