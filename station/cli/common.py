@@ -148,6 +148,18 @@ def _add_air(p: argparse.ArgumentParser) -> None:
                    help="kg/m³, instead of P, T, H")  # fmt: skip
 
 
+def add_timer_option(p: argparse.ArgumentParser, default: float | None, default_says: str) -> None:
+    """``--timer-ms``: the timer's precision (SD of one crossing time, ms) against which the
+    residuals are judged, the one spelling on every command (:mod:`station.model.timer`);
+    ``--timer-precision-ms``, the single fit's earlier spelling, still works for old scripts
+    but is not shown."""
+    p.add_argument("--timer-ms", dest="timer_ms", type=_positive, default=default, metavar="MS",
+                   help="the timer's precision (SD of one crossing time, ms), against which "
+                        f"the residuals are judged (default {default_says})")  # fmt: skip
+    p.add_argument("--timer-precision-ms", dest="timer_ms", type=_positive,
+                   default=argparse.SUPPRESS, help=argparse.SUPPRESS)  # fmt: skip
+
+
 def _density(args: argparse.Namespace) -> float:
     given = [args.pressure_hpa, args.temperature_c, args.humidity_pct]
     if args.air_density is not None:

@@ -56,6 +56,7 @@ from station.session.records import (
     MetadataAnnotation,
     ModelChange,
     Progress,
+    ResultRow,
 )
 from station.session.replay import replay_chunks, source_date
 from station.survey.load import load_survey
@@ -168,6 +169,12 @@ class Acquisition:
         self._announced: int | None = None
         self._closed = False
         self._csv_problem: str | None = None  # said once, not after every descent
+        # what the session's results CSV holds (rows by descent, its size): a new descent is
+        # appended to it; None: unknown (not written yet, or a write failed): rewritten in full
+        self._csv_rows: dict[int, ResultRow] | None = None
+        self._csv_size = 0
+        self._csv_inode = 0
+        self._header: dict[str, str] | None = None  # the CSV's header, made once
         self._closing = False
         self._jobs: queue.Queue[object] = queue.Queue()
         #: held while the session is recorded (``station sessions``, ``annotate`` try it)
@@ -539,9 +546,8 @@ class Acquisition:
         fitted = [day.analyser.run(j) for j in fit_jobs]  # outside the lock: the reader goes on
         with self.lock:
             views = [day.store(r) for r in fitted] + [day.view(n) for n in effect.changed]
-            snapshot = day.snapshot() if self.session_dir is not None and views else None
-        if snapshot is not None:
-            self._write_session_csv(snapshot)
+        if views:
+            self._save_csv(views)
         for v in views:
             self._tell(self.listener.result, v)
 
@@ -550,24 +556,76 @@ class Acquisition:
             snapshot = self.day.snapshot()
         self._tell(self.listener.comparison, comparison_text(self.day.track, snapshot))
 
+    def _save_csv(self, results: Sequence[DescentResult]) -> None:
+        """Bring the session's results CSV up to date with ``results`` (those just fitted or
+        marked; at the end, all). A descent after every one the file holds is appended to it,
+        so a 2000-descent day costs per descent what its first did; an earlier row that changed
+        (an annotation, a refit, descents ending out of order) rewrites the file in full. The
+        bytes are the same either way: those of a replay's CSV."""
+        if self.session_dir is None:
+            return
+        rows = self._csv_rows
+        new: dict[int, ResultRow] = {}
+        if rows is not None:
+            last = max(rows, default=0)
+            for r in sorted(results, key=lambda r: r.number):
+                old = rows.get(r.number)
+                if old is r.row or old == r.row:
+                    new.pop(r.number, None)  # unchanged (a later view may change it again)
+                elif r.number in rows or r.number < last:
+                    rows = None  # an earlier row changed: the file is rewritten
+                    break
+                else:
+                    new[r.number] = r.row
+        if rows is not None and not new:
+            return  # the file holds them already
+        if rows is not None:
+            from station.session.results import append_result_rows
+
+            path = os.path.join(self.session_dir, sessions.RESULTS)
+            try:
+                self._csv_size = append_result_rows(
+                    path, list(new.values()), self._csv_size, self._csv_inode
+                )
+            except Exception:  # noqa: BLE001 - written in full below, which says what failed
+                self._csv_rows = None
+            else:
+                rows.update(new)
+                return
+        with self.lock:
+            snapshot = self.day.snapshot()
+        self._write_session_csv(snapshot)
+
     def _write_session_csv(self, snapshot: Sequence[DescentResult]) -> None:
-        """The session's results CSV; one that cannot be written is said once, and written
-        again after the next descent (the raw log, written first, is not affected)."""
+        """The session's results CSV in full; one that cannot be written is said once, and
+        written again after the next descent (the raw log, written first, is not affected)."""
         if self.session_dir is None:
             return
         path = os.path.join(self.session_dir, sessions.RESULTS)
+        self._csv_rows = None
         problem = sessions.save_results(path, lambda p: self._write(snapshot, p))
+        if problem is None:
+            with contextlib.suppress(OSError):  # unknown size: the next write is in full
+                st = os.stat(path)
+                self._csv_size, self._csv_inode = st.st_size, st.st_ino
+                self._csv_rows = {r.number: r.row for r in snapshot}
         if problem is not None and problem != self._csv_problem:
             self._tell(self.listener.warning, problem)
         elif problem is None and self._csv_problem is not None:
             self._tell(self.listener.warning, f"{path} written again: it is complete")
         self._csv_problem = problem
 
+    def _results_header(self) -> dict[str, str]:
+        """What the results were computed from: the session's config and survey do not change
+        during the day, so their digests are read once."""
+        if self._header is None:
+            self._header = sessions.results_header(self.config, self.day.track.name)
+        return self._header
+
     def _write(self, snapshot: Sequence[DescentResult], path: str) -> None:
         from station.session.results import write_result_rows
 
-        header = sessions.results_header(self.config, self.day.track.name)
-        write_result_rows([r.row for r in snapshot], path, header)
+        write_result_rows([r.row for r in snapshot], path, self._results_header())
 
     def _tell(self, fn: Callable[..., None], *args: Any) -> None:
         """Call the listener; what it raises stays with it."""
@@ -612,7 +670,7 @@ class Acquisition:
                     self._run(job)
                 with self.lock:
                     snapshot = self.day.snapshot()
-                self._write_session_csv(snapshot)
+                self._save_csv(snapshot)  # written already, unless a write failed
                 if self.rawlog is not None:
                     self.rawlog.close()
                 if self.recording_lock is not None:  # inside the annotations lock: see above
@@ -641,8 +699,7 @@ class Acquisition:
         """The results CSV into an open text file: ``--csv -`` writes to standard output."""
         from station.session.results import write_result_rows_to
 
-        header = sessions.results_header(self.config, self.day.track.name)
-        write_result_rows_to(fh, [r.row for r in self.results()], header)
+        write_result_rows_to(fh, [r.row for r in self.results()], self._results_header())
 
 
 def _effect_now(day: Day, a: Annotation) -> Effect:
