@@ -121,7 +121,7 @@ def test_compare_is_the_days_joint_fit_of_its_items(session):
     assert day.result is not None and day.error == ""
     assert {d.item for d in day.compared} == {"pair A / blue", "pair B / blue"}
     assert day.result.reference == "pair A / blue"
-    assert len(day.compared) == 4 and day.result.excluded == []
+    assert len(day.compared) == 4 and not day.result.excluded
 
 
 def test_compare_says_why_when_there_is_nothing_to_compare(session):
