@@ -62,11 +62,10 @@ def test_the_processor_takes_the_resolution_of_a_photocell_not_a_keypad(tmp_path
 
 def test_the_descents_and_the_day_are_judged_against_the_configs_timer(tmp_path, run_station):
     session = make_session(tmp_path, order="ABAB", config_extra="timer: {precision_ms: 3}\n")
-    from station.session import store
-    from station.session.acquisition import replay
+    from station.session.recorded import RecordedSession
 
-    run = replay(str(session), store.load_session_config(str(session)), out=lambda _m: None)
-    assert {r.fit.timer_precision_s for r in run.results() if r.fit} == {3e-3}
+    results = RecordedSession(str(session)).results()
+    assert {r.fit.timer_precision_s for r in results if r.fit} == {3e-3}
     r = run_station("compare", session, "--json")
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["timer_sd_s"] == 3e-3
