@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import csv
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from station.cli.common import (
     _add_air,
@@ -24,12 +24,12 @@ from station.cli.common import (
 )
 from station.errors import InputError
 
+if TYPE_CHECKING:  # the survey modules import numpy and scipy: loaded when a command runs
+    from station.survey.load import Survey
 
-def cmd_survey_points(args: argparse.Namespace) -> int:
+
+def cmd_survey_points(args: argparse.Namespace, survey: Survey) -> int:
     """A bare observation file has no photocells: list the reduced points for checking."""
-    from station.survey.load import load_survey
-
-    survey = load_survey(args.survey)
     pts = list(survey.points.values())
     if args.csv:
         with open_output(args.csv, "--csv") as fh:
@@ -64,18 +64,15 @@ def cmd_survey_points(args: argparse.Namespace) -> int:
                     }  # fmt: skip
                     for s in survey.setups
                 ],
+                "format": survey.format,
                 "warnings": survey.warnings,
             }
         )
         return 0
-    print(f"observations  {args.survey}: {len(pts)} points from {len(survey.setups)} setup(s)")
-    print(f"{'setup':<12}{'E':>12}{'N':>12}{'H':>10}{'hi':>7}  line")
-    for s in survey.setups:
-        line = "" if s.line is None else str(s.line)
-        print(
-            f"{s.station:<12}{s.e:>12.3f}{s.n:>12.3f}{s.h:>10.3f}"
-            f"{s.instrument_height:>7.3f}  {line}"
-        )
+    print(f"observations  {args.survey}: {len(pts)} points from {len(survey.setups)} setup(s)"
+          + (f", {survey.format}" if survey.format else ""))  # fmt: skip
+    if survey.setups:
+        _print_setups(survey)
     print()
     print(f"{'point':<12}{'E':>12}{'N':>12}{'H':>10}{'σH [mm]':>9}  setup")
     for p in pts:
@@ -100,15 +97,46 @@ def cmd_survey_points(args: argparse.Namespace) -> int:
     return 0
 
 
+def _print_setups(survey: Survey) -> None:
+    """The setups; placed by the network adjustment: orientation and residuals too."""
+    net = {p.station: p for p in survey.network.setups} if survey.network else {}
+    extra = f"{'ω [gon]':>10}{'ties':>6}{'RMS E,N/H [mm]':>16}" if net else ""
+    print(f"{'setup':<12}{'E':>12}{'N':>12}{'H':>10}{'hi':>7}{extra}  line")
+    for s in survey.setups:
+        line = "" if s.line is None else str(s.line)
+        more = ""
+        p = net.get(s.station)
+        if p is not None:
+            rms = (
+                "fixed"
+                if p.fixed and not p.ties
+                else f"{p.rms_xy_m * 1e3:.1f}/{p.rms_h_m * 1e3:.1f}"
+            )
+            more = f"{s.orientation * 200 / math.pi:>10.4f}{p.ties:>6}{rms:>16}"
+        print(
+            f"{s.station:<12}{s.e:>12.3f}{s.n:>12.3f}{s.h:>10.3f}"
+            f"{s.instrument_height:>7.3f}{more}  {line}"
+        )
+
+
 def cmd_survey(args: argparse.Namespace) -> int:
     import numpy as np  # here, not at the top: `station --help` and other commands need no numpy
 
     output_path(args.csv, "--csv")
     from station.model.physics import gravity_for
+    from station.survey.load import load_survey
+    from station.survey.track import build_track
 
-    if args.survey.lower().endswith(".gsi"):
-        return cmd_survey_points(args)
-    track = _load_track(args.survey)
+    survey = load_survey(args.survey)
+    if survey.bare:
+        if args.plot:
+            raise InputError(
+                "a bare observation file has no photocells and no track to draw; write a "
+                "survey YAML (surveys/README.md)",
+                path=args.survey,
+            )
+        return cmd_survey_points(args, survey)
+    track = build_track(survey)
     grav = gravity_for(track)
     prof = track.profile
     xg = np.arange(math.ceil(prof.x_min), math.floor(prof.x_max) + 1e-9, 1.0)
@@ -119,6 +147,8 @@ def cmd_survey(args: argparse.Namespace) -> int:
         from station.report.track_plot import plot_track
 
         plot_track(track, args.plot)
+        if args.json:
+            _warn(f"track picture written to {args.plot}")
     if args.csv:
         with open_output(args.csv, "--csv") as fh:
             w = csv.writer(fh, lineterminator="\n")
@@ -204,6 +234,8 @@ def cmd_survey(args: argparse.Namespace) -> int:
                 print(
                     f"{pc.id:<10}{pc.x:>10.2f}{pc.y:>11.2f}{pc.slope_deg:>11.2f}{pc.lateral_m:>+13.2f}"
                 )
+        if args.plot:
+            print(f"picture  {args.plot}")
         for w in track.warnings:
             _warn(w)
     return 0
@@ -442,7 +474,11 @@ def _angle_above_0(text: str) -> float:
 
 def add_parsers(sub: Any) -> None:
     p = sub.add_parser("survey", help="reduce a survey to the track profile and photocells")
-    p.add_argument("survey", help="survey YAML (or a bare .gsi file)")
+    p.add_argument(
+        "survey",
+        help="survey YAML, or a bare observation file (Leica GSI, Sokkia SDR, Topcon GTS-7, "
+        "LandXML, Carlson RW5) or points CSV",
+    )
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--csv", metavar="OUT", help="write the profile (every metre) as CSV")
     p.add_argument(
