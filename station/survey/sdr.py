@@ -23,6 +23,7 @@ files ids are 4 and numbers 10 (the ``10`` job record's point-id flag decides, a
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, replace
 
 from station.errors import InputError
@@ -30,6 +31,7 @@ from station.survey.gsi import split_lines
 from station.survey.polar import KnownPoint, Observation, ObservationSet, Setup
 
 FOOT_M = 0.3048
+_CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
 ANGLE = {
     "1": ("degrees", math.pi / 180.0),
     "2": ("gon", math.pi / 200.0),
@@ -273,6 +275,7 @@ class _Reader:
 def parse_sdr(text: str, path: str = "<sdr>") -> ObservationSet:
     """Read the records of an SDR33/SDR2x file; a damaged field names its line and field."""
     reader = _Reader(path)
+    text = _CONTROL.sub("", text)  # STX/ETX framing of a serial download, a Ctrl-Z at the end
     for lineno, line in split_lines(text):
         reader.feed(line.rstrip("\n"), lineno)
     out = reader.out
