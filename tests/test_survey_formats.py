@@ -382,3 +382,13 @@ def test_survey_plot_says_where_the_picture_went(run_station, tmp_path):
     assert r.returncode == 0 and f"picture  {out}" in r.stdout
     r = run_station("survey", DEMO_SURVEY, "--plot", out, "--json")
     assert r.returncode == 0 and f"track picture written to {out}" in r.stderr
+
+
+def test_landxml_damaged_value_names_its_line_and_attribute():
+    setup = Setup("S1", 100.0, 200.0, 10.0, 1.5)
+    obs = ObservationSet(setups=[setup])
+    obs.observations = [Observation("P1", 1.0, 1.5, 12.0, None, 1.3, setup)]
+    text = W.landxml(obs).replace('slopeDistance="12.00000"', 'slopeDistance="12,0"')
+    line = next(i for i, ln in enumerate(text.splitlines(), 1) if "12,0" in ln)
+    msg = _error(parse_landxml, text, "d.xml")
+    assert msg == f"d.xml:{line}: field RawObservation slopeDistance: '12,0' is not a number"

@@ -49,6 +49,38 @@ ANGULAR = {
 }
 
 
+class _LineTreeBuilder(ET.TreeBuilder):
+    """A tree builder that notes each element's line, so an error names where it stands."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.parser: DET.DefusedXMLParser | None = None
+        self.lines: dict[int, int] = {}
+
+    def start(self, tag, attrs):
+        elem = super().start(tag, attrs)
+        if self.parser is not None:
+            self.lines[id(elem)] = self.parser.parser.CurrentLineNumber
+        return elem
+
+
+def _parse(text: str, path: str) -> tuple[ET.Element, dict[int, int]]:
+    builder = _LineTreeBuilder()
+    parser = DET.DefusedXMLParser(target=builder, forbid_dtd=True)
+    builder.parser = parser
+    try:
+        parser.feed(text.encode("utf-8"))
+        root = parser.close()
+    except DefusedXmlException as exc:
+        raise InputError(
+            f"XML with a DTD or entities is refused ({type(exc).__name__})", path=path
+        ) from None
+    except ET.ParseError as exc:
+        line = exc.position[0] if getattr(exc, "position", None) else None
+        raise InputError(f"not well-formed XML: {exc}", path=path, line=line) from None
+    return root, builder.lines
+
+
 def _local(tag: str) -> str:
     return tag.rsplit("}", 1)[-1]
 
@@ -58,8 +90,8 @@ def _find_all(root: ET.Element, name: str) -> list[ET.Element]:
 
 
 class _Reader:
-    def __init__(self, root: ET.Element, path: str):
-        self.root, self.path = root, path
+    def __init__(self, root: ET.Element, path: str, lines: dict[int, int]):
+        self.root, self.path, self.lines = root, path, lines
         self.out = ObservationSet(format="LandXML")
         self.metres, self.angular = 1.0, "deg"
         self.points: dict[str, tuple[float, float, float]] = {}
@@ -67,7 +99,10 @@ class _Reader:
     def error(self, msg: str, elem: ET.Element, attr: str) -> InputError:
         ident = elem.get("id") or elem.get("name") or ""
         return InputError(
-            msg, path=self.path, field=f"{_local(elem.tag)}{' ' + ident if ident else ''} {attr}"
+            msg,
+            path=self.path,
+            line=self.lines.get(id(elem)),
+            field=f"{_local(elem.tag)}{' ' + ident if ident else ''} {attr}",
         )
 
     def num(self, elem: ET.Element, attr: str) -> float | None:
@@ -203,16 +238,8 @@ class _Reader:
 
 def parse_landxml(text: str, path: str = "<landxml>") -> ObservationSet:
     """Read a LandXML 1.2 file; entity declarations are refused, damaged values named."""
-    try:
-        root = DET.fromstring(text.encode("utf-8"), forbid_dtd=True)
-    except DefusedXmlException as exc:
-        raise InputError(
-            f"XML with a DTD or entities is refused ({type(exc).__name__})", path=path
-        ) from None
-    except ET.ParseError as exc:
-        line = exc.position[0] if getattr(exc, "position", None) else None
-        raise InputError(f"not well-formed XML: {exc}", path=path, line=line) from None
-    reader = _Reader(root, path)
+    root, lines = _parse(text, path)
+    reader = _Reader(root, path, lines)
     reader.units()
     reader.cg_points()
     reader.observations(reader.setups())
