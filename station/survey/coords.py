@@ -13,7 +13,6 @@ import csv
 import io
 import math
 import os
-import re
 
 from station.errors import InputError
 from station.survey.polar import ReducedPoint
@@ -44,13 +43,6 @@ def _number(text: str, decimal_comma: bool, path: str, line: int, column: str) -
     if not math.isfinite(value):
         raise InputError(f"{raw!r} is not a finite number", path=path, line=line, field=column)
     return value
-
-
-def is_points_csv(text: str) -> bool:
-    """A coordinate list by its header: the columns id, e, n and h (any delimiter)."""
-    first = next((ln for ln in text.splitlines() if ln.strip()), "")
-    cells = {c.strip().lower() for c in re.split(r"[,;\t]", first.lstrip("\ufeff"))}
-    return set(REQUIRED) <= cells
 
 
 def read_points_csv(path: str, default_sigma_h: float) -> list[ReducedPoint]:

@@ -18,18 +18,14 @@ a degree sign or an umlaut in a comment never stops a read.
 
 from __future__ import annotations
 
+import importlib
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
 
 from station.errors import InputError
 from station.files import MAX_OBSERVATIONS, read_bytes
-from station.survey.gsi import parse_gsi
-from station.survey.landxml import parse_landxml
-from station.survey.polar import ObservationSet, Setup, interpret_gsi
-from station.survey.rw5 import parse_rw5
-from station.survey.sdr import parse_sdr
-from station.survey.topcon import parse_gts7
+from station.survey.polar import ObservationSet, Setup
 
 #: what the station reads, for the one line an unknown file gets
 FORMAT_NAMES = (
@@ -43,12 +39,14 @@ _CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
 def decode(data: bytes) -> str:
     """Bytes of an instrument file as text: UTF-8 (BOM dropped), else Windows-1252, else
     Latin-1; serial framing (STX, ETX, EOT, Ctrl-Z …) removed, line ends kept."""
-    for encoding in ("utf-8-sig", "cp1252", "latin-1"):
+    data = data.removeprefix(b"\xef\xbb\xbf")  # a BOM (not the utf-8-sig codec: one import less)
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
         try:
-            text = data.decode(encoding)
-            break
-        except UnicodeDecodeError:
-            continue
+            text = data.decode("cp1252")
+        except UnicodeDecodeError:  # bytes Windows-1252 leaves undefined (0x81, 0x8d, …)
+            text = data.decode("latin-1")
     return _CONTROL.sub("", text)
 
 
@@ -124,33 +122,38 @@ def _is_rw5(lines: list[str]) -> bool:
 
 @dataclass(frozen=True)
 class Format:
-    """One observation-file format: its name, how to recognise it, how to read it."""
+    """One observation-file format: its name, how to recognise it, and its reader, imported
+    when a file of this format is read (a fit of a GSI survey loads no XML parser: see
+    tests/test_startup.py)."""
 
     name: str
     sniff: Callable[[list[str]], bool]
-    read: Callable[[str, str, Setup | None], ObservationSet]
+    module: str
+    function: str
 
-
-def _read_gsi(text: str, path: str, default_setup: Setup | None) -> ObservationSet:
-    return interpret_gsi(parse_gsi(text, path), path, default_setup)
-
-
-def _read(parse: Callable[[str, str], ObservationSet]) -> Callable[..., ObservationSet]:
-    """A reader whose file names its own setups: the YAML's ``default_setup`` does not apply."""
-
-    def read(text: str, path: str, default_setup: Setup | None) -> ObservationSet:
+    def read(self, text: str, path: str, default_setup: Setup | None = None) -> ObservationSet:
+        """Read ``text`` (from ``path``); ``default_setup`` is the survey YAML's setup for
+        GSI blocks before the first station block (the other formats name their setups)."""
+        parse = getattr(importlib.import_module(self.module), self.function)
+        if self.module == "station.survey.gsi":
+            return parse(text, path, default_setup)
         return parse(text, path)
-
-    return read
 
 
 FORMATS = (
-    Format("Leica GSI", _is_gsi, _read_gsi),
-    Format("Sokkia SDR", _is_sdr, _read(parse_sdr)),
-    Format("LandXML", _is_landxml, _read(parse_landxml)),
-    Format("Topcon GTS-7", _is_gts, _read(parse_gts7)),
-    Format("Carlson RW5", _is_rw5, _read(parse_rw5)),
+    Format("Leica GSI", _is_gsi, "station.survey.gsi", "read_gsi_text"),
+    Format("Sokkia SDR", _is_sdr, "station.survey.sdr", "parse_sdr"),
+    Format("LandXML", _is_landxml, "station.survey.landxml", "parse_landxml"),
+    Format("Topcon GTS-7", _is_gts, "station.survey.topcon", "parse_gts7"),
+    Format("Carlson RW5", _is_rw5, "station.survey.rw5", "parse_rw5"),
 )
+
+
+def is_points_csv(text: str) -> bool:
+    """A coordinate list by its header: the columns id, e, n and h (any delimiter)."""
+    first = next((ln for ln in text.splitlines() if ln.strip()), "")
+    cells = {c.strip().lower() for c in re.split(r"[,;\t]", first.lstrip("\ufeff"))}
+    return {"id", "e", "n", "h"} <= cells
 
 
 def read_text(path: str) -> str:

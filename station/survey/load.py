@@ -25,8 +25,13 @@ import re
 from dataclasses import dataclass, field, replace
 
 from station.errors import InputError
-from station.survey.coords import is_points_csv, read_points_csv
-from station.survey.formats import FORMAT_NAMES, read_observations, read_text, sniff
+from station.survey.formats import (
+    FORMAT_NAMES,
+    is_points_csv,
+    read_observations,
+    read_text,
+    sniff,
+)
 from station.survey.network import NetworkResult, place_setups
 from station.survey.polar import (
     KnownPoint,
@@ -263,6 +268,8 @@ def load_survey(path: str) -> Survey:
     if fmt is not None:
         return _bare(path, fmt.read(text, path, None), [])
     if is_points_csv(text):
+        from station.survey.coords import read_points_csv  # only a list of points needs it
+
         return _bare(path, ObservationSet(format="points CSV"), read_points_csv(path, 0.005))
     if not _yaml_like(path, text):
         raise InputError(f"not a survey file: the station reads {FORMAT_NAMES}", path=path)
@@ -443,6 +450,8 @@ def _load_yaml_survey(path: str, data: object) -> Survey:
         full = os.path.join(os.path.dirname(os.path.abspath(path)), csv_path)
         if not os.path.exists(full):
             raise top.error("points", f"coordinate file {csv_path!r} not found")
+        from station.survey.coords import read_points_csv  # only a survey with points needs it
+
         reduced += read_points_csv(full, precision.target_mm * 1e-3)
     photocells = _photocells(top, path)
     exclude, pattern = _selection(top)
