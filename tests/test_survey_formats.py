@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import re
 
@@ -177,6 +178,10 @@ def test_network_cli_lists_each_setup_with_its_residuals(run_station, real):
     assert r.returncode == 0, r.stderr
     assert "22 setup(s), Leica GSI-16" in r.stdout and "RMS E,N/H [mm]" in r.stdout
     assert "21 setups without coordinates placed from" in r.stderr
+    r = run_station("survey", real / "survey" / "network.GSI", "--json")
+    setups = json.loads(r.stdout)["setups"]
+    assert [s["fixed"] for s in setups] == [True] + [False] * 21
+    assert all(s["rms_xy_m"] < 3e-3 and s["tie_observations"] >= 28 for s in setups)
 
 
 def _demo_obs() -> ObservationSet:

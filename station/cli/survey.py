@@ -53,17 +53,7 @@ def cmd_survey_points(args: argparse.Namespace, survey: Survey) -> int:
                     }  # fmt: skip
                     for p in pts
                 ],
-                "setups": [
-                    {
-                        "station": s.station,
-                        "e": s.e,
-                        "n": s.n,
-                        "h": s.h,
-                        "instrument_height": s.instrument_height,
-                        "line": s.line,
-                    }  # fmt: skip
-                    for s in survey.setups
-                ],
+                "setups": [_setup_json(survey, s) for s in survey.setups],
                 "format": survey.format,
                 "warnings": survey.warnings,
             }
@@ -95,6 +85,18 @@ def cmd_survey_points(args: argparse.Namespace, survey: Survey) -> int:
         + " and get the track"
     )
     return 0
+
+
+def _setup_json(survey: Survey, s: Any) -> dict[str, Any]:
+    """One setup for --json; placed by the network: orientation, ties and residual RMS too."""
+    out = {"station": s.station, "e": s.e, "n": s.n, "h": s.h,
+           "instrument_height": s.instrument_height, "line": s.line}  # fmt: skip
+    placed = {p.station: p for p in survey.network.setups} if survey.network else {}
+    p = placed.get(s.station)
+    if p is not None:
+        out["orientation_gon"] = s.orientation * 200 / math.pi
+        out.update(fixed=p.fixed, tie_observations=p.ties, rms_xy_m=p.rms_xy_m, rms_h_m=p.rms_h_m)
+    return out
 
 
 def _print_setups(survey: Survey) -> None:
