@@ -397,3 +397,60 @@ def test_landxml_damaged_value_names_its_line_and_attribute():
     line = next(i for i, ln in enumerate(text.splitlines(), 1) if "12,0" in ln)
     msg = _error(parse_landxml, text, "d.xml")
     assert msg == f"d.xml:{line}: field RawObservation slopeDistance: '12,0' is not a number"
+
+
+# --- no damaged file makes a reader raise anything but one located InputError -------------------
+
+_NASTY = st.sampled_from(list("²³½\xa0\xff\x00\x02\x03\t\r\n ?.:,;-+*#0123456789eE<>&\"'=/"))
+
+
+def _samples() -> list[str]:
+    from station.survey.formats import decode
+
+    setup = Setup("S1", 2480.5, 5130.25, 1710.0, 1.55, 0.3)
+    obs = ObservationSet(setups=[setup])
+    obs.observations = [Observation("P1", 1.0, 1.5, 12.0, None, 1.3, setup),
+                        Observation("PC1L", 2.0, 1.6, 40.5, None, 2.0, setup)]  # fmt: skip
+    return [
+        decode(W.sdr33(obs)),
+        decode(W.sdr33(obs, gon=False, north_first=False)),
+        W.gts7(obs),
+        W.rw5(obs),
+        W.landxml(obs),
+        W.gsi16_network(obs),
+        DEMO_GSI.read_text()[:2000],
+    ]
+
+
+_SAMPLES = _samples()
+
+
+@st.composite
+def _damaged(draw) -> str:
+    s = list(draw(st.sampled_from(_SAMPLES)))
+    for _ in range(draw(st.integers(1, 6))):
+        op = draw(st.sampled_from(["replace", "insert", "delete", "cut"]))
+        i = draw(st.integers(0, max(len(s) - 1, 0)))
+        if op == "replace" and s:
+            s[i] = draw(_NASTY)
+        elif op == "insert":
+            s.insert(i, draw(_NASTY))
+        elif op == "delete" and s:
+            del s[i]
+        elif op == "cut":
+            s = s[:i]
+    return "".join(s)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(text=_damaged())
+def test_a_damaged_file_is_read_or_refused_in_one_located_line(tmp_path_factory, text):
+    path = tmp_path_factory.mktemp("f") / "damaged.dat"
+    path.write_bytes(text.encode("utf-8", "surrogatepass"))
+    try:
+        s = load_survey(str(path))
+    except InputError as exc:
+        msg = str(exc)
+        assert msg.startswith(str(path)) and "\n" not in msg
+    else:
+        assert all(math.isfinite(p.e + p.n + p.h) for p in s.points.values())

@@ -27,8 +27,12 @@ from station.errors import InputError
 from station.model.timer import TIMER_PRECISION_S
 
 if TYPE_CHECKING:  # the survey modules import numpy and scipy: loaded when a command runs
+    import numpy as np
+
     from station.model.estimate import Estimate
+    from station.model.physics import Gravity
     from station.survey.load import Survey
+    from station.survey.track import Track
 
 
 def cmd_survey_points(args: argparse.Namespace, survey: Survey) -> int:
@@ -161,89 +165,107 @@ def cmd_survey(args: argparse.Namespace) -> int:
             for row in zip(xg, yg, sg, kg, strict=True):
                 w.writerow([f"{row[0]:.3f}", f"{row[1]:.4f}", f"{row[2]:.4f}", f"{row[3]:.6f}"])
     if args.json:
-        _print_json(
-            {
-                "name": track.name,
-                "length_m": track.length_m,
-                "drop_m": track.drop_m,
-                "residual_rms_m": track.residual_rms_m,
-                "expected_sigma_m": sig,
-                "scatter_m": track.scatter_m,
-                "declared_sigma_m": track.declared_sigma_m,
-                "spline_edf": track.spline_edf,
-                "points_left_out": [p.id for p in track.points if not p.used],
-                "azimuth_deg": track.azimuth_deg,
-                "gravity_ms2": grav.value,
-                "gravity_source": grav.source,
-                "latitude_deg": track.latitude_deg,
-                "photocells": [
-                    {
-                        "id": pc.id,
-                        "x": pc.x,
-                        "y": pc.y,
-                        "slope_deg": pc.slope_deg,
-                        "lateral_m": pc.lateral_m,
-                    }
-                    for pc in track.photocells
-                ],
-                "profile": {
-                    "x": xg.tolist(),
-                    "y": yg.tolist(),
-                    "slope_deg": sg.tolist(),
-                    "curvature": kg.tolist(),
-                },
-                "points": [
-                    {
-                        "id": p.id,
-                        "x": p.x,
-                        "y": p.y,
-                        "sigma_m": p.sigma,
-                        "lateral_m": p.lateral_m,
-                        "residual_m": p.residual_m,
-                        "used": p.used,
-                    }
-                    for p in track.points
-                ],
-                "warnings": track.warnings,
-            }
-        )
+        _print_json(_track_json(track, grav, sig, xg, yg, sg, kg))
     else:
-        lat = [abs(p.lateral_m) for p in used]
-        print(f"survey   {track.name}  ({args.survey})")
-        if track.photocells:
-            print(
-                f"timed    {track.length_m:.2f} m along the track, {track.drop_m:.2f} m drop, "
-                f"{len(track.photocells)} photocells"
-            )
-        print(
-            f"profile  {len(used)} points over x = {prof.x_min:.1f} .. {prof.x_max:.1f} m, "
-            f"axis azimuth {track.azimuth_deg:.2f}°, largest lateral offset {max(lat):.2f} m"
-        )
-        print(
-            f"spline   points scatter {track.scatter_m * 1000:.1f} mm about the profile "
-            f"(estimated from the points; declared σ {sig * 1000:.1f} mm), "
-            f"residual RMS {track.residual_rms_m * 1000:.1f} mm, "
-            f"{track.spline_edf:.0f} effective parameters"
-        )
-        left_out = [p.id for p in track.points if not p.used]
-        if left_out:
-            print(f"left out {len(left_out)} point(s): {', '.join(left_out)} (see warnings)")
-        print(f"curvature {kg.min():+.5f} .. {kg.max():+.5f} 1/m")
-        print(f"gravity  {grav.describe()}")
-        if track.photocells:
-            print()
-            print(
-                f"{'photocell':<10}{'x [m]':>10}{'y [m]':>11}{'slope [°]':>11}{'lateral [m]':>13}"
-            )
-            for pc in track.photocells:
-                print(
-                    f"{pc.id:<10}{pc.x:>10.2f}{pc.y:>11.2f}{pc.slope_deg:>11.2f}{pc.lateral_m:>+13.2f}"
-                )
-        if args.plot:
-            print(f"picture  {args.plot}")
-        for w in track.warnings:
-            _warn(w)
+        _print_track(args, track, grav, sig, kg)
     return 0
+
+
+def _track_json(
+    track: Track,
+    grav: Gravity,
+    sig: float,
+    xg: np.ndarray,
+    yg: np.ndarray,
+    sg: np.ndarray,
+    kg: np.ndarray,
+) -> dict[str, Any]:
+    """``station survey --json``: the track, its QA values, the profile every metre."""
+    return {
+        "name": track.name,
+        "length_m": track.length_m,
+        "drop_m": track.drop_m,
+        "residual_rms_m": track.residual_rms_m,
+        "expected_sigma_m": sig,
+        "scatter_m": track.scatter_m,
+        "declared_sigma_m": track.declared_sigma_m,
+        "spline_edf": track.spline_edf,
+        "points_left_out": [p.id for p in track.points if not p.used],
+        "azimuth_deg": track.azimuth_deg,
+        "gravity_ms2": grav.value,
+        "gravity_source": grav.source,
+        "latitude_deg": track.latitude_deg,
+        "photocells": [
+            {
+                "id": pc.id,
+                "x": pc.x,
+                "y": pc.y,
+                "slope_deg": pc.slope_deg,
+                "lateral_m": pc.lateral_m,
+            }
+            for pc in track.photocells
+        ],
+        "profile": {
+            "x": xg.tolist(),
+            "y": yg.tolist(),
+            "slope_deg": sg.tolist(),
+            "curvature": kg.tolist(),
+        },
+        "points": [
+            {
+                "id": p.id,
+                "x": p.x,
+                "y": p.y,
+                "sigma_m": p.sigma,
+                "lateral_m": p.lateral_m,
+                "residual_m": p.residual_m,
+                "used": p.used,
+            }
+            for p in track.points
+        ],
+        "warnings": track.warnings,
+    }
+
+
+def _print_track(
+    args: argparse.Namespace, track: Track, grav: Gravity, sig: float, kg: np.ndarray
+) -> None:
+    """``station survey``'s text: the track, its QA values, the photocells, the warnings."""
+    prof = track.profile
+    used = [p for p in track.points if p.used]
+    lat = [abs(p.lateral_m) for p in used]
+    print(f"survey   {track.name}  ({args.survey})")
+    if track.photocells:
+        print(
+            f"timed    {track.length_m:.2f} m along the track, {track.drop_m:.2f} m drop, "
+            f"{len(track.photocells)} photocells"
+        )
+    print(
+        f"profile  {len(used)} points over x = {prof.x_min:.1f} .. {prof.x_max:.1f} m, "
+        f"axis azimuth {track.azimuth_deg:.2f}°, largest lateral offset {max(lat):.2f} m"
+    )
+    print(
+        f"spline   points scatter {track.scatter_m * 1000:.1f} mm about the profile "
+        f"(estimated from the points; declared σ {sig * 1000:.1f} mm), "
+        f"residual RMS {track.residual_rms_m * 1000:.1f} mm, "
+        f"{track.spline_edf:.0f} effective parameters"
+    )
+    left_out = [p.id for p in track.points if not p.used]
+    if left_out:
+        print(f"left out {len(left_out)} point(s): {', '.join(left_out)} (see warnings)")
+    print(f"curvature {kg.min():+.5f} .. {kg.max():+.5f} 1/m")
+    print(f"gravity  {grav.describe()}")
+    if track.photocells:
+        print()
+        print(f"{'photocell':<10}{'x [m]':>10}{'y [m]':>11}{'slope [°]':>11}{'lateral [m]':>13}")
+        for pc in track.photocells:
+            print(
+                f"{pc.id:<10}{pc.x:>10.2f}{pc.y:>11.2f}{pc.slope_deg:>11.2f}{pc.lateral_m:>+13.2f}"
+            )
+    if args.plot:
+        print(f"picture  {args.plot}")
+    for w in track.warnings:
+        _warn(w)
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:

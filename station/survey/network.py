@@ -259,6 +259,10 @@ def place_setups(
 ) -> tuple[ObservationSet, NetworkResult | None]:
     """Give every setup without coordinates its position and orientation; observations are
     re-pointed to their placed setup. Returns the set unchanged when nothing needs placing."""
+    used = {id(o.setup) for o in obs.observations}
+    if any(not s.known and id(s) not in used for s in obs.setups):
+        # a setup without coordinates and without shots holds nothing to place or reduce
+        obs = replace(obs, setups=[s for s in obs.setups if s.known or id(s) in used])
     if not _needs_network(obs):
         return obs, None
     net = _Network(obs, path, k, precision or Precision())
