@@ -454,3 +454,42 @@ def test_a_damaged_file_is_read_or_refused_in_one_located_line(tmp_path_factory,
         assert msg.startswith(str(path)) and "\n" not in msg
     else:
         assert all(math.isfinite(p.e + p.n + p.h) for p in s.points.values())
+
+
+#: lines of a real SDR2x job (public repository r-barnes/sdr33_triangulation, example.sdr,
+#: commit 2f93594179f4176b64ec1f8738d97860522aee48): a traverse, setup 0001 at 0, 0, 0 and
+#: setup 0002 placed by the data collector, each oriented by its 07 back bearing; the
+#: collector's own notes give the misclosure on 0001: "EDM tol. error 0.012" (m) and
+#: "V.obs tol. error 0-00'53"" (53" at 153 m, 0.039 m)
+SDR2X_TRAVERSE = """\
+00NMSDR20     V03-05    25-Sep-10 22:10 113111
+10NM20100925        
+02TP00010.000000000.000000000.000000001.59500000                
+07TP000199990.00000000121.855555
+03NM1.47400000
+09F10001999928.950000090.2750000121.855555                
+09F100011001          90.2166666114.030555FIT-TEST        
+08TP000269.3026770137.0308650.71658242                
+02TP000269.3030000137.0310000.717000001.68500000                
+07TP00020001243.172137104.975000
+09F100020001153.55000090.3611111104.975000                
+"""  # noqa: W291 - the record's own trailing blanks
+
+
+def test_real_sdr2x_traverse_closes_within_the_collectors_tolerance():
+    from station.survey.polar import reduce_observation
+
+    obs = parse_sdr(SDR2X_TRAVERSE, "example.sdr")
+    assert obs.format == "Sokkia SDR2x"
+    s1, s2 = obs.setups
+    assert (s1.station, s1.e, s1.n, s1.h, s1.instrument_height) == ("1", 0.0, 0.0, 0.0, 1.595)
+    assert (s2.station, s2.e, s2.n, s2.h, s2.instrument_height) == ("2", 137.031, 69.303,
+                                                                    0.717, 1.685)  # fmt: skip
+    # 07: back bearing 0° on circle 121.855555°, so the shot on that circle reading runs north
+    north = reduce_observation(obs.observations[0], k=None)
+    assert abs(north.e) < 1e-9 and abs(north.n - 28.95 * math.sin(math.radians(90.275))) < 1e-9
+    # setup 0002 looks back at 0001: it lands within the collector's own tolerances
+    back = reduce_observation(obs.observations[1], k=None)
+    assert back.point == "1" and math.hypot(back.e, back.n) < 0.015 and abs(back.h) < 0.045
+    assert obs.unreduced == {"1001": 7}  # the angle-only shot, named with its line
+    assert "without a slope distance not reduced: 1001 (line 7)" in obs.warnings[0]
