@@ -493,3 +493,20 @@ def test_real_sdr2x_traverse_closes_within_the_collectors_tolerance():
     assert back.point == "1" and math.hypot(back.e, back.n) < 0.015 and abs(back.h) < 0.045
     assert obs.unreduced == {"1001": 7}  # the angle-only shot, named with its line
     assert "without a slope distance not reduced: 1001 (line 7)" in obs.warnings[0]
+
+
+def test_sdr_instrument_record_turns_elevation_angles_into_zenith_angles():
+    setup = Setup("1", 10.0, 20.0, 1.0, 1.5)
+    obs = ObservationSet(setups=[setup])
+    obs.observations = [Observation("P1", 1.0, math.pi / 2 - 0.1, 12.0, None, 1.3, setup)]
+    text = decode(W.sdr33(obs, gon=False))
+    zenith = f"{math.degrees(math.pi / 2 - 0.1):.8f}"[:16]
+    assert zenith in text
+    instrument = "01NM:SET5F V01-00    020078                      32" + " " * 20
+    as_elevation = text.replace(zenith, f"{math.degrees(0.1):.8f}".ljust(len(zenith))[:16])
+    as_elevation = as_elevation.replace("10NMJOB1", instrument + "\r\n10NMJOB1")
+    got = parse_sdr(as_elevation, "e.sdr").observations[0]
+    assert abs(got.zenith - (math.pi / 2 - 0.1)) < 1e-8
+    assert parse_sdr(text.replace("10NMJOB1", instrument[:-21] + "1\r\n10NMJOB1")).observations[
+        0
+    ].zenith == pytest.approx(math.pi / 2 - 0.1)

@@ -17,7 +17,9 @@ files ids are 4 and numbers 10 (the ``10`` job record's point-id flag decides, a
 - ``08`` coordinates: id, two plane coordinates, height, code (a point given by coordinates).
 - ``09`` observation (``F1``/``F2``): station, target, slope distance, zenith angle, horizontal
   angle, code.
-- other records (``01`` instrument, ``06`` scale, ``13`` notes/comments, …) are passed over.
+- ``01`` instrument: column 51 says how vertical angles are read (1 zenith angle, 2 elevation
+  angle from the horizontal, turned into a zenith angle here).
+- other records (``06`` scale, ``13`` notes/comments, …) are passed over.
 """
 
 from __future__ import annotations
@@ -131,6 +133,7 @@ class _Reader:
         self.setup: Setup | None = None
         self.target_h = 0.0
         self.coords: dict[str, KnownPoint] = {}
+        self.elevation = False  # vertical angles as elevations (01 record), not zenith angles
 
     def rec(self, line: str, lineno: int) -> _Record:
         return _Record(line, lineno, self.path, self.id_w, self.num_w)
@@ -220,12 +223,18 @@ class _Reader:
         tgt = r.ident("target")
         sd = r.number("slope distance")
         zen = r.need(r.number("zenith angle"), "zenith angle") * u.angle
+        if self.elevation:  # the instrument record says vertical angles are elevations
+            zen = math.pi / 2.0 - zen
         hz = r.need(r.number("horizontal angle"), "horizontal angle") * u.angle
         if not u.clockwise:
             hz = -hz
         if self.setup is None or stn != self.setup.station:
-            self.setup = Setup(station=stn, line=lineno, known=False)
-            self.out.setups.append(self.setup)
+            earlier = [s for s in self.out.setups if s.station == stn]
+            if earlier:  # back on a station set up before: its coordinates and orientation
+                self.setup = earlier[-1]
+            else:
+                self.setup = Setup(station=stn, line=lineno, known=False)
+                self.out.setups.append(self.setup)
         if sd is None:
             self.out.unreduced.setdefault(tgt, lineno)
             return
@@ -257,6 +266,8 @@ class _Reader:
                 self.id_w, self.num_w = 4, 10
         elif kind == "10" and len(line) > 20:
             self.id_w, self.num_w = (16, 16) if line[20] == "1" else (4, 10)
+        elif kind == "01" and len(line) > 50:
+            self.elevation = line[50] == "2"
         elif kind == "02":
             self.station(line, lineno)
         elif kind == "03":
