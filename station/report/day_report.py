@@ -158,6 +158,12 @@ def _style(ax) -> None:
         ax.spines[side].set_visible(False)
 
 
+def _plain(text: Any) -> str:
+    """A name as matplotlib should draw it: as typed (``$…$`` would be read as math, and a
+    name like ``wax $5 $10`` would end the report in a parse error)."""
+    return str(text).replace("$", r"\$")
+
+
 def item_colours(items: Sequence[str]) -> dict[str, str]:
     return {it: PALETTE[k % len(PALETTE)] for k, it in enumerate(items)}
 
@@ -366,7 +372,7 @@ def time_of_day_axes(descents: Sequence[DescentView], colours: dict[str, str],
             if ci is not None:
                 ac.axhspan(ci[0], ci[1], color="#333333", alpha=0.08)
     for it, colour in colours.items():
-        am.plot([], [], "o", color=colour, label=it)
+        am.plot([], [], "o", color=colour, label=_plain(it))
     am.plot([], [], "o", color=GREY, mfc="white", label="invalid or not ok")
     if comparison is not None:
         label = "joint fit μ per item"
@@ -427,10 +433,10 @@ def comparison_figure(res, colours: dict[str, str]) -> str:
         right.annotate(f"P(faster) {1 - cmp.p_a_faster:.2f}, {-cmp.delta_t_s * 1000:+.0f} ms",
                        (hi, k), textcoords="offset points", xytext=(6, -3), fontsize=8)  # fmt: skip
     right.axvline(0, color="#555555", linewidth=0.8)
-    left.set_yticks(y, [f"{len(names) - k}. {n}" for k, n in enumerate(names)])
+    left.set_yticks(y, [f"{len(names) - k}. {_plain(n)}" for k, n in enumerate(names)])
     left.set_ylim(-0.6, len(names) - 0.4)
     left.set_xlabel("μ of the item (joint fit), 90 % interval")
-    right.set_xlabel(f"Δμ = item − {res.reference}  (< 0: glides better)")
+    right.set_xlabel(f"Δμ = item − {_plain(res.reference)}  (< 0: glides better)")
     lo_x, hi_x = right.get_xlim()
     right.set_xlim(lo_x, hi_x + 0.45 * (hi_x - lo_x))  # room for the labels
     for a in (left, right):
