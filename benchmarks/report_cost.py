@@ -52,11 +52,11 @@ def _parts(session: str) -> dict[str, float]:
 
     def wrap(name, fn):
         def inner(*a, **k):
-            t0 = time.perf_counter()
+            t0 = time.process_time()
             try:
                 return fn(*a, **k)
             finally:
-                timed[name] = timed.get(name, 0.0) + time.perf_counter() - t0
+                timed[name] = timed.get(name, 0.0) + time.process_time() - t0
 
         return inner
 
@@ -64,7 +64,7 @@ def _parts(session: str) -> dict[str, float]:
         setattr(dr, n, wrap(n, fn))
     try:
         with tempfile.TemporaryDirectory() as out:
-            total = _report(session, out)
+            total = _report(session, out, time.process_time)
     finally:
         for n, fn in saved.items():
             setattr(dr, n, fn)
@@ -93,7 +93,7 @@ def run(runs: int) -> None:
                 print(f"{n:3d} descents: report {med[n]:6.2f} s {label:<4} (runs: "
                       f"{', '.join(f'{t:.2f}' for t in times[n])})")  # fmt: skip
             print(f"ratio 40 / 8 ({label}): {med[40] / med[8]:.2f}  (target ≤ 1.5)")
-        print("by part (one report each):")
+        print("by part, CPU (one report each):")
         parts = {n: _parts(sessions[n]) for n in SIZES}
         for name in parts[SIZES[0]]:
             a, b = parts[8][name], parts[40][name]
