@@ -24,11 +24,15 @@ import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
 from station import __version__
+from station.model.estimate import MISSING, Estimate
+
+if TYPE_CHECKING:
+    from station.model.compare import JointResult
 
 #: colours of the test items, in order of their first descent (matplotlib's tab10)
 PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd",
@@ -67,8 +71,9 @@ class DescentView:
     notes: str
     flags: str
     photocells_used: int
-    estimates: dict[str, float | None]
-    ci90: dict[str, tuple[float, float] | None]
+    mu: Estimate
+    cda: Estimate
+    v0: Estimate
     residuals_ms: dict[str, float]  # photocell -> computed − measured, ms
     rms_ms: float | None
     speed_x: np.ndarray | None = None
@@ -95,7 +100,7 @@ class DayData:
     header: dict[str, str] = field(default_factory=dict)  # what the results were computed from
     summary: str = ""  # what the timer sent
     config_metadata: dict[str, Any] = field(default_factory=dict)
-    comparison: Any | None = None  # station.model.compare.JointResult
+    comparison: JointResult | None = None
     comparison_error: str | None = None
     compared: list[Any] = field(default_factory=list)  # DescentData that entered the fit
     config_text: str = ""
@@ -124,8 +129,9 @@ def descent_views(results: Sequence[Any]) -> list[DescentView]:
                 notes=row.notes,
                 flags="; ".join(row.flags),
                 photocells_used=row.photocells_used,
-                estimates=dict(f.estimates) if f else {},
-                ci90=dict(f.ci90) if f else {},
+                mu=f.mu if f else MISSING,
+                cda=f.cda if f else MISSING,
+                v0=f.v0 if f else MISSING,
                 residuals_ms={k: v * 1000 for k, v in f.residuals_s.items()} if f else {},
                 rms_ms=row.rms_residual_ms,
                 speed_x=r.speed_x,
@@ -330,26 +336,26 @@ def time_of_day_axes(descents: Sequence[DescentView], colours: dict[str, str],
     hours_all: list[float] = []
     groups: dict[tuple[str, bool], list[DescentView]] = {}
     for d in descents:
-        if d.estimates.get("mu") is None:
+        if d.mu.value is None:
             continue
         hours_all.append(d.start_hours)
         groups.setdefault((d.item, d.good), []).append(d)
     for (item, good), ds in groups.items():
         colour = colours.get(item, GREY) if good else GREY
         for ax, key in ((am, "mu"), (ac, "cda")):
-            pts = [d for d in ds if d.estimates.get(key) is not None]
+            pts = [d for d in ds if getattr(d, key).value is not None]
             if not pts:
                 continue
             h = np.array([d.start_hours for d in pts])
-            v = np.array([d.estimates[key] for d in pts], dtype=float)
-            ci = [d.ci90.get(key) for d in pts]
+            v = np.array([getattr(d, key).value for d in pts], dtype=float)
+            ci = [getattr(d, key).ci90 for d in pts]
             lo = np.array([v[k] - c[0] if c else 0.0 for k, c in enumerate(ci)])
             hi = np.array([c[1] - v[k] if c else 0.0 for k, c in enumerate(ci)])
             ax.errorbar(h, v, yerr=[lo, hi], fmt="o", color=colour,
                         mfc=colour if good else "white", ms=6, capsize=3,
                         linewidth=1.2)  # fmt: skip
         for d in ds:
-            am.annotate(str(d.number), (d.start_hours, d.estimates["mu"]),
+            am.annotate(str(d.number), (d.start_hours, d.mu.value),
                         textcoords="offset points", xytext=(5, 3), fontsize=7,
                         color="#555555")  # fmt: skip
     t_ref = drift_reference_hours(compared)
@@ -367,10 +373,10 @@ def time_of_day_axes(descents: Sequence[DescentView], colours: dict[str, str],
             am.annotate(f"t̄ {_hhmm(t_ref)}", (t_ref, 1.0), xycoords=("data", "axes fraction"),
                         xytext=(3, -10), textcoords="offset points", fontsize=7,
                         color="#555555")  # fmt: skip
-        for _g, (v, ci) in comparison.cda.items():
-            ac.axhline(v, color="#333333", linestyle="--", linewidth=1.0)
-            if ci is not None:
-                ac.axhspan(ci[0], ci[1], color="#333333", alpha=0.08)
+        for cda in comparison.cda.values():
+            ac.axhline(cda.value, color="#333333", linestyle="--", linewidth=1.0)
+            if cda.ci90 is not None:
+                ac.axhspan(cda.ci90[0], cda.ci90[1], color="#333333", alpha=0.08)
     for it, colour in colours.items():
         am.plot([], [], "o", color=colour, label=_plain(it))
     am.plot([], [], "o", color=GREY, mfc="white", label="invalid or not ok")
@@ -481,16 +487,16 @@ def _table(head: Sequence[str] | None, rows: Sequence[Sequence[Any]], cls: str =
 
 
 def _descent_rows(descents: Sequence[DescentView]) -> list[list[str]]:
-    def rng(d: DescentView, key: str, spec: str) -> str:
-        v, c = d.estimates.get(key), d.ci90.get(key)
+    def rng(est: Estimate, spec: str) -> str:
+        v, c = est.value, est.ci90
         if v is None:
             return "—"
         return f"{format(v, spec)} [{format(c[0], spec)}, {format(c[1], spec)}]" if c else (
             format(v, spec))  # fmt: skip
 
     return [
-        [str(d.number), d.start_time.replace("T", " ")[:19], d.item, rng(d, "mu", ".5f"),
-         rng(d, "cda", ".4f"), _num(d.estimates.get("v0"), ".2f"), _num(d.rms_ms, ".2f"),
+        [str(d.number), d.start_time.replace("T", " ")[:19], d.item, rng(d.mu, ".5f"),
+         rng(d.cda, ".4f"), _num(d.v0.value, ".2f"), _num(d.rms_ms, ".2f"),
          str(d.photocells_used), d.status,
          "; ".join(x for x in (d.invalid_reason and f"invalid: {d.invalid_reason}", d.notes,
                                d.flags) if x)]
@@ -751,8 +757,8 @@ def _comparison_section(day: DayData, colours: dict[str, str], format_comparison
             + (f", μ of each item at {_hhmm(t_ref)}" if t_ref is not None else "")
             + ("" if res.drift_separable else " — NOT separable from the items")
         )
-    cda = "; ".join(f"{_e(g)} {v:.4f} m²" + (f" [{c[0]:.4f}, {c[1]:.4f}]" if c else " (fixed)")
-                    for g, (v, c) in res.cda.items())  # fmt: skip
+    cda = "; ".join(f"{_e(g)} {e.value:.4f} m²" + (f" [{e.lo:.4f}, {e.hi:.4f}]" if e.ci90 else
+                    " (fixed)") for g, e in res.cda.items())  # fmt: skip
     notes = "".join(f"<p class='warn'>{_e(w)}</p>" for w in res.warnings)
     left_out = "".join(f"<li>descent {n}: {_e(why)}</li>" for n, why in res.excluded)
     intro = (
