@@ -145,6 +145,8 @@ class JointResult:
     warnings: list[str] = field(default_factory=list)
     status: str = "ok"
     message: str = ""
+    #: covariance of the items' μ, in the order of ``items`` (the season store joins days by it)
+    item_cov: np.ndarray | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -627,6 +629,7 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
             "photocell or survey error, a wrong item); the intervals are not to be trusted"
         )
     base = np.full(n_d, cda_fixed) if cda_fixed is not None else glob[col_g]
+    mu_cols = [i_mu + ii * per_item for ii in range(len(items))]
     effects = [
         DescentEffect(
             d.number, float(base[k] * math.exp(loc[k, 0])), float(loc[k, 1]), float(loc[k, 2])
@@ -652,6 +655,7 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
         warnings=warnings,
         status=status,
         message=message,
+        item_cov=cov[np.ix_(mu_cols, mu_cols)].copy(),
     )
 
 

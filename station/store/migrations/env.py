@@ -1,0 +1,19 @@
+"""Alembic's environment: the connection is handed over by :mod:`station.store.db` (never an
+alembic.ini, never a URL of its own), and SQLite tables are altered in batch mode (SQLite lacks
+most of ALTER TABLE)."""
+
+from __future__ import annotations
+
+from alembic import context
+
+from station.store.schema import metadata
+
+connection = context.config.attributes["connection"]
+context.configure(
+    connection=connection,
+    target_metadata=metadata,
+    render_as_batch=connection.dialect.name == "sqlite",
+    transaction_per_migration=False,
+)
+with context.begin_transaction():
+    context.run_migrations()
