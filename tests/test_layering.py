@@ -99,3 +99,17 @@ def test_the_command_line_loads_no_ui_toolkit_and_no_simulators():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""
+
+
+def test_only_the_edges_import_the_season_store():
+    """The season store (a database) is an edge: the command line, the UI and the report use
+    it; the core and the session code never do."""
+    allowed = ("station.cli", "station.ui", "station.report", "station.store")
+    offenders = [
+        name
+        for name in all_modules()
+        if not name.startswith(allowed)
+        and any(n == "station.store" or n.startswith("station.store.")
+                for n in imported_roots(module_path(name)))
+    ]  # fmt: skip
+    assert offenders == []
