@@ -40,8 +40,10 @@ from dataclasses import dataclass
 from typing import IO, Any
 
 from station.errors import InputError
+from station.model.compare import collect, format_comparison
 from station.session import store as sessions
 from station.session.analysis import DescentResult
+from station.session.comparison import compare_results
 from station.session.config import SerialConfig, StationConfig
 from station.session.day import Day, Effect
 from station.session.rawlog import Chunk, RawLogWriter
@@ -54,6 +56,7 @@ from station.session.records import (
     MetadataAnnotation,
     ModelChange,
     Progress,
+    ResultRow,
 )
 from station.session.replay import replay_chunks, source_date
 from station.survey.load import load_survey
@@ -88,42 +91,18 @@ class Listener:
         """Something failed and the acquisition went on."""
         print(f"warning: {text}", file=sys.stderr, flush=True)
 
-    def ended(self, summary: str) -> None:
-        """A replay reached its end and every descent is fitted."""
+    def ended(self, counts: LineCounts, results: tuple[DescentResult, ...]) -> None:
+        """A replay reached its end and every descent is fitted: the lines read and the
+        descents as the results show them (the summary is the listener's to word)."""
 
 
-def _print(text: str) -> None:
-    print(text, flush=True)  # a line per descent as it happens, also through a pipe (tee)
-
-
-class PrintListener(Listener):
-    """``station record`` and ``replay``: one line per descent and per connection change."""
-
-    def __init__(self, out: Callable[[str], None] = _print, port: str = "") -> None:
-        self.out = out
-        self.port = port
-        self._told: set[int] = set()  # descents already printed: a second line is an update
-
-    def connection(self, state: str, detail: str) -> None:
-        if state == "disconnected":
-            self.out(f"timer disconnected ({detail}); reconnecting")
-        elif state == "connected":
-            self.out(f"timer connected on {detail}")
-        elif state == "open-failed":
-            self.out(f"cannot open {self.port} ({detail}); retrying")
-        elif state == "error":
-            self.out(f"error: {detail}")
-
-    def result(self, result: DescentResult) -> None:
-        from station.report.text import describe
-
-        n = result.descent.number
-        again = "  (updated: an annotation or a refit)" if n in self._told else ""
-        self._told.add(n)
-        self.out(describe(result) + again)
+class QuietListener(Listener):
+    """Says nothing, warnings neither: a replay whose caller reports only its results (export,
+    annotate, compare, report), where a line per descent or a repeated site warning would
+    bury the one answer asked for."""
 
     def warning(self, text: str) -> None:
-        self.out(f"warning: {text}")
+        pass
 
 
 @dataclass(frozen=True)
@@ -190,6 +169,12 @@ class Acquisition:
         self._announced: int | None = None
         self._closed = False
         self._csv_problem: str | None = None  # said once, not after every descent
+        # what the session's results CSV holds (rows by descent, its size): a new descent is
+        # appended to it; None: unknown (not written yet, or a write failed): rewritten in full
+        self._csv_rows: dict[int, ResultRow] | None = None
+        self._csv_size = 0
+        self._csv_inode = 0
+        self._header: dict[str, str] | None = None  # the CSV's header, made once
         self._closing = False
         self._jobs: queue.Queue[object] = queue.Queue()
         #: held while the session is recorded (``station sessions``, ``annotate`` try it)
@@ -547,10 +532,8 @@ class Acquisition:
             return
         if isinstance(job, _End):
             with self.lock:
-                from station.report.text import summary
-
-                text = summary(day.processor.line_counts(), day.snapshot())
-            self._tell(self.listener.ended, text)
+                counts, snapshot = day.processor.line_counts(), day.snapshot()
+            self._tell(self.listener.ended, counts, snapshot)
             return
         with self.lock:
             if isinstance(job, _Fit):
@@ -563,9 +546,8 @@ class Acquisition:
         fitted = [day.analyser.run(j) for j in fit_jobs]  # outside the lock: the reader goes on
         with self.lock:
             views = [day.store(r) for r in fitted] + [day.view(n) for n in effect.changed]
-            snapshot = day.snapshot() if self.session_dir is not None and views else None
-        if snapshot is not None:
-            self._write_session_csv(snapshot)
+        if views:
+            self._save_csv(views)
         for v in views:
             self._tell(self.listener.result, v)
 
@@ -574,24 +556,76 @@ class Acquisition:
             snapshot = self.day.snapshot()
         self._tell(self.listener.comparison, comparison_text(self.day.track, snapshot))
 
+    def _save_csv(self, results: Sequence[DescentResult]) -> None:
+        """Bring the session's results CSV up to date with ``results`` (those just fitted or
+        marked; at the end, all). A descent after every one the file holds is appended to it,
+        so a 2000-descent day costs per descent what its first did; an earlier row that changed
+        (an annotation, a refit, descents ending out of order) rewrites the file in full. The
+        bytes are the same either way: those of a replay's CSV."""
+        if self.session_dir is None:
+            return
+        rows = self._csv_rows
+        new: dict[int, ResultRow] = {}
+        if rows is not None:
+            last = max(rows, default=0)
+            for r in sorted(results, key=lambda r: r.number):
+                old = rows.get(r.number)
+                if old is r.row or old == r.row:
+                    new.pop(r.number, None)  # unchanged (a later view may change it again)
+                elif r.number in rows or r.number < last:
+                    rows = None  # an earlier row changed: the file is rewritten
+                    break
+                else:
+                    new[r.number] = r.row
+        if rows is not None and not new:
+            return  # the file holds them already
+        if rows is not None:
+            from station.session.results import append_result_rows
+
+            path = os.path.join(self.session_dir, sessions.RESULTS)
+            try:
+                self._csv_size = append_result_rows(
+                    path, list(new.values()), self._csv_size, self._csv_inode
+                )
+            except Exception:  # noqa: BLE001 - written in full below, which says what failed
+                self._csv_rows = None
+            else:
+                rows.update(new)
+                return
+        with self.lock:
+            snapshot = self.day.snapshot()
+        self._write_session_csv(snapshot)
+
     def _write_session_csv(self, snapshot: Sequence[DescentResult]) -> None:
-        """The session's results CSV; one that cannot be written is said once, and written
-        again after the next descent (the raw log, written first, is not affected)."""
+        """The session's results CSV in full; one that cannot be written is said once, and
+        written again after the next descent (the raw log, written first, is not affected)."""
         if self.session_dir is None:
             return
         path = os.path.join(self.session_dir, sessions.RESULTS)
+        self._csv_rows = None
         problem = sessions.save_results(path, lambda p: self._write(snapshot, p))
+        if problem is None:
+            with contextlib.suppress(OSError):  # unknown size: the next write is in full
+                st = os.stat(path)
+                self._csv_size, self._csv_inode = st.st_size, st.st_ino
+                self._csv_rows = {r.number: r.row for r in snapshot}
         if problem is not None and problem != self._csv_problem:
             self._tell(self.listener.warning, problem)
         elif problem is None and self._csv_problem is not None:
             self._tell(self.listener.warning, f"{path} written again: it is complete")
         self._csv_problem = problem
 
+    def _results_header(self) -> dict[str, str]:
+        """What the results were computed from: the session's config and survey do not change
+        during the day, so their digests are read once."""
+        if self._header is None:
+            self._header = sessions.results_header(self.config, self.day.track.name)
+        return self._header
+
     def _write(self, snapshot: Sequence[DescentResult], path: str) -> None:
         from station.session.results import write_result_rows
 
-        header = sessions.results_header(self.config, self.day.track.name)
-        write_result_rows([r.row for r in snapshot], path, header)
+        write_result_rows([r.row for r in snapshot], path, self._results_header())
 
     def _tell(self, fn: Callable[..., None], *args: Any) -> None:
         """Call the listener; what it raises stays with it."""
@@ -636,7 +670,7 @@ class Acquisition:
                     self._run(job)
                 with self.lock:
                     snapshot = self.day.snapshot()
-                self._write_session_csv(snapshot)
+                self._save_csv(snapshot)  # written already, unless a write failed
                 if self.rawlog is not None:
                     self.rawlog.close()
                 if self.recording_lock is not None:  # inside the annotations lock: see above
@@ -652,11 +686,10 @@ class Acquisition:
         with self.lock:
             return self.day.snapshot()
 
-    def summary(self) -> str:
-        from station.report.text import summary
-
+    def line_counts(self) -> LineCounts:
+        """The lines read so far and what became of them (for the summary a command prints)."""
         with self.lock:
-            return summary(self.day.processor.line_counts(), self.day.snapshot())
+            return self.day.processor.line_counts()
 
     def write_csv(self, path: str) -> None:
         """The results CSV at ``path`` (export, ``replay --csv``, the UI's ``e``)."""
@@ -666,8 +699,7 @@ class Acquisition:
         """The results CSV into an open text file: ``--csv -`` writes to standard output."""
         from station.session.results import write_result_rows_to
 
-        header = sessions.results_header(self.config, self.day.track.name)
-        write_result_rows_to(fh, [r.row for r in self.results()], header)
+        write_result_rows_to(fh, [r.row for r in self.results()], self._results_header())
 
 
 def _effect_now(day: Day, a: Annotation) -> Effect:
@@ -683,19 +715,15 @@ def _effect_now(day: Day, a: Annotation) -> Effect:
     return Effect(changed=(a.descent,))
 
 
-def comparison_text(track: Any, results: Sequence[DescentResult]) -> str:
+def comparison_text(track: Track, results: Sequence[DescentResult]) -> str:
     """The joint fit of the day's valid descents, as the UI shows it."""
-    from station.model.compare import CompareError, collect, format_comparison, joint_fit
-
-    data, excluded, windy = collect(results)
-    if len(data) < 2:
+    if len(collect(results)[0]) < 2:
         return "no comparison yet: it needs at least two fitted descents"
-    try:
-        res = joint_fit(track, data)
-    except CompareError as exc:
-        return f"no comparison yet: {exc}"
-    res.excluded, res.wind_flagged = excluded, windy
-    return format_comparison(res, len(data)) + "".join(f"\n! {w}" for w in res.warnings)
+    day = compare_results(track, results)
+    if day.result is None:
+        return f"no comparison yet: {day.error}"
+    res = day.result
+    return format_comparison(res, len(day.compared)) + "".join(f"\n! {w}" for w in res.warnings)
 
 
 # ----------------------------------------------------------------------------- commands
@@ -704,7 +732,7 @@ def comparison_text(track: Any, results: Sequence[DescentResult]) -> str:
 def record(
     config: StationConfig,
     session_dir: str,
-    out: Callable[[str], None] = _print,
+    listener: Listener,
     max_descents: int | None = None,
     duration_s: float | None = None,
 ) -> Acquisition:
@@ -713,7 +741,7 @@ def record(
     from station.session.serialport import ensure_port_free
 
     ensure_port_free(config.serial)  # a second recorder on the port: one line, no session made
-    acq = Acquisition.open(config, PrintListener(out, config.serial.port), session_dir=session_dir)
+    acq = Acquisition.open(config, listener, session_dir=session_dir)
     stop = threading.Event()
     previous = {}
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -745,14 +773,16 @@ def record(
 def replay(
     source: str,
     config: StationConfig,
-    out: Callable[[str], None] = print,
+    listener: Listener | None = None,
     speed: float | None = None,
     date: dt.date | None = None,
     warnings: list[str] | None = None,
 ) -> Acquisition:
-    """Feed a session (with its annotations) or a plain capture through the loop, in line."""
+    """Feed a session (with its annotations) or a plain capture through the loop, in line.
+    Without a listener the replay says nothing as it goes: the caller reports its results
+    (and ``warnings`` collects what the raw log's reader passed over)."""
     acq = Acquisition.open(
-        config, PrintListener(out), date=source_date(source, date), threaded=False
+        config, listener or QuietListener(), date=source_date(source, date), threaded=False
     )
     acq.replay(source, speed, warnings)
     acq.close()

@@ -14,7 +14,9 @@ note contains.
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import io
 import math
 import operator
 import os
@@ -23,6 +25,8 @@ from collections.abc import Sequence
 from typing import IO, Any
 
 from station import __version__
+from station.errors import InputError
+from station.files import decode_text, read_bytes
 from station.session.records import ResultRow, csv_record
 
 COLUMNS = [
@@ -128,6 +132,39 @@ def write_results_to(fh: IO[str], rows: list[dict[str, Any]], header: dict[str, 
     w.writerows(cells)
 
 
+def append_results(
+    path: str, rows: list[dict[str, Any]], size: int, inode: int | None = None
+) -> int:
+    """Append rows to a results CSV that is ``size`` bytes long, as :func:`write_results_to`
+    would have written them after the rows before: a recording adds each descent's row
+    without rewriting the day's (the per-descent cost stays flat over a 2000-descent day).
+
+    Returns the new size. The file must still be ``size`` bytes and the file ``inode`` (no one
+    else wrote or replaced it since): otherwise ``ValueError``, and the caller rewrites it. A
+    write that fails (disk full) is undone (the file cut back to ``size``) and raised: no
+    reader sees half a row."""
+    buf = io.StringIO()
+    w = csv.writer(buf, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
+    w.writerows(results_frame(rows))
+    data = buf.getvalue().encode("utf-8")
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+    try:
+        st = os.fstat(fd)
+        if st.st_size != size or (inode is not None and st.st_ino != inode):
+            raise ValueError(f"{path} changed since it was written")
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view) :]
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.ftruncate(fd, size)
+            raise
+    finally:
+        os.close(fd)
+    return size + len(data)
+
+
 def write_results(rows: list[dict[str, Any]], path: str, header: dict[str, str]) -> None:
     """Write atomically (temp file + rename), so a reader never sees half a file."""
     folder = os.path.dirname(os.path.abspath(path))
@@ -158,32 +195,62 @@ def _umask() -> int:
     return mask
 
 
+#: a day's results CSV: a few hundred bytes a descent
+MAX_RESULTS = 64 * 1024 * 1024
+
+
 def read_results(path: str) -> list[dict[str, Any]]:
     """The rows as written: numbers as int (descent, photocells_used) or float, text as str,
     empty cells as None. Only the ``#`` lines above the column names are skipped: a line of
-    quoted notes may begin with ``#`` too."""
-    with open(path, encoding="utf-8", newline="") as fh:
-        lines = fh.readlines()
+    quoted notes may begin with ``#`` too.
+
+    The one reader of a results CSV (``station sessions``, ``annotate``'s check of the
+    descents, the tests). Only a regular file is opened, and at most :data:`MAX_RESULTS` bytes
+    of it are read, so a FIFO or a link to ``/dev/zero`` is one line, not a hang; a file that
+    is not a results CSV (binary, damaged, a number column with text) is one
+    :class:`InputError` naming the file, its line and the column."""
+    what = "results CSV"
+    text = decode_text(read_bytes(path, MAX_RESULTS, what), path, what)
+    lines = io.StringIO(text, newline="").readlines()  # line ends as the csv module wants
     start = next((i for i, line in enumerate(lines) if not line.startswith("#")), len(lines))
     reader = csv.reader(lines[start:])
-    names = next(reader, [])
-    rows = []
-    for cells in reader:
-        row: dict[str, Any] = {}
-        for col, cell in zip(names, cells, strict=False):
-            if cell == "":
-                row[col] = None
-            elif col in TEXT_COLUMNS or col == "start_time" or col not in COLUMNS:
-                row[col] = cell
-            else:
-                row[col] = int(cell) if col in INT_COLUMNS else float(cell)
-        rows.append(row)
+    try:
+        names = next(reader, [])
+        if names and "descent" not in names:
+            raise InputError(f"not a {what}: no descent column", path=path, line=start + 1)
+        rows = []
+        for cells in reader:
+            row: dict[str, Any] = {}
+            for col, cell in zip(names, cells, strict=False):
+                row[col] = _cell(cell, col, path, start + reader.line_num)
+            rows.append(row)
+    except csv.Error as exc:
+        raise InputError(f"not a {what}: {exc}", path=path, line=start + reader.line_num) from None
     return rows
+
+
+def _cell(cell: str, col: str, path: str, line: int) -> Any:
+    if cell == "":
+        return None
+    if col in TEXT_COLUMNS or col == "start_time" or col not in COLUMNS:
+        return cell
+    try:
+        return int(cell) if col in INT_COLUMNS else float(cell)
+    except ValueError:
+        kind = "a whole number" if col in INT_COLUMNS else "a number"
+        raise InputError(f"{cell[:20]!r} is not {kind}", path=path, line=line, field=col) from None
 
 
 def write_result_rows(rows: Sequence[ResultRow], path: str, header: dict[str, str]) -> None:
     """The results CSV of typed rows: each row's one CSV view (:func:`csv_record`)."""
     write_results([csv_record(r) for r in rows], path, header)
+
+
+def append_result_rows(
+    path: str, rows: Sequence[ResultRow], size: int, inode: int | None = None
+) -> int:
+    """:func:`append_results` of typed rows; returns the file's new size."""
+    return append_results(path, [csv_record(r) for r in rows], size, inode)
 
 
 def write_result_rows_to(fh: IO[str], rows: Sequence[ResultRow], header: dict[str, str]) -> None:

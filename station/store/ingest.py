@@ -1,7 +1,8 @@
 """A recorded session as the season store keeps it: the one place that reads session folders.
 
-It replays the session's raw log with its annotations (as ``station replay`` and ``station
-export`` do: the raw log is the day, results.csv only a view of it), so the descents, fits,
+It opens the session as a :class:`station.session.recorded.RecordedSession` and replays its raw
+log with its annotations (as ``station replay`` and ``station export`` do: the raw log is the
+day, results.csv only a view of it), so the descents, fits,
 marks and conditions are those the station gives today, and fits the day model of
 :mod:`station.model.compare` once per grouping of the descents (by item, ski, wax, grind) to
 keep each day's μ per item with their covariance, which the season's comparison joins.
@@ -12,7 +13,6 @@ log's SHA-256 and a digest of everything the results depend on), then :func:`rea
 
 from __future__ import annotations
 
-import datetime as dt
 import hashlib
 import json
 import os
@@ -85,19 +85,6 @@ def identify(session: str) -> Identity:
     return Identity(raw_id, content.hexdigest())
 
 
-def _started(session: str) -> tuple[str, str]:
-    """Local date and time of the first raw-log record, and the date ("" when unreadable)."""
-    from station.session import store as sessions
-
-    try:
-        with open(os.path.join(session, sessions.RAW), encoding="ascii", errors="replace") as fh:
-            t = float(json.loads(fh.readline())["t"])
-        when = dt.datetime.fromtimestamp(t)
-    except (OSError, ValueError, KeyError, TypeError, OverflowError):
-        return "", ""
-    return when.strftime("%Y-%m-%d %H:%M"), when.strftime("%Y-%m-%d")
-
-
 def _group_label(meta: Any, grouping: str, item: str) -> str:
     if grouping == "item":
         return item
@@ -109,31 +96,28 @@ def read(session: str, identity: Identity | None = None) -> SessionRecord:
     """The session's rows for the store (a replay and the day fits: a fraction of a second)."""
     import time
 
+    from station.files import MAX_OBSERVATIONS
     from station.model.compare import CompareError, collect, item_of, joint_fit
-    from station.session import store as sessions
-    from station.session.acquisition import replay
+    from station.session.recorded import RecordedSession, sha256_of
     from station.session.records import annotation_to_json
 
     ident = identity or identify(session)
-    cfg = sessions.load_session_config(session)
-    warnings: list[str] = []
-    acq = replay(session, cfg, out=lambda _m: None, warnings=warnings)
-    if acq.source_error is not None:
-        raise InputError(str(acq.source_error), path=session)
-    results = list(acq.results())
-    started, date = _started(session)
+    rs = RecordedSession(session)
+    results = list(rs.results())
+    started = rs.started()
+    prov_cfg = rs.config
     now = time.time()
     rec = SessionRecord(
         ident,
         {
             "id": ident.id,
-            "name": os.path.basename(os.path.normpath(session)),
+            "name": rs.name,
             "source": os.path.abspath(session),
             "started": started,
-            "date": date,
-            "site": str(getattr(acq.day.track, "name", "") or ""),
-            "survey_sha256": _sha256(cfg.survey_path),
-            "config_sha256": _sha256(cfg.path),
+            "date": started[:10],
+            "site": str(getattr(rs.track, "name", "") or ""),
+            "survey_sha256": sha256_of(prov_cfg.survey_path, MAX_OBSERVATIONS, "survey file"),
+            "config_sha256": sha256_of(prov_cfg.path, MAX_OBSERVATIONS, "config"),
             "station_version": __version__,
             "content_sha256": ident.content_sha256,
             "descents": sum(r.row.descent_status != "aborted" for r in results),
@@ -147,7 +131,7 @@ def read(session: str, identity: Identity | None = None) -> SessionRecord:
         row, fit = r.row, r.fit
         meta = row.metadata
         meta_of[row.descent] = meta
-        v0_ci = fit.ci90.get("v0") if fit is not None else None
+        v0_ci = fit.v0.ci90 if fit is not None else None
         rec.descents.append(
             {
                 "session_id": ident.id,
@@ -186,7 +170,7 @@ def read(session: str, identity: Identity | None = None) -> SessionRecord:
         cond: dict[str, Any] = {k: getattr(meta, k, None) for k in CONDITIONS}
         cond["wind_ms"] = row.wind_ms if meta.wind_ms is not None else None
         rec.conditions.append({"session_id": ident.id, "descent": row.descent, **cond})
-    for seq, a in enumerate(sessions.read_annotations(session), start=1):
+    for seq, a in enumerate(rs.annotations(), start=1):
         js = annotation_to_json(a)
         rec.annotations.append(
             {
@@ -212,7 +196,7 @@ def read(session: str, identity: Identity | None = None) -> SessionRecord:
         if key not in fitted:
             grouped = [replace(d, item=f"#{key[k]}") for k, d in enumerate(data)]
             try:
-                fitted[key] = joint_fit(acq.day.track, grouped, drift="auto")
+                fitted[key] = joint_fit(rs.track, grouped, drift="auto")
             except CompareError as exc:
                 fitted[key] = exc
         res = fitted[key]
@@ -230,9 +214,8 @@ def read(session: str, identity: Identity | None = None) -> SessionRecord:
                               "descents": len(it.descents),
                               "descent_numbers": " ".join(map(str, it.descents))})  # fmt: skip
         cov = res.item_cov
-        assert cov is not None
         for pa, ka in enumerate(keep):
             for pb in range(pa, len(keep)):
                 rec.covariances.append({**base, "a": pa, "b": pb,
-                                        "cov": float(cov[ka, keep[pb]])})  # fmt: skip
+                                        "cov": float(cov[ka][keep[pb]])})  # fmt: skip
     return rec
