@@ -23,9 +23,9 @@ if TYPE_CHECKING:
 
 
 def cmd_record(args: argparse.Namespace) -> int:
-    from station.cli.check import checked_config
     from station.cli.console import PrintListener, day_summary
     from station.session.acquisition import record
+    from station.session.configcheck import checked_config
     from station.session.ports import check_port
 
     cfg = checked_config(args.config)  # config, survey and photocells, as station check does
