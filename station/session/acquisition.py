@@ -808,9 +808,17 @@ def replay(
     warnings: list[str] | None = None,
 ) -> Acquisition:
     """Feed a session (with its annotations) or a plain capture through the loop, in line."""
+    import gc
+
     acq = Acquisition.open(
         config, PrintListener(out), date=source_date(source, date), threaded=False
     )
-    acq.replay(source, speed, warnings)
-    acq.close()
+    # a replay makes objects by the hundred thousand and keeps most: the garbage collector
+    # need not scan the set-up's (modules, the track, the grids) at every full collection
+    gc.freeze()
+    try:
+        acq.replay(source, speed, warnings)
+        acq.close()
+    finally:
+        gc.unfreeze()
     return acq
