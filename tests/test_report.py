@@ -106,18 +106,19 @@ def test_aborted_and_unfitted_descents_have_their_panel(tmp_path, demo_track):
     not fitted show their status instead of bars, and the page is still whole."""
     import dataclasses
 
+    from station.model.estimate import MISSING
     from station.report.day_report import DayData, build_day_report, descent_views
     from station.session import store
     from station.session.acquisition import replay
 
     session = make_session(tmp_path, order="AB")
-    run = replay(str(session), store.load_session_config(str(session)), out=lambda _m: None)
+    run = replay(str(session), store.load_session_config(str(session)))
     views = descent_views(run.results())
     assert [v.item for v in views] == ["pair A / blue", "pair B / blue"]
     assert all(v.good and len(v.residuals_ms) == 9 for v in views)
     aborted = dataclasses.replace(
-        views[0], number=3, status="aborted", descent_status="aborted", estimates={}, ci90={},
-        residuals_ms={}, rms_ms=None, speed_x=None, speed_v=None, photocells_used=1,
+        views[0], number=3, status="aborted", descent_status="aborted", mu=MISSING, cda=MISSING,
+        v0=MISSING, residuals_ms={}, rms_ms=None, speed_x=None, speed_v=None, photocells_used=1,
     )  # fmt: skip
     page = build_day_report(DayData(str(session), run.day.track, [*views, aborted]))
     sections = _sections(page)

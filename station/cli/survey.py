@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import csv
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from station.cli.common import (
     _add_air,
@@ -18,11 +18,16 @@ from station.cli.common import (
     _positive,
     _print_json,
     _warn,
+    add_timer_option,
     open_output,
     output_path,
     plausible,
 )
 from station.errors import InputError
+from station.model.timer import TIMER_PRECISION_S
+
+if TYPE_CHECKING:
+    from station.model.estimate import Estimate
 
 
 def cmd_survey_points(args: argparse.Namespace) -> int:
@@ -308,7 +313,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
         cond,
         times.photocells,
         args.model,
-        timer_precision_s=args.timer_precision_ms * 1e-3,
+        timer_precision_s=args.timer_ms * 1e-3,
         survey=None if args.timing_only else survey_error(track, times.photocells),
     )
     missing = [p for p in track.photocell_ids if p not in times.photocells]
@@ -319,7 +324,6 @@ def cmd_fit(args: argparse.Namespace) -> int:
         out["warnings"] = track.warnings
         _print_json(out)
         return 0
-    e, ci = res.estimates, res.ci90
     print(
         f"fit     {track.name}, {args.times}: {len(times.photocells)} photocells"
         + (f" (missing {', '.join(missing)})" if missing else "")
@@ -329,28 +333,27 @@ def cmd_fit(args: argparse.Namespace) -> int:
     print(f"        {grav.describe()}")
     print(f"status  {res.status}" + (f": {res.message}" if res.message else ""))
 
-    def line(label: str, key: str, unit: str, spec: str) -> None:
-        if key not in e:
+    def line(label: str, est: Estimate | None, unit: str, spec: str) -> None:
+        if est is None:  # not a parameter of this model, or not fitted
             return
-        c = ci.get(key)
+        c = est.ci90
         rng = f"[{format(c[0], spec)}, {format(c[1], spec)}]" if c else "—"
         extra = ""
-        if res.ci90_timing is not None and c:
-            ct = res.ci90_timing.get(key)
-            share = (res.survey_share or {}).get(key)
+        if res.survey_in_intervals and c:
+            ct, share = est.ci90_timing, est.survey_share
             if ct:
                 extra = f"   timing only [{format(ct[0], spec)}, {format(ct[1], spec)}]"
             if share is not None:
                 extra += f", survey {share * 100:.0f} % of the variance"
-        print(f"  {label:<5}{_fmt(e[key], spec):>10} {unit:<5} 90 % CI {rng}{extra}")
+        print(f"  {label:<5}{_fmt(est.value, spec):>10} {unit:<5} 90 % CI {rng}{extra}")
 
-    line("μ", "mu", "", ".5f")
-    line("μ1", "mu1", "s/m", ".2e")
-    if "mu1" in res.consistent_with_zero:
+    line("μ", res.mu, "", ".5f")
+    line("μ1", res.mu1, "s/m", ".2e")
+    if res.mu1 is not None and res.mu1.consistent_with_zero:
         print("        μ1 is not distinguishable from 0: its 90 % interval includes 0")
-    line("CdA", "cda", "m²", ".4f")
-    line("v0", "v0", "m/s", ".3f")
-    line("δt1", "dt0", "s", "+.5f")  # the first photocell's time is data: its fitted offset
+    line("CdA", res.cda, "m²", ".4f")
+    line("v0", res.v0, "m/s", ".3f")
+    line("δt1", res.dt0, "s", "+.5f")  # the first photocell's time is data: its fitted offset
     if res.sigma_s2 is not None:
         corr = _fmt(res.corr_mu_cda, "+.3f")
         print(
@@ -358,7 +361,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
             f"dof {res.dof}   v0 at {res.photocells[0]}"
         )
         print(f"  intervals: {CI_METHOD}")
-        if res.ci90_timing is not None:
+        if res.survey_in_intervals:
             print(
                 "  the 90 % CI carries the survey (profile spline and photocell positions, "
                 "linearised); 'timing only' leaves it out"
@@ -368,7 +371,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
         if res.chi2_p is not None:
             print(
                 f"  goodness of fit: χ² {res.chi2:.1f} on {res.dof} dof against a timer "
-                f"precision of {args.timer_precision_ms:g} ms, p = {res.chi2_p:.2g}"
+                f"precision of {args.timer_ms:g} ms, p = {res.chi2_p:.2g}"
             )
         print(f"{'photocell':<10}{'residual [ms]':>15}{'v [m/s]':>10}")
         for pid, r in res.residuals_s.items():
@@ -497,13 +500,8 @@ def add_parsers(sub: Any) -> None:
     p.add_argument(
         "--wind-ms", type=_number, default=0.0, help="along-track wind, m/s, + = tailwind"
     )
-    p.add_argument(
-        "--timer-precision-ms",
-        type=_positive,
-        default=0.5,
-        metavar="MS",
-        help="standard deviation of one crossing time, for the goodness-of-fit test (default "
-        "0.5: a 1 ms timer resolution and typical photocell jitter)",
+    add_timer_option(
+        p, TIMER_PRECISION_S * 1e3, "0.5: a 1 ms timer resolution and typical photocell jitter"
     )
     p.add_argument(
         "--timing-only",

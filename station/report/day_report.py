@@ -24,11 +24,15 @@ import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
 from station import __version__
+from station.model.estimate import MISSING, Estimate
+
+if TYPE_CHECKING:
+    from station.model.compare import JointResult
 
 #: colours of the test items, in order of their first descent (matplotlib's tab10)
 PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd",
@@ -66,8 +70,9 @@ class DescentView:
     notes: str
     flags: str
     photocells_used: int
-    estimates: dict[str, float | None]
-    ci90: dict[str, tuple[float, float] | None]
+    mu: Estimate
+    cda: Estimate
+    v0: Estimate
     residuals_ms: dict[str, float]  # photocell -> computed − measured, ms
     rms_ms: float | None
     speed_x: np.ndarray | None = None
@@ -94,7 +99,7 @@ class DayData:
     header: dict[str, str] = field(default_factory=dict)  # what the results were computed from
     summary: str = ""  # what the timer sent
     config_metadata: dict[str, Any] = field(default_factory=dict)
-    comparison: Any | None = None  # station.model.compare.JointResult
+    comparison: JointResult | None = None
     comparison_error: str | None = None
     compared: list[Any] = field(default_factory=list)  # DescentData that entered the fit
     config_text: str = ""
@@ -123,8 +128,9 @@ def descent_views(results: Sequence[Any]) -> list[DescentView]:
                 notes=row.notes,
                 flags="; ".join(row.flags),
                 photocells_used=row.photocells_used,
-                estimates=dict(f.estimates) if f else {},
-                ci90=dict(f.ci90) if f else {},
+                mu=f.mu if f else MISSING,
+                cda=f.cda if f else MISSING,
+                v0=f.v0 if f else MISSING,
                 residuals_ms={k: v * 1000 for k, v in f.residuals_s.items()} if f else {},
                 rms_ms=row.rms_residual_ms,
                 speed_x=r.speed_x,
@@ -239,17 +245,17 @@ def time_of_day_figure(descents: Sequence[DescentView], colours: dict[str, str],
     am, ac = fig.subplots(2, 1, sharex=True)
     hours_all = []
     for d in descents:
-        if d.estimates.get("mu") is None:
+        if d.mu.value is None:
             continue
         h = d.start_hours
         hours_all.append(h)
         colour = colours.get(d.item, GREY) if not d.invalid_reason else GREY
         face = colour if d.good else "white"
-        for ax, key in ((am, "mu"), (ac, "cda")):
-            v = d.estimates.get(key)
+        for ax, est in ((am, d.mu), (ac, d.cda)):
+            v = est.value
             if v is None:
                 continue
-            c = d.ci90.get(key)
+            c = est.ci90
             yerr = None if c is None else [[v - c[0]], [c[1] - v]]
             ax.errorbar([h], [v], yerr=yerr, fmt="o", color=colour, mfc=face, ms=6,
                         capsize=3, linewidth=1.2)  # fmt: skip
@@ -264,10 +270,10 @@ def time_of_day_figure(descents: Sequence[DescentView], colours: dict[str, str],
         for it in comparison.items:
             am.plot(hx, it.mu + drift * (hx - t_mean), "--", color=colours.get(it.item, GREY),
                     linewidth=1.0)  # fmt: skip
-        for _g, (v, ci) in comparison.cda.items():
-            ac.axhline(v, color="#333333", linestyle="--", linewidth=1.0)
-            if ci is not None:
-                ac.axhspan(ci[0], ci[1], color="#333333", alpha=0.08)
+        for cda in comparison.cda.values():
+            ac.axhline(cda.value, color="#333333", linestyle="--", linewidth=1.0)
+            if cda.ci90 is not None:
+                ac.axhspan(cda.ci90[0], cda.ci90[1], color="#333333", alpha=0.08)
     for it, colour in colours.items():
         am.plot([], [], "o", color=colour, label=it)
     am.plot([], [], "o", color=GREY, mfc="white", label="invalid or not ok")
@@ -304,7 +310,7 @@ def comparison_figure(res, colours: dict[str, str]) -> str:
                            fontsize=8)  # fmt: skip
             continue
         cmp = next((x for x in res.comparisons if x.a == res.reference and x.b == name), None)
-        if cmp is None:
+        if cmp is None or cmp.ci90 is None or cmp.p_a_faster is None:  # none possible
             continue
         dm, lo, hi = -cmp.delta_mu, -cmp.ci90[1], -cmp.ci90[0]
         right.errorbar([dm], [k], xerr=[[dm - lo], [hi - dm]], fmt="o", color=c, capsize=4,
@@ -348,16 +354,16 @@ def _table(head: Sequence[str] | None, rows: Sequence[Sequence[Any]], cls: str =
 
 
 def _descent_rows(descents: Sequence[DescentView]) -> list[list[str]]:
-    def rng(d: DescentView, key: str, spec: str) -> str:
-        v, c = d.estimates.get(key), d.ci90.get(key)
+    def rng(est: Estimate, spec: str) -> str:
+        v, c = est.value, est.ci90
         if v is None:
             return "—"
         return f"{format(v, spec)} [{format(c[0], spec)}, {format(c[1], spec)}]" if c else (
             format(v, spec))  # fmt: skip
 
     return [
-        [str(d.number), d.start_time.replace("T", " ")[:19], d.item, rng(d, "mu", ".5f"),
-         rng(d, "cda", ".4f"), _num(d.estimates.get("v0"), ".2f"), _num(d.rms_ms, ".2f"),
+        [str(d.number), d.start_time.replace("T", " ")[:19], d.item, rng(d.mu, ".5f"),
+         rng(d.cda, ".4f"), _num(d.v0.value, ".2f"), _num(d.rms_ms, ".2f"),
          str(d.photocells_used), d.status,
          "; ".join(x for x in (d.invalid_reason and f"invalid: {d.invalid_reason}", d.notes,
                                d.flags) if x)]
@@ -471,6 +477,8 @@ def _comparison_section(day: DayData, colours: dict[str, str], format_comparison
         cmp = next((c for c in res.comparisons if c.a == res.reference and c.b == name), None)
         if cmp is None:
             delta = p = dtime = "reference" if name == res.reference else "—"
+        elif cmp.ci90 is None or cmp.p_a_faster is None:  # an item of one descent
+            delta, p, dtime = "no comparison possible", "—", "—"
         else:
             delta = f"{-cmp.delta_mu:+.5f} [{-cmp.ci90[1]:+.5f}, {-cmp.ci90[0]:+.5f}]"
             p = f"{1 - cmp.p_a_faster:.3f}"
@@ -483,8 +491,8 @@ def _comparison_section(day: DayData, colours: dict[str, str], format_comparison
         drift = f"{d:+.5f} per hour [{lo:+.5f}, {hi:+.5f}]" + (
             "" if res.drift_separable else " — NOT separable from the items"
         )
-    cda = "; ".join(f"{_e(g)} {v:.4f} m²" + (f" [{c[0]:.4f}, {c[1]:.4f}]" if c else " (fixed)")
-                    for g, (v, c) in res.cda.items())  # fmt: skip
+    cda = "; ".join(f"{_e(g)} {e.value:.4f} m²" + (f" [{e.lo:.4f}, {e.hi:.4f}]" if e.ci90 else
+                    " (fixed)") for g, e in res.cda.items())  # fmt: skip
     notes = "".join(f"<p class='warn'>{_e(w)}</p>" for w in res.warnings)
     left_out = "".join(f"<li>descent {n}: {_e(why)}</li>" for n, why in res.excluded)
     intro = (

@@ -98,8 +98,10 @@ class Processor:
             if t is not None and self.offset_us is not None and t == t:
                 now = round(t * 1e6) + self.offset_us  # the device time now, by the host clock
             done = asm.feed(parsed, self.lines, now)
-            if t is not None and asm._clock is not None:
-                self.offset_us = asm._clock - round(t * 1e6)
+            if t is not None:
+                clock = asm.clock
+                if clock is not None:
+                    self.offset_us = clock - round(t * 1e6)
             if asm.count > before:
                 self.start_host[asm.count] = t
             return done

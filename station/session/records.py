@@ -18,14 +18,16 @@ from enum import StrEnum
 from typing import TYPE_CHECKING, Any
 
 from station.errors import InputError
+from station.model.estimate import FitStatus
 
 if TYPE_CHECKING:  # for annotations only: `station fit` need not load the assembler
     from station.timing.assembly import TimedDescent
 
 
-class Status(StrEnum):
-    """The status column of the results: the fit's verdict, or why there is no fit. The values
-    are the strings earlier versions wrote, so existing results files read the same."""
+class ResultStatus(StrEnum):
+    """The status column of the results: the fit's verdict (:class:`station.model.estimate.
+    FitStatus`, each of which is one of these), or why there is no fit. The values are the
+    strings earlier versions wrote, so existing results files read the same."""
 
     OK = "ok"
     ILL_CONDITIONED = "ill-conditioned"
@@ -54,13 +56,17 @@ class FitModel(StrEnum):
     VELOCITY = "velocity"
 
 
-def fit_status(text: str) -> tuple[Status, str]:
-    """The fit's status string as a :class:`Status`; one this version does not know is an error
-    with a reason, never passed over."""
+#: the name earlier code used: the status column of the results
+Status = ResultStatus
+
+
+def fit_status(status: FitStatus | str) -> tuple[ResultStatus, str]:
+    """The fit's status as the results' :class:`ResultStatus`; a string this version does not
+    know is an error with a reason, never passed over."""
     try:
-        return Status(text), ""
+        return ResultStatus(str(status)), ""
     except ValueError:
-        return Status.ERROR, f"unknown fit status {text!r}"
+        return ResultStatus.ERROR, f"unknown fit status {status!r}"
 
 
 # ----------------------------------------------------------------------------- metadata
@@ -349,7 +355,7 @@ class ResultRow:
     mu1: float | None
     sigma_s2: float | None
     rms_residual_ms: float | None
-    status: Status
+    status: ResultStatus
     descent_status: DescentStatus
     flags: tuple[str, ...]
     model: FitModel
