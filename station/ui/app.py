@@ -40,7 +40,7 @@ from station.session.records import (
     ResultRow,
     ValidMark,
 )
-from station.session.store import is_session
+from station.session.store import RESULTS, is_session
 from station.timing.impulses import format_tod
 from station.ui.messages import (
     AcquisitionWarning,
@@ -635,8 +635,6 @@ class StationApp(App):
         if self.acq is None:
             return
         if self.session_dir is not None:
-            from station.session.store import RESULTS
-
             path = os.path.join(self.session_dir, RESULTS)
         else:
             base = os.path.splitext(os.path.basename(os.path.normpath(self.source or "replay")))[0]
