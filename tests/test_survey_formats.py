@@ -510,3 +510,24 @@ def test_sdr_instrument_record_turns_elevation_angles_into_zenith_angles():
     assert parse_sdr(text.replace("10NMJOB1", instrument[:-21] + "1\r\n10NMJOB1")).observations[
         0
     ].zenith == pytest.approx(math.pi / 2 - 0.1)
+
+
+def test_gsi_code_blocks_start_setups_only_with_a_station_code():
+    """41 of value 2 or 21 starts a station; 3 sets the reflector height; others are codes."""
+    shot = "*110002+0000000000000P01 21.322+0000000010000000 22.322+0000000010000000 " \
+        "31..00+0000000000010000"  # fmt: skip
+    text = "\n".join([
+        "*410001+0000000000000002 42....+00000000000000S1 43....+0000000000001500 "
+        "44....+0000000000001300",
+        shot,
+        "*410003+0000000000000007 42....+000000000000TREE",  # a feature code: no setup
+        shot.replace("P01", "P02"),
+        "*410005+0000000000000003 42....+0000000000002000",  # reflector height 2.000 m
+        shot.replace("P01", "P03"),
+    ])  # fmt: skip
+    obs = interpret_gsi(parse_gsi(text, "c.gsi"), "c.gsi")
+    assert [s.station for s in obs.setups] == ["S1"]
+    assert [(o.point, o.reflector_height) for o in obs.observations] == [
+        ("P01", 1.3), ("P02", 1.3), ("P03", 2.0)
+    ]  # fmt: skip
+    assert obs.setups[0].instrument_height == 1.5
