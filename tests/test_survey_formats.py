@@ -531,3 +531,17 @@ def test_gsi_code_blocks_start_setups_only_with_a_station_code():
         ("P01", 1.3), ("P02", 1.3), ("P03", 2.0)
     ]  # fmt: skip
     assert obs.setups[0].instrument_height == 1.5
+
+
+def test_a_setup_with_coordinates_and_no_backsight_is_named(tmp_path):
+    setup = Setup("7", 100.0, 200.0, 10.0, 1.5)
+    obs = ObservationSet(setups=[setup])
+    obs.observations = [Observation("P1", 1.0, 1.5, 12.0, None, 1.3, setup)]
+    path = tmp_path / "job.sdr"
+    path.write_bytes(W.sdr33(obs))  # orientation 0: the writer leaves the 07 record out
+    s = load_survey(str(path))
+    assert any("setup 7 (line 4) has coordinates but no backsight" in w for w in s.warnings)
+    obs.setups[0] = setup = Setup("7", 100.0, 200.0, 10.0, 1.5, orientation=0.25)
+    obs.observations = [Observation("P1", 1.0, 1.5, 12.0, None, 1.3, setup)]
+    path.write_bytes(W.sdr33(obs))
+    assert not any("no backsight" in w for w in load_survey(str(path)).warnings)

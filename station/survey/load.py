@@ -280,6 +280,7 @@ def load_survey(path: str) -> Survey:
 
 
 def _bare(path: str, obs: ObservationSet, coords: list[ReducedPoint]) -> Survey:
+    obs.warnings.extend(_orientation_warnings(obs))
     obs, network = place_setups(obs, path)
     reduced = reduce_all(obs) + coords + _known_points(obs, Precision())
     survey = _assemble(path, os.path.basename(path), obs, reduced, [], [], None, 0.13)
@@ -287,6 +288,18 @@ def _bare(path: str, obs: ObservationSet, coords: list[ReducedPoint]) -> Survey:
     survey.format = obs.format
     survey.bare = True
     return survey
+
+
+def _orientation_warnings(obs: ObservationSet) -> list[str]:
+    """A setup with coordinates and shots but no backsight: its circle is taken as azimuth.
+    (A setup without coordinates is oriented by the network adjustment.)"""
+    shooting = {id(o.setup) for o in obs.observations}
+    return [
+        f"setup {s.station} (line {s.line}) has coordinates but no backsight: its horizontal "
+        "circle is taken as azimuth"
+        for s in obs.setups
+        if s.known and not s.oriented and id(s) in shooting
+    ]
 
 
 def _known_points(obs: ObservationSet, precision: Precision) -> list[ReducedPoint]:
@@ -443,6 +456,7 @@ def _load_yaml_survey(path: str, data: object) -> Survey:
         dsec = Section(top.data["default_setup"], path, "default_setup", _SETUP_KEYS)
         default_setup = _setup_from(dsec, unit, "default")
     obs = _observations(top, path, unit, default_setup)
+    obs.warnings.extend(_orientation_warnings(obs))
     obs, network = place_setups(obs, path, k, precision, default_setup)
     reduced = reduce_all(obs, k, precision) + _known_points(obs, precision)
     if top.has("points"):

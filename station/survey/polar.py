@@ -53,6 +53,9 @@ class Setup:
     #: False: the file gives no coordinates for this setup (a GSI code block ``41``/``42``);
     #: it is placed from the points it shares with other setups (:mod:`station.survey.network`)
     known: bool = True
+    #: False: a reader whose format records raw circle readings found no backsight for this
+    #: setup, so its circle is taken as azimuth (a warning says so)
+    oriented: bool = True
 
 
 @dataclass(frozen=True)
