@@ -545,3 +545,16 @@ def test_a_setup_with_coordinates_and_no_backsight_is_named(tmp_path):
     obs.observations = [Observation("P1", 1.0, 1.5, 12.0, None, 1.3, setup)]
     path.write_bytes(W.sdr33(obs))
     assert not any("no backsight" in w for w in load_survey(str(path)).warnings)
+
+
+def test_a_survey_yaml_naming_an_unknown_observation_file_says_so_at_its_line(tmp_path):
+    (tmp_path / "notes.txt").write_text("surveyed on Tuesday, 14 points\n")
+    y = tmp_path / "s.yaml"
+    y.write_text("name: x\nobservations: notes.txt\nphotocells: [A]\n")
+    msg = _error(load_survey, str(y))
+    assert msg.startswith(f"{y}:2: field observations: 'notes.txt' is not an observation file")
+    assert "Sokkia SDR33/SDR2x" in msg
+    (tmp_path / "e.gsi").write_text("")
+    assert _error(load_survey, str(tmp_path / "e.gsi")).startswith(
+        f"{tmp_path / 'e.gsi'}: an empty"
+    )

@@ -27,8 +27,8 @@ from dataclasses import dataclass, field, replace
 from station.errors import InputError
 from station.survey.formats import (
     FORMAT_NAMES,
+    OBSERVATION_FORMATS,
     is_points_csv,
-    read_observations,
     read_text,
     sniff,
 )
@@ -271,6 +271,8 @@ def load_survey(path: str) -> Survey:
         from station.survey.coords import read_points_csv  # only a list of points needs it
 
         return _bare(path, ObservationSet(format="points CSV"), read_points_csv(path, 0.005))
+    if not text.strip():
+        raise InputError(f"an empty file: the station reads {FORMAT_NAMES}", path=path)
     if not _yaml_like(path, text):
         raise InputError(f"not a survey file: the station reads {FORMAT_NAMES}", path=path)
     data = load_yaml(path)
@@ -362,7 +364,14 @@ def _observations(
     full = os.path.join(os.path.dirname(os.path.abspath(path)), obs_path)
     if not os.path.exists(full):
         raise top.error("observations", f"observation file {obs_path!r} not found")
-    return read_observations(full, default_setup)
+    text = read_text(full)
+    fmt = sniff(text)
+    if fmt is None:
+        raise top.error(
+            "observations",
+            f"{obs_path!r} is not an observation file the station reads ({OBSERVATION_FORMATS})",
+        )
+    return fmt.read(text, full, default_setup)
 
 
 def _photocells(top: Section, path: str) -> list[PhotocellDef]:
