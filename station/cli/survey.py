@@ -463,21 +463,20 @@ def cmd_fit_traverse(args: argparse.Namespace) -> int:
         )
         _print_json(out)
         return 0
-    e, ci = res.estimates, res.ci90
     print(
         f"traverse  {args.data}: {len(t)} positions, plane {args.slope_deg:g}°, "
         f"{given}, m {args.mass:g} kg, ρ {rho:.3f} kg/m³"
     )
     print(f"status  {res.status}" + (f": {res.message}" if res.message else ""))
-    for label, key, unit, spec in (
-        ("μ", "mu", "", ".4f"),
-        ("CdA", "cda", "m²", ".3f"),
-        ("v0", "v0", "m/s", ".2f"),
-        ("s0", "s0", "m", ".3f"),
+    for label, est, unit, spec in (
+        ("μ", res.mu, "", ".4f"),
+        ("CdA", res.cda, "m²", ".3f"),
+        ("v0", res.v0, "m/s", ".2f"),
+        ("s0", res.s0, "m", ".3f"),
     ):
-        c = ci.get(key)
+        c = est.ci90
         rng = f"[{format(c[0], spec)}, {format(c[1], spec)}]" if c else "—"
-        print(f"  {label:<5}{_fmt(e[key], spec):>9} {unit:<4} 90 % CI {rng}")
+        print(f"  {label:<5}{_fmt(est.value, spec):>9} {unit:<4} 90 % CI {rng}")
     rms = math.sqrt(res.sigma_m2 / len(t))
     print(f"  final speed {res.v_final:.2f} m/s   residual RMS {rms * 100:.1f} cm   dof {res.dof}")
     return 0
