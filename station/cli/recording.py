@@ -25,11 +25,11 @@ if TYPE_CHECKING:
 def cmd_record(args: argparse.Namespace) -> int:
     from station.cli.console import PrintListener, day_summary
     from station.session.acquisition import record
-    from station.session.config import load_config
+    from station.session.configcheck import checked_config
     from station.session.ports import check_port
 
-    cfg = load_config(args.config)
-    check_port(cfg.serial.port, args.config)  # a wrong port: say so and list them, at once
+    cfg = checked_config(args.config)  # config, survey and photocells, as station check does
+    check_port(cfg.serial.port, args.config)  # then a wrong port: say so and list them
     folder = args.session_dir or sessions.default_dir()
     print(f"recording to {folder} from {cfg.serial.port} ({cfg.serial.protocol}); Ctrl-C ends",
           file=sys.stderr)  # fmt: skip

@@ -60,6 +60,11 @@ class Processor:
         self.connection: list[tuple[float, str, str]] = []
         self.offset_us: int | None = None  # device clock − host clock
         self.start_host: dict[int, float | None] = {}
+        #: the resolution (µs) the timer states in its first impulse from a photocell (not a
+        #: keypad's 1/100 s): the default of the timer's precision (station.model.timer); fixed
+        #: from then on, so a live day and its replay judge every descent alike
+        self.resolution_us: int | None = None
+        self._photocell_channels = frozenset(config.channels)
 
     @property
     def events(self) -> list[ImpulseEvent]:
@@ -93,6 +98,8 @@ class Processor:
         if type(parsed) is Impulse:
             self.impulses += 1
             asm = self.assembler
+            if self.resolution_us is None and parsed.channel in self._photocell_channels:
+                self.resolution_us = parsed.resolution_us
             before = asm.count
             now = None
             if t is not None and self.offset_us is not None and t == t:
