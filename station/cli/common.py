@@ -17,6 +17,7 @@ from typing import IO, Any, NoReturn
 
 from station.errors import InputError
 from station.files import check_output, staged_output
+from station.limits import PLAUSIBLE
 from station.model.air import (
     DEFAULT_HUMIDITY_PCT,
     DEFAULT_PRESSURE_HPA,
@@ -79,7 +80,7 @@ class _Parser(argparse.ArgumentParser):
         return [n for n in names if n not in self._option_string_actions]
 
     def _suggestion(self, message: str) -> str:
-        import difflib
+        import difflib  # only for a mistyped option: not on every command's start-up
 
         options = [o for o in self._option_string_actions if o.startswith("--")]
         for action in self._actions:  # the command's own options, when its typo is seen here
@@ -127,8 +128,6 @@ def _celsius(text: str) -> float:
 def plausible(key: str) -> Callable[[str], float]:
     """The option parser of a number with a plausible range (:data:`station.limits.PLAUSIBLE`):
     ``--mass 880`` is a typo, refused as the config and the UI form refuse it."""
-    from station.limits import PLAUSIBLE
-
     lo, hi, unit = PLAUSIBLE[key]
 
     def check(text: str) -> float:
@@ -230,6 +229,7 @@ def _add_gravity(p: argparse.ArgumentParser) -> None:
 
 
 def _load_track(path: str):
+    # here, not at the top: numpy and scipy, which station --help and a usage error never need
     from station.survey.load import load_survey
     from station.survey.track import build_track
 

@@ -18,8 +18,8 @@ from station.session.ports import check_port
 
 def cmd_live(args: argparse.Namespace) -> int:
     # here, not at the top: the UI, numpy and scipy (see station/cli/tui.py and recording.py)
-    from station.cli.check import checked_config
     from station.cli.tui import require_terminal, run_ui
+    from station.session.configcheck import checked_config
     from station.ui.app import StationApp
 
     cfg = checked_config(args.config)  # config, survey and photocells, as station check does

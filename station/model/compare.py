@@ -170,6 +170,9 @@ class JointResult:
     warnings: tuple[str, ...] = ()
     status: ComparisonStatus = ComparisonStatus.OK
     message: str = ""
+    #: covariance of the items' μ, in the order of ``items`` (the season store joins the days
+    #: by it: station.model.season)
+    item_cov: tuple[tuple[float, ...], ...] = ()
 
     def item(self, name: str) -> ItemResult:
         """The result of the item called ``name``."""
@@ -689,7 +692,14 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
         warnings=tuple(warnings),
         status=status,
         message=message,
+        item_cov=_item_cov(lay, inf),
     )
+
+
+def _item_cov(lay: _Layout, inf: _Inference) -> tuple[tuple[float, ...], ...]:
+    cols = [lay.mu_index(it) for it in lay.items]
+    sub = inf.cov[np.ix_(cols, cols)]
+    return tuple(tuple(float(x) for x in row) for row in sub)
 
 
 def _drift(data, lay: _Layout, inf: _Inference):
