@@ -113,18 +113,7 @@ def snapshot(cfg: StationConfig, session: str) -> None:
 def create(cfg: StationConfig, session: str) -> str:
     """Make the session folder and its snapshot; refuse a folder that holds anything (another
     session's files are never overwritten) and say in one line why a folder cannot be made."""
-    if os.path.exists(os.path.join(session, RAW)):
-        raise InputError(
-            "a session is already recorded there; choose a new --session-dir", path=session
-        )
-    if os.path.lexists(session) and not os.path.isdir(session):
-        raise InputError("is a file, not a folder; choose a new --session-dir", path=session)
-    if os.path.isdir(session) and os.listdir(session):
-        raise InputError(
-            "the folder is not empty and a session never overwrites files; "
-            "choose a new --session-dir",
-            path=session,
-        )
+    check_new(session)
     made = not os.path.exists(session)
     try:
         os.makedirs(session, exist_ok=True)
@@ -137,6 +126,24 @@ def create(cfg: StationConfig, session: str) -> str:
             path=session,
         ) from None
     return session
+
+
+def check_new(session: str) -> None:
+    """Refuse, in one line, a folder a new session cannot be made in (a session there, a
+    file, a folder that holds anything): what :func:`create` checks, for the commands that
+    must say it before the terminal UI starts (``live``, ``demo``)."""
+    if os.path.exists(os.path.join(session, RAW)):
+        raise InputError(
+            "a session is already recorded there; choose a new --session-dir", path=session
+        )
+    if os.path.lexists(session) and not os.path.isdir(session):
+        raise InputError("is a file, not a folder; choose a new --session-dir", path=session)
+    if os.path.isdir(session) and os.listdir(session):
+        raise InputError(
+            "the folder is not empty and a session never overwrites files; "
+            "choose a new --session-dir",
+            path=session,
+        )
 
 
 def _remove_partial(session: str) -> None:
