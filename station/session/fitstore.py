@@ -190,7 +190,9 @@ def _array(value: Any) -> np.ndarray:
 def _fixed_tuple(items: list[Decode], value: list) -> tuple:
     if len(items) != len(value):
         raise _Bad("a tuple of the wrong length")
-    return tuple(d(x) for d, x in zip(items, value, strict=True))
+    if len(items) == 2:  # an interval: most tuples of a fit (a generator costs 3× as much)
+        return (items[0](value[0]), items[1](value[1]))
+    return tuple([d(x) for d, x in zip(items, value, strict=True)])
 
 
 def _member(kind: type[enum.Enum]) -> Decode:
