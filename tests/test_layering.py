@@ -297,3 +297,17 @@ def test_no_argument_namespace_outside_the_command_line():
         and re.search(r"\bargparse\b", module_path(name).read_text())
     ]
     assert offenders == []
+
+
+def test_only_the_edges_import_the_season_store():
+    """The season store (a database) is an edge: the command line, the UI and the report use
+    it; the core and the session code never do."""
+    allowed = ("station.cli", "station.ui", "station.report", "station.store")
+    offenders = [
+        name
+        for name in all_modules()
+        if not name.startswith(allowed)
+        and any(n == "station.store" or n.startswith("station.store.")
+                for n in imported_roots(module_path(name)))
+    ]  # fmt: skip
+    assert offenders == []

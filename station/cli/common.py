@@ -55,11 +55,25 @@ class _Parser(argparse.ArgumentParser):
                 message = f"unrecognized arguments: {' '.join(unknown)}"
         if message.startswith("unrecognized arguments"):
             message += self._suggestion(message)
+        typo = re.match(r"argument command: invalid choice: '([^']*)'", message)
+        if typo:  # ``station raport``: the command it was meant to be, not all sixteen
+            message = f"unknown command {typo.group(1)!r}" + self._command_suggestion(typo.group(1))
         if message == "the following arguments are required: command":  # bare ``station``
             for action in self._actions:
                 if isinstance(action, argparse._SubParsersAction):
                     message = f"give a command: {', '.join(action.choices)}"
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see --help)\n")
+
+    def _command_suggestion(self, word: str) -> str:
+        import difflib
+
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                close = difflib.get_close_matches(word, list(action.choices), n=1, cutoff=0.6)
+                if close:
+                    return f" (did you mean {close[0]}?)"
+                return f"; the commands: {', '.join(action.choices)}"
+        return ""
 
     def _unknown_options(self) -> list[str]:
         names = [a.split("=", 1)[0] for a in self._argv or [] if a.startswith("--") and a != "--"]

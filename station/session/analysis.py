@@ -17,6 +17,7 @@ import numpy as np
 from station.model.estimate import MISSING, FitStatus
 from station.model.fit import FitResult, fit_descent
 from station.model.physics import G_STANDARD, Conditions, Params, StraightRun, gravity_for
+from station.model.timer import TIMER_PRECISION_S
 from station.model.track_error import survey_error
 from station.session.config import StationConfig, site_track
 from station.session.records import (
@@ -45,6 +46,7 @@ class FitJob:
     air_density: float
     wind_ms: float = 0.0
     gravity: float | None = None  # m/s²; None: the analyser's (the survey's site, else standard)
+    timer_precision_s: float = TIMER_PRECISION_S  # SD of one crossing time (station.model.timer)
     problem: str = ""  # what makes the fit impossible (e.g. wind without a direction)
 
 
@@ -159,7 +161,7 @@ class Analyser:
             parts = {
                 "times_us": list(d.times_us), "photocells": list(ids), "model": job.model.value,
                 "mass_kg": job.mass_kg, "air_density": job.air_density, "wind_ms": job.wind_ms,
-                "g": job.gravity,
+                "g": job.gravity, "timer_precision_s": job.timer_precision_s,
             }  # fmt: skip
             key = self.fits.key(parts, cov)
             fit = self.fits.get(key)
@@ -167,7 +169,7 @@ class Analyser:
             fit = fit_descent(
                 self.track.profile, xs, t, cond, list(ids), model=job.model.value, run=run,
                 survey=survey_error(self.track, list(ids)) if cov is None else None,
-                survey_time_cov=cov,
+                survey_time_cov=cov, timer_precision_s=job.timer_precision_s,
             )  # fmt: skip
             if self.fits is not None and key is not None:
                 self.fits.put(key, fit)

@@ -187,7 +187,7 @@ def _digest(path: str) -> str:
 def results_header(cfg: StationConfig, survey_name: str) -> dict[str, str]:
     """What the results were computed from, the same live and in replay."""
     # the config's air data, then the density it gives (a given density is not said twice)
-    air = "".join(f"{k} {v:g} | " for k, v in cfg.air.items() if k != "density")
+    air = "".join(f"{k} {v:g} | " for k, v in cfg.air.given())
     return {
         "survey": f"{survey_name} ({os.path.basename(cfg.survey_path)} | "
         f"sha256 {_digest(cfg.survey_path)})",
