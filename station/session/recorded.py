@@ -20,7 +20,7 @@ import json
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import IO, Any
 
 from station import __version__
 from station.errors import InputError
@@ -190,7 +190,7 @@ class RecordedSession:
         """Every descent, fitted, with the annotations applied, as a replay gives them."""
         return self.run().results()
 
-    def write_results_to(self, fh: Any) -> None:
+    def write_results_to(self, fh: IO[str]) -> None:
         """The results CSV into an open text file (as ``station export`` writes it)."""
         self.run().write_csv_to(fh)
 
