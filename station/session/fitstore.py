@@ -37,8 +37,8 @@ from station.errors import InputError
 from station.files import MAX_OBSERVATIONS, read_bytes
 from station.model.fit import FitResult
 from station.session.config import StationConfig
+from station.session.store import FITS
 
-FITS = "fits.jsonl"
 #: a stored fit is 2-4 kB: 64 MB holds a season of days
 MAX_FITS = 64 * 1024 * 1024
 #: the source files whose code decides a fit's numbers (the key changes when one changes)

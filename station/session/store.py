@@ -60,6 +60,9 @@ CONFIG = "config.yaml"
 RESULTS = "results.csv"
 ANNOTATIONS = "annotations.jsonl"
 LOCK = "recording.lock"
+FITS = "fits.jsonl"
+#: files made from the others (a replay makes them again): not part of what a session is
+DERIVED = (RESULTS, LOCK, FITS)
 
 
 def is_session(path: str) -> bool:

@@ -74,7 +74,7 @@ def identify(session: str) -> Identity:
             for name in sorted(files):
                 path = os.path.join(root, name)
                 rel = os.path.relpath(path, session)
-                if rel in (sessions.RESULTS, sessions.LOCK) or not os.path.isfile(path):
+                if rel in sessions.DERIVED or not os.path.isfile(path):
                     continue
                 digest = _sha256(path)
                 if rel == sessions.RAW:
