@@ -27,11 +27,28 @@ def cmd_record(args: argparse.Namespace) -> int:
     cfg = load_config(args.config)
     check_port(cfg.serial.port, args.config)  # a wrong port: say so and list them, at once
     folder = args.session_dir or sessions.default_dir()
-    print(f"recording to {folder} from {cfg.serial.port} ({cfg.serial.protocol}); Ctrl-C ends",
-          file=sys.stderr)  # fmt: skip
-    acq = record(cfg, folder, max_descents=args.max_descents, duration_s=args.duration)
+
+    def started() -> None:  # said once the folder is accepted, not before a refusal
+        print(f"recording to {folder} from {cfg.serial.port} ({cfg.serial.protocol}); "
+              "Ctrl-C ends", file=sys.stderr)  # fmt: skip
+
+    acq = record(cfg, folder, max_descents=args.max_descents, duration_s=args.duration,
+                 started=started)  # fmt: skip
     print(acq.summary(), file=sys.stderr)
-    print(f"results: {os.path.join(folder, sessions.RESULTS)}", file=sys.stderr)
+    results = os.path.join(folder, sessions.RESULTS)
+    if acq.csv_problem is not None:  # the last line names no file that is not there
+        print(f"results: not written (said above); station export {folder} --csv {results} "
+              "writes them from the raw log", file=sys.stderr)  # fmt: skip
+    else:
+        print(f"results: {results}", file=sys.stderr)
+    log = acq.rawlog
+    if log is not None and log.lost_records:  # the disk stayed full to the end
+        raise InputError(
+            f"{log.lost_records} record(s) ({log.lost_bytes} bytes) the timer sent could not "
+            "be written: the disk was full; import the timer's memory to fill the gap: "
+            f"station import DOWNLOAD --into {folder}",
+            path=log.path,
+        )
     return 0
 
 
