@@ -137,3 +137,31 @@ def test_a_lone_chunk_is_fsynced_within_a_second_without_a_further_write(tmp_pat
         assert len(synced) == n  # nothing new written: no needless fsync
     finally:
         w.close()
+
+
+def test_a_writer_never_appends_to_a_torn_tail(tmp_path):
+    path = tmp_path / "raw.jsonl"
+    path.write_text('{"t": 1, "rx": "a"}\n{"t": 2, "rx": "b')  # killed mid-write
+    w = RawLogWriter(str(path))
+    w.write(3.0, b"c")
+    w.close()
+    side = tmp_path / "raw.jsonl.torn-1"
+    assert side.read_text() == '{"t": 2, "rx": "b'
+    assert w.repair == (f"{path}: torn last record (17 bytes, killed mid-write?) cut off before "
+                        f"appending; its bytes are kept in {side}")  # fmt: skip
+    warnings: list[str] = []
+    assert [c.data for c in read_rawlog(str(path), warnings)] == [b"a", b"c"]
+    assert warnings == []
+    # a second torn tail goes to a second side file; a whole record lacking only its line
+    # end is ended, not cut
+    with open(path, "a") as fh:
+        fh.write('{"t": 4, "rx": "d')
+    RawLogWriter(str(path)).close()
+    assert (tmp_path / "raw.jsonl.torn-2").read_text() == '{"t": 4, "rx": "d'
+    with open(path, "a") as fh:
+        fh.write('{"t": 5, "rx": "e"}')
+    w = RawLogWriter(str(path))
+    w.write(6.0, b"f")
+    w.close()
+    assert "ended before appending" in (w.repair or "")
+    assert [c.data for c in read_rawlog(str(path))] == [b"a", b"c", b"e", b"f"]

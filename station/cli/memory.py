@@ -25,6 +25,8 @@ def cmd_import(args: argparse.Namespace) -> int:
         config = load_config(args.config)
         report = memory_import.import_new(args.file, config, args.session_dir)
         config = sessions.load_session_config(args.session_dir)
+    if report.repaired:
+        print(f"station: warning: {report.repaired}", file=sys.stderr)
     run = replay(report.session, config, out=lambda _m: None)
     run.write_csv(os.path.join(report.session, sessions.RESULTS))
     print(

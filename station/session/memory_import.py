@@ -8,6 +8,10 @@ cable out. A plain capture or a memory download (ALGE ``RSM`` print-out, TAG ``#
   event, so that a replay of the session reproduces the merged results; the session's
   results are rewritten.
 - either way the file's own bytes are kept in ``SESSION/imports/`` (never overwritten).
+- a session whose raw log ends torn (a full disk, a power cut: exactly when a memory import is
+  needed) is repaired before anything is appended: the torn bytes go to ``raw.jsonl.torn-N``
+  (:func:`station.session.rawlog.repair_tail`), the import's report says so, and the impulses
+  the torn record held are taken from the download like any other missing one.
 
 Known limit: impulses appended by a merge form descents of their own; a descent of which the
 live recording holds some impulses and the download the rest is not joined into one.
@@ -40,6 +44,8 @@ class ImportReport:
     already_there: int
     added: int
     kept_as: str
+    #: the session's raw log ended torn (a full disk, a power cut): what was done about it
+    repaired: str | None = None
 
 
 def read_import(path: str) -> bytes:
@@ -127,7 +133,9 @@ def import_into(path: str, session: str) -> ImportReport:
     have: set[tuple[str, ...]] = set()
     framer = LineFramer()
     parser = make_parser(protocol)
+    last_t = None
     for chunk in read_rawlog(os.path.join(session, sessions.RAW)):
+        last_t = chunk.t
         if chunk.event:
             continue
         for line in framer.feed(chunk.data):
@@ -140,15 +148,22 @@ def import_into(path: str, session: str) -> ImportReport:
     added = sum(ident[0] == "impulse" for _line, ident in new)
     n = _impulses(found)
     kept = _keep_bytes(session, path, data)
+    # a torn last record (what a full disk or a power cut leaves) is cut off into a side file
+    # first: appending after it would glue the import to half a record, unreadable
     log = RawLogWriter(os.path.join(session, sessions.RAW))
     try:
         edits = len(missing) - added
-        log.event(time.time(), "import", f"{kept}: {added} of {n} impulses added"
-                  + (f", and {edits} edit line(s)" if edits else ""))  # fmt: skip
+        # dated as the session's last record, not now: the host time dates the timer's times
+        # of day (an ALGE line has no date), and a replay paced by it must not wait for days
+        now = time.time()
+        t = now if last_t is None else last_t
+        when = time.strftime("%Y-%m-%d %H:%M", time.localtime(now))
+        more = f", and {edits} edit line(s)" if edits else ""
+        log.event(t, "import", f"{kept}: {added} of {n} impulses added{more} (imported {when})")
         if missing:
             # a line end first: a live line cut off at the end of the log stays cut off
             end = LINE_END[protocol]
-            log.write(time.time(), end + b"".join(s.encode("latin-1") + end for s in missing))
+            log.write(t, end + b"".join(s.encode("latin-1") + end for s in missing))
     finally:
         log.close()
-    return ImportReport(session, n, n - added, added, kept)
+    return ImportReport(session, n, n - added, added, kept, log.repair)
