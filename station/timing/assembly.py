@@ -47,7 +47,7 @@ import statistics
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
-from station.timing.impulses import DAY_US, Edit, Impulse, format_tod
+from station.timing.impulses import DAMAGED_FLAG, DAY_US, Edit, Impulse, format_tod
 
 HALF_DAY_US = DAY_US // 2
 PAIRINGS = ("auto", "bib", "order")
@@ -110,6 +110,12 @@ class ImpulseEvent(NamedTuple):
     kept: bool
     reason: str = ""
     descent: int | None = None
+
+
+def _flag_damaged(d: TimedDescent, imp: Impulse, line: int) -> None:
+    """A kept impulse read from a line with a damaged flag byte: the descent says so."""
+    if imp.flag == DAMAGED_FLAG:
+        d.flags.append(f"line {line}: flag byte {imp.line[:1]!r} damaged, read as an impulse")
 
 
 def _bib(imp: Impulse | Edit) -> str:
@@ -363,6 +369,7 @@ class DescentAssembler:
             self._move_clock(t)
             self._seen.add((imp.channel, t))
             self._event(imp, line, pc, True, "", d.number)
+            _flag_damaged(d, imp, line)
             return done
         chosen, reason = self._choose(pc, k, t, bib)
         if chosen is None:
@@ -394,6 +401,7 @@ class DescentAssembler:
         self._move_clock(t)
         self._seen.add((imp.channel, t))
         self._event(imp, line, pc, True, "", d.number)
+        _flag_damaged(d, imp, line)
         if k == len(self.photocells) - 1:
             self.open.remove(d)
             # a descent recovered without its start is short of the first photocell
