@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 from typing import Any
 
+from station import csvfiles
 from station.cli.common import (
     _add_air,
     _add_gravity,
@@ -33,7 +33,7 @@ def cmd_survey_points(args: argparse.Namespace) -> int:
     pts = list(survey.points.values())
     if args.csv:
         with open_output(args.csv, "--csv") as fh:
-            w = csv.writer(fh, lineterminator="\n")
+            w = csvfiles.writer(fh)
             w.writerow(["point", "e", "n", "h", "sigma_h_m", "setup", "line"])
             for p in pts:
                 w.writerow([p.point, f"{p.e:.4f}", f"{p.n:.4f}", f"{p.h:.4f}", f"{p.sigma_h:.4f}",
@@ -121,7 +121,7 @@ def cmd_survey(args: argparse.Namespace) -> int:
         plot_track(track, args.plot)
     if args.csv:
         with open_output(args.csv, "--csv") as fh:
-            w = csv.writer(fh, lineterminator="\n")
+            w = csvfiles.writer(fh)
             w.writerow(["x_m", "y_m", "slope_deg", "curvature_1_per_m"])
             for row in zip(xg, yg, sg, kg, strict=True):
                 w.writerow([f"{row[0]:.3f}", f"{row[1]:.4f}", f"{row[2]:.4f}", f"{row[3]:.6f}"])
@@ -233,7 +233,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         reached = xs < d.stopped_x
     if args.csv:
         with open_output(args.csv, "--csv") as fh:
-            w = csv.writer(fh, lineterminator="\n")
+            w = csvfiles.writer(fh)
             w.writerow(["photocell", "time"])
             for pc, ti, ok in zip(track.photocells, t, reached, strict=True):
                 if ok:

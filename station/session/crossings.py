@@ -12,10 +12,10 @@ its origin). Pure formatting plus one writer; no state.
 
 from __future__ import annotations
 
-import csv
 from collections.abc import Iterable
 from typing import IO
 
+from station import csvfiles
 from station.session.analysis import DescentResult
 from station.timing.impulses import DAY_US, format_tod
 
@@ -42,7 +42,7 @@ def write_times(results: Iterable[DescentResult], fh: IO[str]) -> int:
     """Write the crossing times CSV into an open text file (``newline=""``; the command opens
     it, or standard output for ``-``); returns the number of rows."""
     rows = crossing_rows(results)
-    w = csv.writer(fh, lineterminator="\n")
+    w = csvfiles.writer(fh)  # formula-safe cells (a bib is the timer's text)
     w.writerow(TIMES_COLUMNS)
     w.writerows(rows)
     return len(rows)
