@@ -236,6 +236,7 @@ def annotation_from_json(rec: Mapping[str, Any]) -> Annotation | None:
         if not isinstance(values, Mapping):
             raise InputError("expected a mapping of metadata", field="values")
         meta = Metadata.from_values(values, "values.")
+        _plausible(meta)
         if "descents" in rec:
             key = "descents"
             ds = rec[key]
@@ -255,6 +256,20 @@ def annotation_from_json(rec: Mapping[str, Any]) -> Annotation | None:
             raise InputError(f"unknown model {rec.get('model')!r}", field="model") from None
         return ModelChange(number("descent"), model, t)
     return None
+
+
+def _plausible(meta: Metadata) -> None:
+    """A number read back from a file is in the range the form and the command line let in
+    (station/limits.py): ``mass_kg: 1e308`` in an edited annotations file is refused naming
+    the field, not fitted as ``ill-conditioned``."""
+    from station.limits import PLAUSIBLE
+
+    for key, value in meta.values().items():
+        if key in PLAUSIBLE and isinstance(value, float):
+            lo, hi, unit = PLAUSIBLE[key]
+            if not lo <= value <= hi:
+                raise InputError(f"{value:g} is outside {lo:g} to {hi:g} {unit}",
+                                 field="values." + key)  # fmt: skip
 
 
 def _descent_number(v: Any, key: str) -> int:
