@@ -366,16 +366,16 @@ def _depth(value: object, limit: int) -> bool:
 
 def _check(rec: object) -> str | None:
     """Why ``rec`` is not a raw-log record, or None."""
-    if not isinstance(rec, dict):
+    if type(rec) is not dict:
         return "not a JSON object"
     t = rec.get("t")
-    if isinstance(t, bool) or not isinstance(t, (int, float)):
+    if type(t) is not float and type(t) is not int:  # not a bool, not text
         return "field t is not a number"
     if not math.isfinite(t) or not 0 <= t <= MAX_T:
         return f"field t is {t!r}, not a host time"
-    if "rx" in rec:
-        rx = rec["rx"]
-        if not isinstance(rx, str):
+    rx = rec.get("rx")
+    if rx is not None or "rx" in rec:
+        if type(rx) is not str:
             return "field rx is not text"
         if not rx.isascii():
             try:
@@ -393,6 +393,9 @@ def _check(rec: object) -> str | None:
     if not _depth(detail, MAX_DEPTH):
         return f"field detail is nested deeper than {MAX_DEPTH} levels"
     return None
+
+
+_decode = json.JSONDecoder().decode  # a str in: json.loads would sniff the bytes' encoding
 
 
 def read_rawlog(path: str, warnings: list[str] | None = None) -> Iterator[Chunk]:
@@ -431,12 +434,13 @@ def read_rawlog(path: str, warnings: list[str] | None = None) -> Iterator[Chunk]
                 passed_over(i, f"record longer than {_size(MAX_RECORD)}, not a raw-log record")
                 continue
             whole = raw.endswith(b"\n")
-            text = raw.rstrip(b"\n")
-            if not text.strip():
+            # ASCII by construction: a damaged byte becomes U+FFFD, which no field takes
+            text = raw.decode("ascii", "replace")
+            if not text or text.isspace():
                 continue
             why: str | None
             try:
-                rec = json.loads(text)
+                rec = _decode(text)
                 why = _check(rec)
             except RecursionError:
                 why = "nested too deep"
