@@ -23,6 +23,22 @@ def test_an_annotation_value_out_of_range_is_refused_when_read_back(tmp_path, ru
     assert f"{path}:{n}: field values.mass_kg: 1e+308 is outside 20 to 200 kg" in r.stderr
 
 
+def test_a_descent_number_read_back_is_a_whole_number_of_a_day(tmp_path, run_station):
+    session = make_session(tmp_path, order="AB")
+    path = session / "annotations.jsonl"
+    good = path.read_bytes()
+    n = len(good.splitlines()) + 1
+    for bad in ("1e300", "1.5", "0", "-3"):
+        path.write_bytes(good + f'{{"type": "invalid", "descent": {bad}}}\n'.encode())
+        r = run_station("replay", session)
+        assert r.returncode == 2, (bad, r.stderr)
+        assert f"{path}:{n}: field descent: expected a descent number (1 to 1000000)" in r.stderr
+    nested = b'{"type": "metadata", "values": ' + b'{"a": ' * 100_000 + b"1" + b"}" * 100_001
+    path.write_bytes(good + nested + b"\n" + good.splitlines(keepends=True)[0])
+    r = run_station("replay", session)
+    assert r.returncode == 2 and f"{path}:{n}: not an annotation record" in r.stderr
+
+
 def test_record_says_recording_to_only_once_the_folder_is_accepted(tmp_path, run_station):
     (tmp_path / "old").mkdir()
     taken = make_session(tmp_path / "old", order="A")

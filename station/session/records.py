@@ -276,9 +276,17 @@ def _descent_number(v: Any, key: str) -> int:
     if isinstance(v, bool) or not isinstance(v, (int, float, str)):
         raise InputError(f"expected a descent number, got {v!r}", field=key)
     try:
-        return int(v)
+        number = int(v)
     except (ValueError, OverflowError):
         raise InputError(f"expected a descent number, got {v!r}", field=key) from None
+    if number != v and not isinstance(v, str) or not 1 <= number <= MAX_DESCENT:
+        # 1.5 is no descent, and 1e300 none of a day's (it was taken as a 301-digit number)
+        raise InputError(f"expected a descent number (1 to {MAX_DESCENT}), got {v!r}", field=key)
+    return number
+
+
+#: the highest descent number an annotation may name: far beyond any test day
+MAX_DESCENT = 1_000_000
 
 
 # ----------------------------------------------------------------------------- descents
