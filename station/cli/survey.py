@@ -6,7 +6,6 @@ import argparse
 import math
 from typing import Any
 
-from station import csvfiles
 from station.cli.common import (
     _add_air,
     _add_gravity,
@@ -32,6 +31,8 @@ def cmd_survey_points(args: argparse.Namespace) -> int:
     survey = load_survey(args.survey)
     pts = list(survey.points.values())
     if args.csv:
+        from station import csvfiles
+
         with open_output(args.csv, "--csv") as fh:
             w = csvfiles.writer(fh)
             w.writerow(["point", "e", "n", "h", "sigma_h_m", "setup", "line"])
@@ -120,6 +121,8 @@ def cmd_survey(args: argparse.Namespace) -> int:
 
         plot_track(track, args.plot)
     if args.csv:
+        from station import csvfiles
+
         with open_output(args.csv, "--csv") as fh:
             w = csvfiles.writer(fh)
             w.writerow(["x_m", "y_m", "slope_deg", "curvature_1_per_m"])
@@ -232,6 +235,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if d.stopped_x is not None:
         reached = xs < d.stopped_x
     if args.csv:
+        from station import csvfiles
+
         with open_output(args.csv, "--csv") as fh:
             w = csvfiles.writer(fh)
             w.writerow(["photocell", "time"])
