@@ -146,6 +146,36 @@ def test_a_failing_fsync_is_said_and_retried_not_raised(tmp_path, monkeypatch):
     assert said[-1].endswith("synced to disk again")
 
 
+def test_the_acquisition_tells_its_listener_and_fits_on_while_the_disk_is_full(
+    tmp_path, demo_track, monkeypatch
+):
+    """The recorder's warning is the listener's (a line in record, red in the UI), and the
+    descents the timer sends meanwhile are fitted and then on disk."""
+    from station.session.acquisition import Acquisition
+    from station.session.config import load_config
+    from tests.test_acquisition import Recorder, descent_lines, feed_like_a_reader
+    from tests.timing_helpers import write_config
+
+    disk = Disk(monkeypatch)
+    seen = Recorder()
+    session = tmp_path / "session"
+    acq = Acquisition.open(load_config(str(write_config(tmp_path, "loop://"))), seen,
+                           session_dir=str(session))  # fmt: skip
+    assert acq.rawlog is not None
+    disk.fd, disk.full = acq.rawlog._fd, True
+    descents = descent_lines(demo_track, [36000, 36060])
+    feed_like_a_reader(acq, descents[:1])
+    disk.full = False
+    feed_like_a_reader(acq, descents[1:])
+    acq.close()
+    raw = session / "raw.jsonl"
+    assert seen.warnings[0].startswith(f"{raw}: cannot write the raw log (the disk is full)")
+    assert any(w.startswith(f"{raw}: written again") for w in seen.warnings)
+    assert [r.row.status for r in acq.results()] == ["ok", "ok"]
+    lines = b"".join(c.data for c in read_rawlog(str(raw)))
+    assert lines == "".join(line for d in descents for line in d).encode()
+
+
 # ---------------------------------------------------------------- a real full disk
 
 
