@@ -54,23 +54,35 @@ def test_record_says_recording_to_only_once_the_folder_is_accepted(tmp_path, run
     assert lines[-1] == f"results: {new / 'results.csv'}"
 
 
-def test_after_a_csv_write_failure_the_last_line_claims_no_results_file(tmp_path, run_station):
-    cfg = write_config(tmp_path, "loop://")
+def test_after_a_csv_write_failure_the_last_line_claims_no_results_file(
+    tmp_path, run_station, demo_track
+):
+    from tests.test_acquisition import descent_lines
+
+    master, slave = os.openpty()  # a real pseudo-terminal: the timer's end is ours
+    cfg = write_config(tmp_path, os.ttyname(slave))
     session = tmp_path / "s"
     results = session / "results.csv"
 
-    def block() -> None:  # once the first (empty) CSV is there, its place becomes a folder
+    def timer() -> None:  # once the first (empty) CSV is there, its place becomes a folder
         deadline = time.monotonic() + 20
         while not results.is_file() and time.monotonic() < deadline:
             time.sleep(0.01)
         os.remove(results)
         results.mkdir()
+        for line in descent_lines(demo_track, [36000])[0]:
+            os.write(master, line.encode())  # a descent: fitted, its row cannot be written
 
-    t = threading.Thread(target=block)
+    t = threading.Thread(target=timer)
     t.start()
-    r = run_station("record", "--config", cfg, "--session-dir", session, "--duration", "2")
-    t.join()
+    try:
+        r = run_station("record", "--config", cfg, "--session-dir", session, "--duration", "4")
+    finally:
+        t.join()
+        os.close(master)
+        os.close(slave)
     assert r.returncode == 0, r.stderr
+    assert "1 descent" in r.stderr
     last = r.stderr.splitlines()[-1]
     assert last.startswith("results: not written") and f"station export {session}" in last
     assert f"cannot write {results}" in r.stdout

@@ -288,7 +288,7 @@ def test_a_rough_survey_is_accepted_and_recovers_heights_and_mu(tmp_path, spacin
     truth = Params(0.22, 0.0085, 3.4)
     t = _true_times(run.profile(), run.cell_x, truth, cond)
     fit = fit_descent(track.profile, xs, t, cond)
-    assert fit.estimates["mu"] == pytest.approx(truth.mu, abs=2e-4)
+    assert fit.mu.value == pytest.approx(truth.mu, abs=2e-4)
 
 
 def test_a_booked_reflector_height_error_is_found_and_named(tmp_path):
