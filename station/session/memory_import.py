@@ -19,6 +19,7 @@ live recording holds some impulses and the download the rest is not joined into 
 
 from __future__ import annotations
 
+import datetime as dt
 import os
 import time
 from dataclasses import dataclass
@@ -44,6 +45,7 @@ class ImportReport:
     already_there: int
     added: int
     kept_as: str
+    dated: dt.date | None = None  # the test day the new session's impulses were dated by
     #: the session's raw log ended torn (a full disk, a power cut): what was done about it
     repaired: str | None = None
 
@@ -100,9 +102,21 @@ def _keep_bytes(session: str, src: str, data: bytes) -> str:
     return os.path.join(IMPORTS, name)
 
 
-def import_new(path: str, config: StationConfig, session: str) -> ImportReport:
-    """A new session whose raw log is the file's bytes."""
+def day_noon(date: dt.date) -> float:
+    """The host time the bytes of a download are filed under: noon of the test day, local.
+    A descent is dated by the day that puts its start nearest its host time, so every time of
+    day of that date stays on it (the import's own time, hours or days later, would date the
+    whole test day by the day it was downloaded)."""
+    return dt.datetime.combine(date, dt.time(12)).timestamp()
+
+
+def import_new(
+    path: str, config: StationConfig, session: str, date: dt.date | None = None
+) -> ImportReport:
+    """A new session whose raw log is the file's bytes, dated ``date`` (default: the file's
+    modification date, as the replay of a plain capture is)."""
     data = read_import(path)
+    day = date or dt.date.fromtimestamp(os.path.getmtime(path))
     sessions.create(config, session)
     kept = _keep_bytes(session, path, data)
     log = RawLogWriter(
@@ -110,12 +124,12 @@ def import_new(path: str, config: StationConfig, session: str) -> ImportReport:
         header={"port": f"import {os.path.basename(path)}", "protocol": config.serial.protocol},
     )
     try:
-        log.event(time.time(), "import", kept)
-        log.write(time.time(), data)
+        log.event(day_noon(day), "import", kept)
+        log.write(day_noon(day), data)
     finally:
         log.close()
     n = _impulses(_identities(data, config.serial.protocol))
-    return ImportReport(session, n, 0, n, kept)
+    return ImportReport(session, n, 0, n, kept, day)
 
 
 def import_into(path: str, session: str) -> ImportReport:
@@ -133,9 +147,10 @@ def import_into(path: str, session: str) -> ImportReport:
     have: set[tuple[str, ...]] = set()
     framer = LineFramer()
     parser = make_parser(protocol)
-    last_t = None
+    last_t: float | None = None  # the session's own last host time: the merged bytes' day
     for chunk in read_rawlog(os.path.join(session, sessions.RAW)):
-        last_t = chunk.t
+        if chunk.t == chunk.t:  # not NaN
+            last_t = chunk.t
         if chunk.event:
             continue
         for line in framer.feed(chunk.data):
@@ -151,19 +166,15 @@ def import_into(path: str, session: str) -> ImportReport:
     # a torn last record (what a full disk or a power cut leaves) is cut off into a side file
     # first: appending after it would glue the import to half a record, unreadable
     log = RawLogWriter(os.path.join(session, sessions.RAW))
+    when = last_t if last_t is not None else time.time()
     try:
         edits = len(missing) - added
-        # dated as the session's last record, not now: the host time dates the timer's times
-        # of day (an ALGE line has no date), and a replay paced by it must not wait for days
-        now = time.time()
-        t = now if last_t is None else last_t
-        when = time.strftime("%Y-%m-%d %H:%M", time.localtime(now))
-        more = f", and {edits} edit line(s)" if edits else ""
-        log.event(t, "import", f"{kept}: {added} of {n} impulses added{more} (imported {when})")
+        log.event(when, "import", f"{kept}: {added} of {n} impulses added"
+                  + (f", and {edits} edit line(s)" if edits else ""))  # fmt: skip
         if missing:
             # a line end first: a live line cut off at the end of the log stays cut off
             end = LINE_END[protocol]
-            log.write(t, end + b"".join(s.encode("latin-1") + end for s in missing))
+            log.write(when, end + b"".join(s.encode("latin-1") + end for s in missing))
     finally:
         log.close()
-    return ImportReport(session, n, n - added, added, kept, log.repair)
+    return ImportReport(session, n, n - added, added, kept, repaired=log.repair)
