@@ -45,6 +45,17 @@ its own posture well, so the scatter's estimate costs little).
 Goodness of fit. The residual standard deviation is compared with the timer's precision
 (χ² test of PRSS/σ_timer² on n − p degrees of freedom): a day whose residuals the timer cannot
 explain is flagged ``poor-fit``, not "ok".
+
+Use. :func:`joint_fit` is the day model: inputs in, an immutable :class:`JointResult` out, no
+I/O. Its inputs are :class:`DescentData` records, which :func:`collect` makes from a day's
+results (a planner may make them from simulated descents instead)::
+
+    day = collect(results)                       # DayInputs(data, excluded, wind_flagged)
+    res = joint_fit(track, day.data, reference="A / blue", excluded=day.excluded,
+                    wind_flagged=day.wind_flagged, wind_limit_ms=1.0)
+    res.comparisons[0].ci90, res.item("A / blue").p_best, res.to_dict()
+
+:mod:`station.session.comparison` is that glue for the recorded sessions.
 """
 
 from __future__ import annotations

@@ -767,9 +767,12 @@ class Acquisition:
         with self.lock:
             return self.day.processor.line_counts()
 
-    def write_csv(self, path: str) -> None:
-        """The results CSV at ``path`` (export, ``replay --csv``, the UI's ``e``)."""
-        self._write(self.results(), path)
+    def write_csv(self, path: str) -> int:
+        """The results CSV at ``path`` (export, ``replay --csv``, the UI's ``e``); returns the
+        number of descents written."""
+        results = self.results()
+        self._write(results, path)
+        return len(results)
 
     def write_csv_to(self, fh: IO[str]) -> None:
         """The results CSV into an open text file: ``--csv -`` writes to standard output."""
