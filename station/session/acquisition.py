@@ -167,6 +167,8 @@ class Acquisition:
         #: recording or the UI keeps it only in what it hands to the listener: 12 kB a
         #: descent, half a 2000-descent day's memory (the UI asks again for the one it shows)
         self.keep_curves = not threaded
+        #: likewise every impulse's fate (``replay --events`` lists them; the UI is told each)
+        self.keep_events = not threaded
         self.ski_rotation = tuple(ski_rotation)
         self.lock = threading.Lock()  # guards the day: processor, results, annotations
         self.finished_descents = 0  # descents the processor ended, aborted ones not counted
@@ -390,7 +392,7 @@ class Acquisition:
                 self._tell(self.listener.impulses, new, proc.line_counts())
             if new or done:
                 self._tell(self.listener.progress, self.day.progress())
-        if not self.keep_curves:
+        if not self.keep_events:
             # a recording hands each impulse's fate to the listener once and keeps none: a
             # replay of the raw log lists them all (--events); 1.5 kB a descent otherwise
             del proc.events[:]
