@@ -25,6 +25,7 @@ COMMANDS = {
     "annotate": "analysis", "compare": "analysis",
     "live": "terminal", "demo": "terminal",
     "sessions": "sessions", "ports": "ports", "import": "memory", "report": "report",
+    "plan": "plan",
 }  # fmt: skip
 
 
