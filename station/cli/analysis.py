@@ -148,6 +148,7 @@ def _check_descents(session: str, numbers: list[int]) -> None:
 def cmd_compare(args: argparse.Namespace) -> int:
     from station.cli.recording import _replay_run
     from station.model.compare import CompareError, collect, format_comparison, joint_fit
+    from station.model.sequential import day_decisions, decision_lines
     from station.session import store as sessions
 
     if not sessions.is_session(args.session):
@@ -156,6 +157,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
     args.source, args.config, args.fast, args.date = args.session, None, True, None
     acq = _replay_run(args, quiet=True)
     data, excluded, windy = collect(acq.results(), args.wind_limit)
+    if args.upto is not None:  # the day as it stood after descent K
+        data = [d for d in data if d.number <= args.upto]
+        excluded = [(n, why) for n, why in excluded if n <= args.upto]
+        windy = [n for n in windy if n <= args.upto]
     if args.reference is not None:
         items = sorted({d.item for d in data})
         args.reference = unique_prefix(args.reference, items, "item", "--reference")
@@ -172,12 +177,21 @@ def cmd_compare(args: argparse.Namespace) -> int:
             f"descents {', '.join(map(str, windy))} had more than {args.wind_limit:g} m/s of "
             "along-track wind: check them, or mark them invalid"
         )
+    decisions = day_decisions(res.comparisons, [d.item for d in data], horizon=args.horizon,
+                              margin=args.margin)  # fmt: skip
     if args.csv:
         _write_compare_csv(res, args.csv, acq)
     if args.json:
-        _print_json(res.to_dict())
+        out = res.to_dict()
+        for c, d in zip(out["comparisons"], decisions, strict=True):
+            c["decision"] = d.to_dict()
+        _print_json(out)
         return 0
     print(format_comparison(res, len(data)))
+    print(f"\ndecided or not after descent {data[-1].number}, with a look after every descent "
+          f"(α spent over {args.horizon} descents per item):")  # fmt: skip
+    for line in decision_lines(decisions):
+        print(f"  {line}")
     for w in res.warnings:
         _warn(w)
     return 0
@@ -259,6 +273,31 @@ def add_parsers(sub: Any) -> None:
                         "are judged (default 0.5)")  # fmt: skip
     p.add_argument("--wind-limit", type=_positive, default=1.0, metavar="MS",
                    help="flag descents with more along-track wind (m/s)")  # fmt: skip
+    p.add_argument("--upto", type=_descent_number, metavar="K",
+                   help="answer as after descent K (the descents after it left out)")  # fmt: skip
+    p.add_argument("--margin", type=_positive, metavar="DMU",
+                   help="a difference of μ that does not matter: 'equivalent' when the "
+                        "interval lies within ±DMU")  # fmt: skip
+    p.add_argument("--horizon", type=_horizon, default=10, metavar="N",
+                   help="descents per item over which the decision's error rate is spent "
+                        "(the plan's number; default 10)")  # fmt: skip
     p.add_argument("--csv", metavar="OUT", help="write the ranking as CSV; - = stdout")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.set_defaults(func=cmd_compare)
+
+
+def _descent_number(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a descent number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"descents are numbered from 1, got {text!r}")
+    return value
+
+
+def _horizon(text: str) -> int:
+    value = _descent_number(text)
+    if value < 2:
+        raise argparse.ArgumentTypeError(f"at least 2 descents per item, got {text!r}")
+    return value

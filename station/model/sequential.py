@@ -278,10 +278,41 @@ def describe(d: Decision) -> str:
         return (f"equivalent: Δμ {d.delta_mu:+.5f} [{lo:+.5f}, {hi:+.5f}] lies within "
                 f"±{d.margin:g}: no difference that matters")  # fmt: skip
     if d.interval is None:
-        k = d.more_descents_per_item or 1
-        return f"not yet: at least {k} more descent{'s' * (k != 1)} per item before a comparison"
+        return "not yet: a comparison needs two descents of each item"
     if d.more_descents_per_item is None:
         return (f"not yet: no difference in sight (more than {MAX_MORE} more descents per item "
                 "at today's scatter)")  # fmt: skip
     k = d.more_descents_per_item
     return f"not yet: about {k} more descent{'s' * (k != 1)} per item at today's scatter"
+
+
+def standard_error(ci90: tuple[float, float], dof: float | None) -> float:
+    """The standard error behind a 90 % Student-t interval (the joint fit's comparisons)."""
+    from scipy.special import ndtri, stdtrit
+
+    q = float(stdtrit(dof, 0.95)) if dof is not None else float(ndtri(0.95))
+    return (ci90[1] - ci90[0]) / (2.0 * q)
+
+
+def day_decisions(
+    comparisons: Sequence[Any],
+    run_items: Sequence[str],
+    *,
+    horizon: int = DEFAULT_HORIZON,
+    margin: float | None = None,
+) -> list[Decision]:
+    """The decision on each of the joint fit's comparisons (``a``, ``b``, ``delta_mu``,
+    ``ci90``, ``dof``, as :class:`station.model.compare.Comparison` has them) after the
+    descents whose items are ``run_items``, in run order."""
+    out = []
+    for c in comparisons:
+        se = standard_error(c.ci90, c.dof) if c.ci90 is not None else None
+        out.append(
+            decide(c.a, c.b, c.delta_mu, se, c.dof, run_items, horizon=horizon, margin=margin)
+        )
+    return out
+
+
+def decision_lines(decisions: Sequence[Decision]) -> list[str]:
+    """One line per pair: "A vs B: decided: A faster by Δμ … [..]" or "… not yet: …"."""
+    return [f"{d.a} vs {d.b}: {describe(d)}" for d in decisions]
