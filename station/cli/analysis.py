@@ -148,7 +148,7 @@ def _check_descents(session: str, numbers: list[int]) -> None:
 def cmd_compare(args: argparse.Namespace) -> int:
     from station.cli.recording import _replay_run
     from station.model.compare import CompareError, collect, format_comparison, joint_fit
-    from station.model.sequential import day_decisions, decision_lines
+    from station.model.sequential import day_decisions, decision_block
     from station.session import store as sessions
 
     if not sessions.is_session(args.session):
@@ -188,10 +188,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
         _print_json(out)
         return 0
     print(format_comparison(res, len(data)))
-    print(f"\ndecided or not after descent {data[-1].number}, with a look after every descent "
-          f"(α spent over {args.horizon} descents per item):")  # fmt: skip
-    for line in decision_lines(decisions):
-        print(f"  {line}")
+    block = decision_block(res.comparisons, [d.item for d in data], data[-1].number,
+                           horizon=args.horizon, margin=args.margin)  # fmt: skip
+    if block:
+        print("\n" + "\n".join(block))
     for w in res.warnings:
         _warn(w)
     return 0

@@ -316,3 +316,27 @@ def day_decisions(
 def decision_lines(decisions: Sequence[Decision]) -> list[str]:
     """One line per pair: "A vs B: decided: A faster by Δμ … [..]" or "… not yet: …"."""
     return [f"{d.a} vs {d.b}: {describe(d)}" for d in decisions]
+
+
+#: the first words of the decision block (the console of ``station record`` picks it out of
+#: the comparison the UI shows)
+BLOCK_HEADER = "decided or not after descent"
+
+
+def decision_block(
+    comparisons: Sequence[Any],
+    run_items: Sequence[str],
+    last_descent: int,
+    *,
+    horizon: int = DEFAULT_HORIZON,
+    margin: float | None = None,
+) -> list[str]:
+    """The decision on every pair as ``station compare``, the UI's comparison panel and
+    ``station record``'s console show it: a header line and one indented line per pair (no
+    lines when there is no pair)."""
+    decisions = day_decisions(comparisons, run_items, horizon=horizon, margin=margin)
+    if not decisions:
+        return []
+    head = (f"{BLOCK_HEADER} {last_descent}, with a look after every descent "
+            f"(α spent over {horizon} descents per item):")  # fmt: skip
+    return [head, *(f"  {line}" for line in decision_lines(decisions))]

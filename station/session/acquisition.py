@@ -103,6 +103,7 @@ class PrintListener(Listener):
         self.out = out
         self.port = port
         self._told: set[int] = set()  # descents already printed: a second line is an update
+        self._decisions: tuple[str, ...] = ()  # the decisions last printed
 
     def connection(self, state: str, detail: str) -> None:
         if state == "disconnected":
@@ -124,6 +125,17 @@ class PrintListener(Listener):
 
     def warning(self, text: str) -> None:
         self.out(f"warning: {text}")
+
+    def comparison(self, text: str) -> None:
+        """The decision on each pair of items ("decided: …" or "not yet: …") when it changed;
+        the rest of the comparison is for the UI and ``station compare``."""
+        from station.model.sequential import BLOCK_HEADER
+
+        lines = text.splitlines()
+        start = next((k for k, line in enumerate(lines) if line.startswith(BLOCK_HEADER)), None)
+        if start is not None and tuple(lines[start + 1 :]) != self._decisions:
+            self._decisions = tuple(lines[start + 1 :])
+            self.out("\n".join(lines[start:]))
 
 
 @dataclass(frozen=True)
@@ -686,6 +698,7 @@ def _effect_now(day: Day, a: Annotation) -> Effect:
 def comparison_text(track: Any, results: Sequence[DescentResult]) -> str:
     """The joint fit of the day's valid descents, as the UI shows it."""
     from station.model.compare import CompareError, collect, format_comparison, joint_fit
+    from station.model.sequential import decision_block
 
     data, excluded, windy = collect(results)
     if len(data) < 2:
@@ -695,7 +708,9 @@ def comparison_text(track: Any, results: Sequence[DescentResult]) -> str:
     except CompareError as exc:
         return f"no comparison yet: {exc}"
     res.excluded, res.wind_flagged = excluded, windy
-    return format_comparison(res, len(data)) + "".join(f"\n! {w}" for w in res.warnings)
+    block = decision_block(res.comparisons, [d.item for d in data], data[-1].number)
+    text = format_comparison(res, len(data)) + "".join(f"\n! {w}" for w in res.warnings)
+    return text + "".join(f"\n{line}" for line in ["", *block]) if block else text
 
 
 # ----------------------------------------------------------------------------- commands
@@ -713,7 +728,9 @@ def record(
     from station.session.serialport import ensure_port_free
 
     ensure_port_free(config.serial)  # a second recorder on the port: one line, no session made
-    acq = Acquisition.open(config, PrintListener(out, config.serial.port), session_dir=session_dir)
+    acq = Acquisition.open(
+        config, PrintListener(out, config.serial.port), session_dir=session_dir, compare=True
+    )  # compare: the console says after every descent whether the day is decided
     stop = threading.Event()
     previous = {}
     for sig in (signal.SIGINT, signal.SIGTERM):
