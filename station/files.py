@@ -11,9 +11,12 @@ still bounded.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import stat
+import tempfile
+from collections.abc import Iterator
 from typing import BinaryIO
 
 from station.errors import InputError
@@ -136,3 +139,58 @@ def read_text(path: str, max_bytes: int, what: str = "file", encoding: str = "ut
     """The whole file as text (a UTF-8 byte-order mark is dropped)."""
     text = decode_text(read_bytes(path, max_bytes, what), path, what, encoding)
     return text[1:] if text.startswith("\ufeff") else text
+
+
+def check_output(arg: str, option: str) -> str:
+    """Check an output file before any work is done, so a day is not replayed and fitted only
+    to fail at the last step with a traceback: its folder must exist and be writable, and the
+    path must not be a folder or a special file (``/dev/null`` is fine). ``option`` is what
+    named the file (``--csv``, ``results.csv``), for the message."""
+    folder = os.path.dirname(os.path.abspath(arg))
+    if os.path.isdir(arg):
+        raise InputError("is a folder; give a file name (or - for standard output)",
+                         path=arg, field=option)  # fmt: skip
+    if not os.path.exists(folder):
+        raise InputError(f"folder {folder} does not exist", path=arg, field=option)
+    if not os.path.isdir(folder):
+        raise InputError(f"{folder} is not a folder", path=arg, field=option)
+    if os.path.exists(arg):
+        mode = os.stat(arg).st_mode
+        if not stat.S_ISREG(mode) and os.path.abspath(arg) != os.devnull:
+            raise InputError("is not a regular file", path=arg, field=option)
+        if not os.access(arg, os.W_OK):
+            raise InputError("file is not writable", path=arg, field=option)
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InputError(f"folder {folder} is not writable", path=arg, field=option)
+    try:  # the permission bits are not the whole story (root, read-only mounts, /sys)
+        tempfile.TemporaryFile(dir=folder).close()
+    except OSError as exc:
+        raise InputError(f"folder {folder} is not writable ({exc.strerror})",
+                         path=arg, field=option) from None  # fmt: skip
+    return arg
+
+
+@contextlib.contextmanager
+def staged_output(arg: str, option: str) -> Iterator[str]:
+    """A temporary file beside the output, renamed over it only when the writing succeeded,
+    so a failed command leaves the previous file intact and never half a file."""
+    check_output(arg, option)
+    folder = os.path.dirname(os.path.abspath(arg))
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(arg)}-", dir=folder)
+        os.close(fd)
+    except OSError as exc:
+        raise InputError(f"cannot write: {exc.strerror}", path=arg, field=option) from None
+    try:
+        yield tmp
+        if os.path.abspath(arg) == os.devnull:
+            os.unlink(tmp)
+            return
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # as open() would have made it, not mkstemp's 0600
+        os.replace(tmp, arg)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise

@@ -81,7 +81,7 @@ def make_session(
                     Metadata(ski=f"pair {item}", wax="blue"), descents=tuple(numbers), t=T0
                 ),
             )
-    done = replay(str(session), cfg, out=lambda _m: None)
+    done = replay(str(session), cfg)
     done.write_csv(str(session / store.RESULTS))
     return session
 

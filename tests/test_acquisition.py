@@ -16,6 +16,7 @@ import pytest
 
 import station.session.analysis as analysis
 import station.session.results as results
+from station.cli.console import PrintListener
 from station.errors import InputError
 from station.model.physics import Conditions, Params, StraightRun
 from station.session import store as sessions
@@ -125,9 +126,7 @@ def test_a_fit_that_raises_marks_its_descent_and_the_reader_goes_on(
     # the replay meets the same failure at the same descent: the same CSV
     calls["n"] = 0
     out = tmp_path / "replay.csv"
-    replay(str(session), sessions.load_session_config(str(session)), out=lambda _m: None).write_csv(
-        str(out)
-    )
+    replay(str(session), sessions.load_session_config(str(session))).write_csv(str(out))
     assert out.read_bytes() == (session / "results.csv").read_bytes()
 
 
@@ -192,7 +191,7 @@ def test_record_goes_on_after_a_fit_raises(tmp_path, monkeypatch):
     session = tmp_path / "session"
     printed: list[str] = []
     try:
-        acq = record(cfg, str(session), out=printed.append, max_descents=3)
+        acq = record(cfg, str(session), PrintListener(printed.append), max_descents=3)
     finally:
         sim.wait(timeout=30)
     statuses = [r.row.status for r in acq.results()]
@@ -203,9 +202,7 @@ def test_record_goes_on_after_a_fit_raises(tmp_path, monkeypatch):
     assert rx.count("\r") >= 27  # every impulse of the three descents is in the raw log
     calls["n"] = 0
     out = tmp_path / "replay.csv"
-    replay(str(session), sessions.load_session_config(str(session)), out=lambda _m: None).write_csv(
-        str(out)
-    )
+    replay(str(session), sessions.load_session_config(str(session))).write_csv(str(out))
     assert out.read_bytes() == (session / "results.csv").read_bytes()
 
 
@@ -220,9 +217,7 @@ def test_close_ends_the_open_descent_like_the_end_of_a_capture(tmp_path, demo_tr
     assert list(df["descent_status"]) == ["complete", "incomplete"]
     assert "the recording ended" in df.loc[1, "flags"]
     out = tmp_path / "replay.csv"
-    replay(str(session), sessions.load_session_config(str(session)), out=lambda _m: None).write_csv(
-        str(out)
-    )
+    replay(str(session), sessions.load_session_config(str(session))).write_csv(str(out))
     assert out.read_bytes() == (session / "results.csv").read_bytes()
 
 

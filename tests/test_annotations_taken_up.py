@@ -47,9 +47,11 @@ def _feed_descents(acq, n: int, mu: float = 0.009) -> None:
 
 
 def _rows(session):
-    from station.cli.sessions import read_results_rows
+    from station.session.results import read_results
 
-    return read_results_rows(str(session)) or []
+    path = session / "results.csv"
+    rows = read_results(str(path)) if path.exists() else []
+    return [{k: "" if v is None else v for k, v in r.items()} for r in rows]
 
 
 def _replayed_csv(session, tmp_path, run_station) -> bytes:

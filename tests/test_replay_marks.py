@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import datetime as dt
 
-from station.cli.terminal import _save_kept
+from station.cli.tui import save_kept
 from station.session import store
 from station.session.records import InvalidMark
 from station.ui.app import StationApp
@@ -50,7 +50,7 @@ async def test_a_mark_made_while_replaying_a_session_is_saved_in_it(tmp_path):
     assert [type(a) for a in app.kept] == [InvalidMark] and app.kept[0].t is not None
     assert (session / store.ANNOTATIONS).read_text() == before  # saved at the end, not before
 
-    assert _save_kept(app) == 0
+    assert save_kept(app) == 0
     records = read_json_lines(session / store.ANNOTATIONS)
     assert records[-1]["type"] == "invalid" and records[-1]["reason"] == "wrong mass"
     csv_text = (session / store.RESULTS).read_text()
@@ -67,13 +67,14 @@ async def test_a_mark_in_the_replay_of_a_capture_says_it_is_not_saved(tmp_path, 
         said = await _notified(app, pilot)
         assert "this replay only" in said
     assert app.kept == []
-    assert _save_kept(app) == 0
+    assert save_kept(app) == 0
 
 
 def test_the_printed_lines_say_invalid_and_updated(run_station, tmp_path):
     """Headless, a descent marked invalid printed as plain "ok", and a refit printed the same
     line again with nothing to say why."""
-    from station.session.acquisition import PrintListener
+    from station.cli.console import PrintListener
+    from station.session.recorded import RecordedSession
 
     session = make_session(tmp_path, order="AB")
     assert run_station("annotate", session, "--descents", "2", "--invalid", "fell").returncode == 0
@@ -86,13 +87,7 @@ def test_the_printed_lines_say_invalid_and_updated(run_station, tmp_path):
     line1 = next(x for x in out.splitlines() if x.startswith("descent   1"))
     assert "INVALID" not in line1
 
-    import argparse
-
-    from station.cli.recording import _replay_run
-
-    acq = _replay_run(
-        argparse.Namespace(source=str(session), config=None, fast=True, date=None), quiet=True
-    )
+    acq = RecordedSession(str(session)).run()
     printed: list[str] = []
     listener = PrintListener(printed.append)
     first = acq.results()[0]

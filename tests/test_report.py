@@ -111,7 +111,7 @@ def test_aborted_and_unfitted_descents_have_their_panel(tmp_path, demo_track):
     from station.session.acquisition import replay
 
     session = make_session(tmp_path, order="AB")
-    run = replay(str(session), store.load_session_config(str(session)), out=lambda _m: None)
+    run = replay(str(session), store.load_session_config(str(session)))
     views = descent_views(run.results())
     assert [v.item for v in views] == ["pair A / blue", "pair B / blue"]
     assert all(v.good and len(v.residuals_ms) == 9 for v in views)

@@ -189,14 +189,13 @@ def test_watched_days_declare_equal_skis_rarely_and_never_the_wrong_one(demo_tra
 def test_the_comparison_panel_and_the_record_console_say_decided_or_not(session):
     """The UI's comparison panel shows comparison_text; `station record`'s console
     (PrintListener) prints its decision block, once for each change."""
-    import argparse
+    from station.cli.console import PrintListener
+    from station.session.acquisition import comparison_text
+    from station.session.recorded import RecordedSession
 
-    from station.cli.recording import _replay_run
-    from station.session.acquisition import PrintListener, comparison_text
-
-    ns = argparse.Namespace(source=str(session), config=None, fast=True, date=None)
-    acq = _replay_run(ns, quiet=True)
-    text = comparison_text(acq.day.track, acq.results())
+    acq = RecordedSession(str(session))
+    acq.run()
+    text = comparison_text(acq.track, acq.results())
     assert "\ndecided or not after descent 12, with a look after every descent" in text
     assert "\n  pair A / blue vs pair B / blue: decided: pair A / blue faster by Δμ 0.000" in text
     said: list[str] = []
@@ -205,7 +204,7 @@ def test_the_comparison_panel_and_the_record_console_say_decided_or_not(session)
     console.comparison(text)  # unchanged: not said again
     assert len(said) == 1 and said[0].startswith("decided or not after descent 12")
     assert said[0].splitlines()[1].startswith("  pair A / blue vs pair B / blue: decided: ")
-    early = comparison_text(acq.day.track, acq.results()[:3])
+    early = comparison_text(acq.track, acq.results()[:3])
     assert "not yet: a comparison needs two descents of each item" in early
     console.comparison(early)
     assert len(said) == 2

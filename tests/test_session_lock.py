@@ -22,6 +22,14 @@ def session(tmp_path):
     return make_session(tmp_path, order="ABA")
 
 
+def _rows(session) -> list[dict]:
+    """The session's results CSV, an empty cell as "" (as the text reader gave it)."""
+    from station.session.results import read_results
+
+    rows = read_results(str(session / store.RESULTS))
+    return [{k: "" if v is None else v for k, v in r.items()} for r in rows]
+
+
 def _one_line(r, *expect: str) -> str:
     assert r.returncode == 2, (r.stdout, r.stderr)
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
@@ -131,15 +139,13 @@ def test_annotate_rewrites_results_csv_as_export_writes_it(run_station, session,
     exported = tmp_path / "export.csv"
     assert run_station("export", session, "--csv", exported).returncode == 0
     assert exported.read_bytes() == after
-    from station.cli.sessions import read_results_rows
-
-    rows = read_results_rows(str(session))
+    rows = _rows(session)
     assert [r["invalid_reason"] for r in rows] == ["", "fell at PC4", ""]
     # ski and wax too, and a refit with another model
     r = run_station("annotate", session, "--descents", "1,3", "--ski", "pair C", "--model",
                     "velocity")  # fmt: skip
     assert r.returncode == 0, r.stderr
-    rows = read_results_rows(str(session))
+    rows = _rows(session)
     assert [r["ski"] for r in rows] == ["pair C", "pair B", "pair C"]
     assert [r["model"] for r in rows] == ["velocity", "constant", "velocity"]
     assert run_station("export", session, "--csv", exported).returncode == 0
@@ -190,8 +196,11 @@ def test_two_annotates_at_once_both_reach_the_csv(session):
     """The second waits for the first's lock on the annotations file; its CSV has both."""
     import threading
 
-    from station.cli.analysis import rewrite_results
+    from station.session.recorded import RecordedSession
     from station.session.records import InvalidMark
+
+    def rewrite_results(path: str) -> None:
+        RecordedSession(path).rewrite_results()
 
     order = []
     with store.annotations_locked(str(session)):
@@ -211,9 +220,7 @@ def test_two_annotates_at_once_both_reach_the_csv(session):
         order.append("first")
     t.join(timeout=60)
     assert order == ["first", "second"]
-    from station.cli.sessions import read_results_rows
-
-    rows = read_results_rows(str(session))
+    rows = _rows(session)
     assert [r["invalid_reason"] for r in rows] == ["first", "", "second"]
 
 

@@ -4,9 +4,9 @@ and which ski or wax glides better, by how much, and how sure."""
 from __future__ import annotations
 
 import argparse
-import os
+import csv
 import sys
-from collections.abc import Sequence
+import time
 from typing import TYPE_CHECKING, Any
 
 from station import __version__
@@ -25,28 +25,29 @@ from station.cli.common import (
     unique_prefix,
 )
 from station.errors import InputError
+from station.limits import PLAUSIBLE
+from station.session.records import (
+    METADATA_FIELDS,
+    Annotation,
+    FitModel,
+    InvalidMark,
+    Metadata,
+    MetadataAnnotation,
+    ModelChange,
+    ValidMark,
+)
 
 if TYPE_CHECKING:
-    from station.session.records import Annotation
+    from station.model.compare import JointResult
 
 
 def cmd_annotate(args: argparse.Namespace) -> int:
     """Enter metadata, invalid marks or a model for a session's descents, as the UI would."""
-    import time as _time
+    # here, not at the top: the session's replay loads numpy and scipy (see recording.py)
+    from station.cli.console import annotate_session
+    from station.session.recorded import RecordedSession
 
-    from station.session import store as sessions
-    from station.session.records import (
-        METADATA_FIELDS,
-        FitModel,
-        InvalidMark,
-        Metadata,
-        MetadataAnnotation,
-        ModelChange,
-        ValidMark,
-    )
-
-    if not sessions.is_session(args.session):
-        raise InputError("not a session directory (no raw.jsonl)", path=args.session)
+    session = RecordedSession(args.session)
     values = Metadata.from_values({f.key: getattr(args, f.key) for f in METADATA_FIELDS})
     if (args.descents is None) == (args.from_descent is None):
         raise InputError("give --descents N[,M,A-B] or --from N")
@@ -59,7 +60,7 @@ def cmd_annotate(args: argparse.Namespace) -> int:
     if args.wind_ms and args.wind_from_deg is None:
         raise InputError("--wind-ms needs --wind-from-deg (the direction the wind comes from)")
     records: list[Annotation] = []
-    t = _time.time()
+    t = time.time()
     targets = _numbers(args.descents) if args.descents is not None else []
     if values.values():
         if args.descents is not None:
@@ -77,118 +78,48 @@ def cmd_annotate(args: argparse.Namespace) -> int:
             records.append(ModelChange(n, FitModel(args.model), t))
     if not records:
         raise InputError("nothing to annotate: give metadata, --invalid, --valid or --model")
-    _check_descents(args.session, targets)
-    print(save_annotations(args.session, records), file=sys.stderr)
+    session.check_descents(targets)  # --from N may name descents still to come
+    print(annotate_session(session, records), file=sys.stderr)
     return 0
 
 
-def save_annotations(session: str, records: Sequence[Annotation]) -> str:
-    """Append annotations to a session and bring its results.csv up to date: rewritten here,
-    or taken up by the recorder when one is recording the session (``annotate``, and what
-    was entered in a replay of the session). Returns the line that says what happened."""
-    from station.session import store as sessions
-
-    with sessions.annotations_locked(session):  # another annotate waits: one CSV each
-        for rec in records:
-            sessions.append_annotation(session, rec)
-        said = f"{len(records)} annotation(s) added to {session}"
-        state = sessions.recording_state(session)
-        if state is sessions.Recording.NOW:  # the recorder takes them up (Acquisition)
-            return (f"{said}; it is being recorded now: the recording takes them up and its "
-                    "results.csv shows them in a moment")  # fmt: skip
-        if state is sessions.Recording.UNKNOWN:
-            return (f"{said}; whether it is being recorded cannot be told (recording.lock), "
-                    "so results.csv was left alone: station export "
-                    f"{session} --csv {os.path.join(session, sessions.RESULTS)} "
-                    "writes it with them")  # fmt: skip
-        path = rewrite_results(session)
-    return f"{said}; {path} rewritten"
-
-
-def rewrite_results(session: str) -> str:
-    """Rewrite a session's results CSV from its raw log and annotations, as ``station export``
-    writes it (the same replay, the same writer), once the recorder no longer owns it. A CSV
-    that cannot be written is one line that says the annotations are saved all the same."""
-    from station.cli.recording import _replay_run, write_results_csv
-    from station.session import store as sessions
-
-    path = os.path.join(session, sessions.RESULTS)
-    ns = argparse.Namespace(source=session, config=None, fast=True, date=None)
-    try:
-        write_results_csv(_replay_run(ns, quiet=True), path, sessions.RESULTS)
-    except InputError as exc:
-        why = exc.message if exc.path == path else str(exc)
-        raise InputError(
-            f"the annotations are saved, but results.csv was not rewritten: {why}; "
-            f"station export {session} --csv FILE writes the results elsewhere",
-            path=path,
-        ) from None
-    return path
-
-
-def _check_descents(session: str, numbers: list[int]) -> None:
-    """Refuse descents the session does not have: an annotation for descent 99 of an
-    8-descent day would be stored, replayed and do nothing, while the engineer believes it
-    took effect. (``--from N`` may name descents still to come.)"""
-    from station.cli.sessions import session_descents
-
-    if not numbers:
-        return
-    have = set(session_descents(session))
-    missing = sorted(set(numbers) - have)
-    if missing:
-        span = f"descents {min(have)}–{max(have)}" if have else "no descents yet"
-        raise InputError(
-            f"no descent {', '.join(map(str, missing))} in this session (it has {span})",
-            path=session,
-            field="--descents",
-        )
-
-
 def cmd_compare(args: argparse.Namespace) -> int:
-    from station.cli.recording import _replay_run
-    from station.model.compare import CompareError, collect, format_comparison, joint_fit
+    from station.cli.console import replayed  # here: see cmd_annotate
+    from station.model.compare import format_comparison
     from station.model.sequential import day_decisions, decision_block
-    from station.session import store as sessions
+    from station.session.comparison import compare_results, compared_items
+    from station.session.recorded import RecordedSession
 
-    if not sessions.is_session(args.session):
-        raise InputError("not a session directory (no raw.jsonl)", path=args.session)
+    session = RecordedSession(args.session)
     output_path(args.csv, "--csv")
-    args.source, args.config, args.fast, args.date = args.session, None, True, None
-    acq = _replay_run(args, quiet=True)
-    data, excluded, windy = collect(acq.results(), args.wind_limit)
+    results = replayed(session).results()
     if args.upto is not None:  # the day as it stood after descent K
-        data = [d for d in data if d.number <= args.upto]
-        excluded = [(n, why) for n, why in excluded if n <= args.upto]
-        windy = [n for n in windy if n <= args.upto]
-    if args.reference is not None:
-        items = sorted({d.item for d in data})
-        args.reference = unique_prefix(args.reference, items, "item", "--reference")
-    try:
-        res = joint_fit(
-            acq.day.track, data, cda_fixed=args.cda, model=args.model, drift=args.drift,
-            reference=args.reference, timer_sd_s=args.timer_ms / 1000.0,
-        )  # fmt: skip
-    except CompareError as exc:
-        raise InputError(str(exc), path=args.session) from None
-    res.excluded, res.wind_flagged = excluded, windy
-    if windy:
-        res.warnings.append(
-            f"descents {', '.join(map(str, windy))} had more than {args.wind_limit:g} m/s of "
-            "along-track wind: check them, or mark them invalid"
-        )
-    decisions = day_decisions(res.comparisons, [d.item for d in data], horizon=args.horizon,
+        results = tuple(r for r in results if r.row.descent <= args.upto)
+    reference = args.reference
+    if reference is not None:
+        items = compared_items(results, args.wind_limit)
+        reference = unique_prefix(reference, items, "item", "--reference")
+    day = compare_results(
+        session.track, results, wind_limit_ms=args.wind_limit, reference=reference,
+        cda_fixed=args.cda, model=args.model, drift=args.drift,
+        timer_sd_s=args.timer_ms / 1000.0,
+    )  # fmt: skip
+    if day.result is None:
+        raise InputError(day.error, path=args.session)
+    res = day.result
+    run_items = [d.item for d in day.compared]
+    decisions = day_decisions(res.comparisons, run_items, horizon=args.horizon,
                               margin=args.margin)  # fmt: skip
     if args.csv:
-        _write_compare_csv(res, args.csv, acq)
+        _write_compare_csv(res, args.csv)
     if args.json:
         out = res.to_dict()
         for c, d in zip(out["comparisons"], decisions, strict=True):
             c["decision"] = d.to_dict()
         _print_json(out)
         return 0
-    print(format_comparison(res, len(data)))
-    block = decision_block(res.comparisons, [d.item for d in data], data[-1].number,
+    print(format_comparison(res, len(day.compared)))
+    block = decision_block(res.comparisons, run_items, day.compared[-1].number,
                            horizon=args.horizon, margin=args.margin)  # fmt: skip
     if block:
         print("\n" + "\n".join(block))
@@ -197,14 +128,12 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
-def _write_compare_csv(res, path: str, run) -> None:
-    import csv as _csv
-
+def _write_compare_csv(res: JointResult, path: str) -> None:
     with open_output(path, "--csv") as fh:
         head = f"station {__version__} comparison; reference {res.reference}; " \
                f"drift {'on' if res.drift_per_hour else 'off'}"  # fmt: skip
         fh.write(f"# {head.replace(',', ';')}\n")  # no comma: a spreadsheet keeps the line whole
-        w = _csv.writer(fh, quoting=_csv.QUOTE_NONNUMERIC, lineterminator="\n")
+        w = csv.writer(fh, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
         w.writerow(["rank", "item", "descents", "mu", "mu_lo", "mu_hi", "delta_mu_vs_reference",
                     "delta_lo", "delta_hi", "p_faster_than_reference", "delta_t_s"])  # fmt: skip
         for k, name in enumerate(res.ranking, start=1):
@@ -235,9 +164,6 @@ def add_parsers(sub: Any) -> None:
     who.add_argument("--descents", metavar="LIST", help="e.g. 1,4,5-8")
     who.add_argument("--from", dest="from_descent", type=int, metavar="N",
                      help="this and all later descents")  # fmt: skip
-    from station.limits import PLAUSIBLE
-    from station.session.records import METADATA_FIELDS
-
     for f in METADATA_FIELDS:  # the one table of metadata keys
         text = (f.help or f.title).replace("%", "%%")  # argparse formats help with %
         # the wind's direction keeps its own check, after parsing: it says which way is which

@@ -10,13 +10,13 @@ import datetime as dt
 import json
 import os
 import re
-import stat
 import sys
 import tempfile
 from collections.abc import Callable, Iterator
 from typing import IO, Any, NoReturn
 
 from station.errors import InputError
+from station.files import check_output, staged_output
 from station.model.air import (
     DEFAULT_HUMIDITY_PCT,
     DEFAULT_PRESSURE_HPA,
@@ -284,28 +284,7 @@ def output_path(arg: str | None, option: str) -> str | None:
         return arg
     if arg == "":
         raise InputError("empty output path (use - for standard output)", field=option)
-    folder = os.path.dirname(os.path.abspath(arg))
-    if os.path.isdir(arg):
-        raise InputError("is a folder; give a file name (or - for standard output)",
-                         path=arg, field=option)  # fmt: skip
-    if not os.path.exists(folder):
-        raise InputError(f"folder {folder} does not exist", path=arg, field=option)
-    if not os.path.isdir(folder):
-        raise InputError(f"{folder} is not a folder", path=arg, field=option)
-    if os.path.exists(arg):
-        mode = os.stat(arg).st_mode
-        if not stat.S_ISREG(mode) and os.path.abspath(arg) != os.devnull:
-            raise InputError("is not a regular file", path=arg, field=option)
-        if not os.access(arg, os.W_OK):
-            raise InputError("file is not writable", path=arg, field=option)
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise InputError(f"folder {folder} is not writable", path=arg, field=option)
-    try:  # the permission bits are not the whole story (root, read-only mounts, /sys)
-        tempfile.TemporaryFile(dir=folder).close()
-    except OSError as exc:
-        raise InputError(f"folder {folder} is not writable ({exc.strerror})",
-                         path=arg, field=option) from None  # fmt: skip
-    return arg
+    return check_output(arg, option)
 
 
 def output_dir(arg: str, option: str) -> str:
@@ -335,32 +314,6 @@ def output_dir(arg: str, option: str) -> str:
 
 
 @contextlib.contextmanager
-def _staged(arg: str, option: str) -> Iterator[str]:
-    """A temporary file beside the output, renamed over it only when the writing succeeded,
-    so a failed command leaves the previous file intact and never half a file."""
-    output_path(arg, option)
-    folder = os.path.dirname(os.path.abspath(arg))
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(arg)}-", dir=folder)
-        os.close(fd)
-    except OSError as exc:
-        raise InputError(f"cannot write: {exc.strerror}", path=arg, field=option) from None
-    try:
-        yield tmp
-        if os.path.abspath(arg) == os.devnull:
-            os.unlink(tmp)
-            return
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # as open() would have made it, not mkstemp's 0600
-        os.replace(tmp, arg)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
-@contextlib.contextmanager
 def open_output(arg: str, option: str) -> Iterator[IO[str]]:
     """The checked output as a text file: ``-`` is standard output (left open); a path is
     written to a temporary file beside it and renamed over it when done (:func:`_staged`)."""
@@ -369,7 +322,7 @@ def open_output(arg: str, option: str) -> Iterator[IO[str]]:
         yield out
         out.flush()
         return
-    with _staged(arg, option) as tmp, open(tmp, "w", encoding="utf-8", newline="") as fh:
+    with staged_output(arg, option) as tmp, open(tmp, "w", encoding="utf-8", newline="") as fh:
         yield fh
 
 

@@ -10,6 +10,7 @@ from typing import Any
 
 
 def cmd_import(args: argparse.Namespace) -> int:
+    from station.cli.console import day_summary  # here: numpy, see recording.py's note
     from station.session import memory_import
     from station.session import store as sessions
     from station.session.acquisition import replay
@@ -25,14 +26,14 @@ def cmd_import(args: argparse.Namespace) -> int:
         config = load_config(args.config)
         report = memory_import.import_new(args.file, config, args.session_dir)
         config = sessions.load_session_config(args.session_dir)
-    run = replay(report.session, config, out=lambda _m: None)
+    run = replay(report.session, config)
     run.write_csv(os.path.join(report.session, sessions.RESULTS))
     print(
         f"{report.impulses_in_file} impulses in {args.file}: {report.already_there} already in "
         f"the session, {report.added} added; the file is kept as {report.kept_as}",
         file=sys.stderr,
     )
-    print(run.summary(), file=sys.stderr)
+    print(day_summary(run), file=sys.stderr)
     return 0
 
 

@@ -52,19 +52,14 @@ def _items(text: str) -> int:
 def _from_session(args: argparse.Namespace) -> dict[str, Any]:
     """The posture scatter (and the skier's CdA and v0) that a past session's joint fit
     estimated, with the words that say where they came from."""
-    from station.cli.recording import _replay_run
-    from station.model.compare import CompareError, collect, joint_fit
-    from station.session import store as sessions
+    from station.cli.console import replayed
+    from station.session.recorded import RecordedSession
 
-    if not sessions.is_session(args.from_session):
-        raise InputError("not a session directory (no raw.jsonl)", path=args.from_session)
-    ns = argparse.Namespace(source=args.from_session, config=None, fast=True, date=None)
-    acq = _replay_run(ns, quiet=True)
-    data, _, _ = collect(acq.results())
-    try:
-        res = joint_fit(acq.day.track, data, timer_sd_s=args.timer_ms / 1000.0)
-    except CompareError as exc:
-        raise InputError(f"--from: {exc}", path=args.from_session) from None
+    session = replayed(RecordedSession(args.from_session))
+    day = session.compare(timer_sd_s=args.timer_ms / 1000.0)
+    if day.result is None:
+        raise InputError(f"--from: {day.error}", path=args.from_session)
+    res = day.result
     if res.status != "ok":
         raise InputError(
             f"--from: the session's joint fit is {res.status} ({res.message}); its posture "
@@ -78,7 +73,7 @@ def _from_session(args: argparse.Namespace) -> dict[str, Any]:
         "cda": cdas[len(cdas) // 2],
         "v0": res.typical_v0,
         "mu": sorted(i.mu for i in res.items)[len(res.items) // 2],
-        "descents": len(data),
+        "descents": len(day.compared),
     }
 
 

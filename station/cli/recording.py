@@ -1,25 +1,29 @@
 """``station record``, ``replay`` and ``export``: a test day recorded from the timer, replayed
-from its raw log or a plain capture, and its results written."""
+from its raw log or a plain capture, and its results written.
+
+The session modules are imported inside each command, not at the top: they load numpy and
+scipy (1.2 s on the 2-core test machine), and ``station --help`` or a mistyped command imports
+every command module to build its parser (station/cli/main.py).
+"""
 
 from __future__ import annotations
 
 import argparse
 import os
 import sys
-from typing import Any
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
-from station.cli.common import (
-    _date,
-    _positive,
-    _warn,
-    open_output,
-    output_path,
-)
+from station.cli.common import _date, _positive, _warn, open_output, output_path
 from station.errors import InputError
+from station.session import store as sessions
+
+if TYPE_CHECKING:
+    from station.session.analysis import DescentResult
 
 
 def cmd_record(args: argparse.Namespace) -> int:
-    from station.session import store as sessions
+    from station.cli.console import PrintListener, day_summary
     from station.session.acquisition import record
     from station.session.config import load_config
     from station.session.ports import check_port
@@ -29,97 +33,69 @@ def cmd_record(args: argparse.Namespace) -> int:
     folder = args.session_dir or sessions.default_dir()
     print(f"recording to {folder} from {cfg.serial.port} ({cfg.serial.protocol}); Ctrl-C ends",
           file=sys.stderr)  # fmt: skip
-    acq = record(cfg, folder, max_descents=args.max_descents, duration_s=args.duration)
-    print(acq.summary(), file=sys.stderr)
+    acq = record(cfg, folder, PrintListener(port=cfg.serial.port),
+                 max_descents=args.max_descents, duration_s=args.duration)  # fmt: skip
+    print(day_summary(acq), file=sys.stderr)
     print(f"results: {os.path.join(folder, sessions.RESULTS)}", file=sys.stderr)
     return 0
 
 
-def _replay_config(args: argparse.Namespace):
-    """The config of a replay: ``--config``, else a session's own snapshot."""
-    from station.session import store as sessions
-    from station.session.config import load_config
-
-    if not os.path.exists(args.source):
-        raise InputError("no such session or capture", path=args.source)
-    if getattr(args, "config", None):
-        return load_config(args.config)
-    if sessions.is_session(args.source):
-        return sessions.load_session_config(args.source)
-    raise InputError(
-        "a plain capture needs --config (protocol, channels, survey)", path=args.source
-    )
-
-
-def _replay_run(args: argparse.Namespace, quiet: bool = False):
-    """The replay of ``args.source`` through the acquisition loop (an ``Acquisition``)."""
-    from station.session.acquisition import replay
-
-    cfg = _replay_config(args)
-    warnings: list[str] = []
-    speed = None if getattr(args, "fast", True) else getattr(args, "speed", None)
-    out = (lambda _m: None) if quiet else print
-    acq = replay(args.source, cfg, out=out, speed=speed, date=_date(getattr(args, "date", None)),
-                 warnings=warnings)  # fmt: skip
-    for w in warnings:
-        _warn(w)
-    return acq
-
-
 def cmd_replay(args: argparse.Namespace) -> int:
-    from station.cli.terminal import _replay_ui
+    from station.cli.console import PrintListener, day_summary, replay_config
+    from station.cli.tui import replay_ui
+    from station.session.acquisition import replay
     from station.session.replay import write_events
 
     output_path(args.csv, "--csv")
     output_path(args.events, "--events")
     output_path(args.times, "--times")
+    cfg = replay_config(args.source, args.config)  # a wrong source or config is said first
+    speed = None if args.fast else args.speed
     if args.ui:
-        return _replay_ui(args)
-    acq = _replay_run(args)
-    print(acq.summary(), file=sys.stderr)
+        return replay_ui(cfg, args.source, speed, _date(args.date))
+    warnings: list[str] = []
+    acq = replay(args.source, cfg, PrintListener(), speed=speed, date=_date(args.date),
+                 warnings=warnings)  # fmt: skip
+    for w in warnings:
+        _warn(w)
+    print(day_summary(acq), file=sys.stderr)
     if args.csv:
         with open_output(args.csv, "--csv") as fh:
             acq.write_csv_to(fh)
     if args.events:
         with open_output(args.events, "--events") as fh:
             write_events(acq.day.processor, fh)
-    _write_times(acq, args)
+    _write_times(acq.results(), args.times)
     return 0
 
 
-def _write_times(acq: Any, args: argparse.Namespace) -> None:
+def _write_times(results: Sequence[DescentResult], out: str | None) -> None:
     """``--times OUT``: one row per impulse kept in a descent (station.session.crossings)."""
-    if getattr(args, "times", None):
+    if out:
         from station.session.crossings import write_times
 
-        with open_output(args.times, "--times") as fh:
-            n = write_times(acq.results(), fh)
-        where = "standard output" if args.times == "-" else args.times
+        with open_output(out, "--times") as fh:
+            n = write_times(results, fh)
+        where = "standard output" if out == "-" else out
         print(f"{n} crossing times -> {where}", file=sys.stderr)
 
 
-def write_results_csv(acq: Any, path: str, option: str) -> None:
-    """The results CSV of a replayed session (``export``, and ``annotate`` rewriting the
-    session's own): one code path, so both give the same bytes."""
-    with open_output(path, option) as fh:
-        acq.write_csv_to(fh)
-
-
 def cmd_export(args: argparse.Namespace) -> int:
-    from station.session import store as sessions
+    from station.cli.console import replayed
+    from station.session.recorded import RecordedSession
 
-    if not sessions.is_session(args.source):
-        raise InputError("not a session directory (no raw.jsonl)", path=args.source)
+    session = RecordedSession(args.source)
     if not args.csv and not args.times:
         raise InputError("give --csv OUT and/or --times OUT", path=args.source)
     output_path(args.csv, "--csv")
     output_path(args.times, "--times")
-    acq = _replay_run(args, quiet=True)
+    results = replayed(session).results()
     if args.csv:
-        write_results_csv(acq, args.csv, "--csv")
+        with open_output(args.csv, "--csv") as fh:
+            session.write_results_to(fh)
         where = "standard output" if args.csv == "-" else args.csv
-        print(f"{len(acq.results())} descents -> {where}", file=sys.stderr)
-    _write_times(acq, args)
+        print(f"{len(results)} descents -> {where}", file=sys.stderr)
+    _write_times(results, args.times)
     return 0
 
 

@@ -9,23 +9,20 @@ import sys
 from typing import Any
 
 from station.cli.common import _positive, open_output, output_dir, unique_prefix
-from station.errors import InputError
+from station.session import store as sessions
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from station.cli.recording import _replay_run
-    from station.cli.sessions import recording_started
-    from station.model.compare import CompareError, collect, joint_fit
+    # here, not at the top: numpy, scipy and matplotlib (see recording.py's note)
+    from station.cli.console import day_summary, replayed
     from station.report.day_report import DayData, build_day_report, descent_views
-    from station.session import store as sessions
+    from station.session.comparison import compared_items
+    from station.session.recorded import RecordedSession
 
-    if not sessions.is_session(args.session):
-        raise InputError("not a session directory (no raw.jsonl)", path=args.session)
+    session = RecordedSession(args.session)
     out = output_dir(args.out, "--out")  # checked (and made) before the day is replayed
-    name = os.path.basename(os.path.normpath(os.path.abspath(args.session))) or "session"
-    path = os.path.join(out, f"{name}.html")
-    ns = argparse.Namespace(source=args.session, config=None, fast=True, date=None)
-    acq = _replay_run(ns, quiet=True)  # the session as a replay gives it, annotations included
+    path = os.path.join(out, f"{session.name}.html")
+    acq = replayed(session).run()  # the session as a replay gives it, annotations included
     results = acq.results()
     base = acq.day.base_metadata()
     day = DayData(
@@ -33,30 +30,23 @@ def cmd_report(args: argparse.Namespace) -> int:
         track=acq.track,
         descents=descent_views(results),
         header=sessions.results_header(acq.config, acq.track.name),
-        summary=acq.summary(),
+        summary=day_summary(acq),
         config_metadata={k: getattr(base, k, None) for k in ("skier", "ski", "wax", "notes")},
-        recorded=recording_started(args.session),
-        annotations=len(sessions.read_annotations(args.session)),
+        recorded=session.started(),
+        annotations=len(session.annotations()),
     )
-    with open(os.path.join(args.session, sessions.CONFIG), encoding="utf-8") as fh:
+    with open(session.file(sessions.CONFIG), encoding="utf-8") as fh:
         day.config_text = fh.read()
     day.warnings = list(acq.track.warnings)
-    data, excluded, windy = collect(results, args.wind_limit)
     reference = args.reference
     if reference is not None:
-        reference = unique_prefix(reference, sorted({d.item for d in data}), "item", "--reference")
-    try:
-        res = joint_fit(acq.track, data, drift=args.drift, reference=reference)
-    except CompareError as exc:
-        day.comparison_error = str(exc)
+        items = compared_items(results, args.wind_limit)
+        reference = unique_prefix(reference, items, "item", "--reference")
+    compared = session.compare(wind_limit_ms=args.wind_limit, reference=reference, drift=args.drift)
+    if compared.result is None:
+        day.comparison_error = compared.error
     else:
-        res.excluded, res.wind_flagged = excluded, windy
-        if windy:
-            res.warnings.append(
-                f"descents {', '.join(map(str, windy))} had more than {args.wind_limit:g} m/s "
-                "of along-track wind: check them, or mark them invalid"
-            )
-        day.comparison, day.compared = res, data
+        day.comparison, day.compared = compared.result, compared.compared
     page = build_day_report(day)
     with open_output(path, "--out") as fh:
         fh.write(page)

@@ -4,99 +4,28 @@ from __future__ import annotations
 
 import argparse
 import os
+import random
 import sys
+import tempfile
+from importlib.resources import files
 from typing import Any
 
-from station.cli.common import (
-    _date,
-    _positive,
-)
-from station.errors import InputError
-
-
-def _replay_ui(args: argparse.Namespace) -> int:
-    from station.cli.recording import _replay_config
-    from station.session.replay import source_date
-    from station.ui.app import StationApp
-
-    cfg = _replay_config(args)  # a wrong source or config is said first, terminal or not
-    require_terminal("replay --ui", "without --ui, replay prints the results")
-    date = source_date(args.source, _date(args.date))
-    speed = None if args.fast else args.speed
-    app = StationApp(cfg, mode="replay", source=args.source, speed=speed, date=date)
-    return _run_ui(app, then=lambda: _save_kept(app))
-
-
-def _save_kept(app: Any) -> int:
-    """What the engineer entered while replaying a session, saved in it as ``station annotate``
-    saves it (results.csv rewritten unless a recorder owns it): a replay records nothing, and
-    a mark that vanished at quit would be a result silently different from the one seen."""
-    if not app.kept:
-        return 0
-    from station.cli.analysis import save_annotations
-
-    try:
-        said = save_annotations(app.source, app.kept)
-    except InputError as exc:
-        print(f"station replay: error: what was entered is not saved: {exc}", file=sys.stderr)
-        return 2
-    print(said, file=sys.stderr, flush=True)
-    return 0
-
-
-def require_terminal(command: str, instead: str) -> None:
-    """The UI needs a terminal to read keys from and to draw on (Textual draws on stderr): with
-    input or output redirected it would write escape codes into a file and run until killed."""
-    streams = {"standard input": sys.stdin, "standard output": sys.stdout}
-    streams["standard error"] = sys.stderr
-    for name, stream in streams.items():
-        try:
-            tty = stream is not None and stream.isatty()
-        except (AttributeError, ValueError):  # closed or replaced by something without a fd
-            tty = False
-        if not tty:
-            raise InputError(
-                f"station {command} is a terminal UI and {name} is not a terminal; "
-                f"run it in a terminal ({instead})"
-            )
-
-
-def _run_ui(app: Any, then: Any = None) -> int:
-    app.run()
-    if app.return_code:  # an error inside the app: Textual has printed it
-        return int(app.return_code)
-    status = then() if then is not None else 0
-    folder = getattr(app, "session_dir", None)
-    if folder is not None:
-        from station.report.text import count
-
-        acq = getattr(app, "acq", None)  # closed by now: its results include the open descent
-        n = len(acq.results()) if acq is not None else len(getattr(app, "results", {}))
-        print(
-            f"session saved in {os.path.abspath(folder)} ({count(n, 'descent')}: raw.jsonl, "
-            f"results.csv); replay it with: station replay {folder} --ui",
-            file=sys.stderr,
-            flush=True,
-        )
-    # Quit within a second: by now the raw log is closed, the results CSV and the
-    # annotations are written and the simulator has ended; what is left is the interpreter
-    # taking numpy, scipy and Textual apart (0.4-0.6 s), which nobody needs to wait for.
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(status)
+from station.cli.common import _positive
+from station.session import store as sessions
+from station.session.config import load_config
+from station.session.ports import check_port
 
 
 def cmd_live(args: argparse.Namespace) -> int:
-    from station.session import store as sessions
-    from station.session.config import load_config
-    from station.session.ports import check_port
+    # here, not at the top: the UI, numpy and scipy (see station/cli/tui.py and recording.py)
+    from station.cli.tui import require_terminal, run_ui
     from station.ui.app import StationApp
 
     cfg = load_config(args.config)
     check_port(cfg.serial.port, args.config)  # a wrong port: say so and list them, at once
     require_terminal("live", "to record without a terminal: station record")
     folder = args.session_dir or sessions.default_dir()
-    return _run_ui(StationApp(cfg, mode="live", session_dir=folder))
+    return run_ui(StationApp(cfg, mode="live", session_dir=folder))
 
 
 DEMO_SKIS = [("demo pair A", 0.0080), ("demo pair B", 0.0095), ("demo pair C", 0.0110)]
@@ -104,17 +33,12 @@ DEMO_SKIS = [("demo pair A", 0.0080), ("demo pair B", 0.0095), ("demo pair C", 0
 
 def demo_config_path() -> str:
     """The bundled demo station config (package data, so it works without a checkout)."""
-    from importlib.resources import files
-
     return str(files("surveys") / "demo_station.yaml")
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    import random
-    import tempfile
-
-    from station.session import store as sessions
-    from station.session.config import load_config
+    # here, not at the top: the UI, numpy and scipy (see station/cli/tui.py and recording.py)
+    from station.cli.tui import require_terminal, run_ui
     from station.ui.app import StationApp
 
     require_terminal("demo", "the simulated timer alone: station-sim")
@@ -139,7 +63,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
         sim_command=sim,
         demo_skis=[n for n, _mu in DEMO_SKIS],
     )
-    return _run_ui(app)
+    return run_ui(app)
 
 
 def add_parsers(sub: Any) -> None:

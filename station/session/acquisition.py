@@ -40,8 +40,11 @@ from dataclasses import dataclass
 from typing import IO, Any
 
 from station.errors import InputError
+from station.model.compare import collect, format_comparison
+from station.model.sequential import decision_block
 from station.session import store as sessions
 from station.session.analysis import DescentResult
+from station.session.comparison import compare_results
 from station.session.config import SerialConfig, StationConfig
 from station.session.day import Day, Effect
 from station.session.rawlog import Chunk, RawLogWriter
@@ -88,54 +91,18 @@ class Listener:
         """Something failed and the acquisition went on."""
         print(f"warning: {text}", file=sys.stderr, flush=True)
 
-    def ended(self, summary: str) -> None:
-        """A replay reached its end and every descent is fitted."""
+    def ended(self, counts: LineCounts, results: tuple[DescentResult, ...]) -> None:
+        """A replay reached its end and every descent is fitted: the lines read and the
+        descents as the results show them (the summary is the listener's to word)."""
 
 
-def _print(text: str) -> None:
-    print(text, flush=True)  # a line per descent as it happens, also through a pipe (tee)
-
-
-class PrintListener(Listener):
-    """``station record`` and ``replay``: one line per descent and per connection change."""
-
-    def __init__(self, out: Callable[[str], None] = _print, port: str = "") -> None:
-        self.out = out
-        self.port = port
-        self._told: set[int] = set()  # descents already printed: a second line is an update
-        self._decisions: tuple[str, ...] = ()  # the decisions last printed
-
-    def connection(self, state: str, detail: str) -> None:
-        if state == "disconnected":
-            self.out(f"timer disconnected ({detail}); reconnecting")
-        elif state == "connected":
-            self.out(f"timer connected on {detail}")
-        elif state == "open-failed":
-            self.out(f"cannot open {self.port} ({detail}); retrying")
-        elif state == "error":
-            self.out(f"error: {detail}")
-
-    def result(self, result: DescentResult) -> None:
-        from station.report.text import describe
-
-        n = result.descent.number
-        again = "  (updated: an annotation or a refit)" if n in self._told else ""
-        self._told.add(n)
-        self.out(describe(result) + again)
+class QuietListener(Listener):
+    """Says nothing, warnings neither: a replay whose caller reports only its results (export,
+    annotate, compare, report), where a line per descent or a repeated site warning would
+    bury the one answer asked for."""
 
     def warning(self, text: str) -> None:
-        self.out(f"warning: {text}")
-
-    def comparison(self, text: str) -> None:
-        """The decision on each pair of items ("decided: …" or "not yet: …") when it changed;
-        the rest of the comparison is for the UI and ``station compare``."""
-        from station.model.sequential import BLOCK_HEADER
-
-        lines = text.splitlines()
-        start = next((k for k, line in enumerate(lines) if line.startswith(BLOCK_HEADER)), None)
-        if start is not None and tuple(lines[start + 1 :]) != self._decisions:
-            self._decisions = tuple(lines[start + 1 :])
-            self.out("\n".join(lines[start:]))
+        pass
 
 
 @dataclass(frozen=True)
@@ -559,10 +526,8 @@ class Acquisition:
             return
         if isinstance(job, _End):
             with self.lock:
-                from station.report.text import summary
-
-                text = summary(day.processor.line_counts(), day.snapshot())
-            self._tell(self.listener.ended, text)
+                counts, snapshot = day.processor.line_counts(), day.snapshot()
+            self._tell(self.listener.ended, counts, snapshot)
             return
         with self.lock:
             if isinstance(job, _Fit):
@@ -664,11 +629,10 @@ class Acquisition:
         with self.lock:
             return self.day.snapshot()
 
-    def summary(self) -> str:
-        from station.report.text import summary
-
+    def line_counts(self) -> LineCounts:
+        """The lines read so far and what became of them (for the summary a command prints)."""
         with self.lock:
-            return summary(self.day.processor.line_counts(), self.day.snapshot())
+            return self.day.processor.line_counts()
 
     def write_csv(self, path: str) -> None:
         """The results CSV at ``path`` (export, ``replay --csv``, the UI's ``e``)."""
@@ -695,21 +659,18 @@ def _effect_now(day: Day, a: Annotation) -> Effect:
     return Effect(changed=(a.descent,))
 
 
-def comparison_text(track: Any, results: Sequence[DescentResult]) -> str:
+def comparison_text(track: Track, results: Sequence[DescentResult]) -> str:
     """The joint fit of the day's valid descents, as the UI shows it."""
-    from station.model.compare import CompareError, collect, format_comparison, joint_fit
-    from station.model.sequential import decision_block
-
-    data, excluded, windy = collect(results)
-    if len(data) < 2:
+    if len(collect(results)[0]) < 2:
         return "no comparison yet: it needs at least two fitted descents"
-    try:
-        res = joint_fit(track, data)
-    except CompareError as exc:
-        return f"no comparison yet: {exc}"
-    res.excluded, res.wind_flagged = excluded, windy
-    block = decision_block(res.comparisons, [d.item for d in data], data[-1].number)
-    text = format_comparison(res, len(data)) + "".join(f"\n! {w}" for w in res.warnings)
+    day = compare_results(track, results)
+    if day.result is None:
+        return f"no comparison yet: {day.error}"
+    res = day.result
+    text = format_comparison(res, len(day.compared)) + "".join(f"\n! {w}" for w in res.warnings)
+    block = decision_block(
+        res.comparisons, [d.item for d in day.compared], day.compared[-1].number
+    )  # decided or not, after every descent (station/model/sequential.py)
     return text + "".join(f"\n{line}" for line in ["", *block]) if block else text
 
 
@@ -719,7 +680,7 @@ def comparison_text(track: Any, results: Sequence[DescentResult]) -> str:
 def record(
     config: StationConfig,
     session_dir: str,
-    out: Callable[[str], None] = _print,
+    listener: Listener,
     max_descents: int | None = None,
     duration_s: float | None = None,
 ) -> Acquisition:
@@ -728,9 +689,8 @@ def record(
     from station.session.serialport import ensure_port_free
 
     ensure_port_free(config.serial)  # a second recorder on the port: one line, no session made
-    acq = Acquisition.open(
-        config, PrintListener(out, config.serial.port), session_dir=session_dir, compare=True
-    )  # compare: the console says after every descent whether the day is decided
+    # compare: the console says after every descent whether the day is decided
+    acq = Acquisition.open(config, listener, session_dir=session_dir, compare=True)
     stop = threading.Event()
     previous = {}
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -762,14 +722,16 @@ def record(
 def replay(
     source: str,
     config: StationConfig,
-    out: Callable[[str], None] = print,
+    listener: Listener | None = None,
     speed: float | None = None,
     date: dt.date | None = None,
     warnings: list[str] | None = None,
 ) -> Acquisition:
-    """Feed a session (with its annotations) or a plain capture through the loop, in line."""
+    """Feed a session (with its annotations) or a plain capture through the loop, in line.
+    Without a listener the replay says nothing as it goes: the caller reports its results
+    (and ``warnings`` collects what the raw log's reader passed over)."""
     acq = Acquisition.open(
-        config, PrintListener(out), date=source_date(source, date), threaded=False
+        config, listener or QuietListener(), date=source_date(source, date), threaded=False
     )
     acq.replay(source, speed, warnings)
     acq.close()

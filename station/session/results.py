@@ -15,6 +15,7 @@ note contains.
 from __future__ import annotations
 
 import csv
+import io
 import math
 import operator
 import os
@@ -23,6 +24,8 @@ from collections.abc import Sequence
 from typing import IO, Any
 
 from station import __version__
+from station.errors import InputError
+from station.files import decode_text, read_bytes
 from station.session.records import ResultRow, csv_record
 
 COLUMNS = [
@@ -158,27 +161,50 @@ def _umask() -> int:
     return mask
 
 
+#: a day's results CSV: a few hundred bytes a descent
+MAX_RESULTS = 64 * 1024 * 1024
+
+
 def read_results(path: str) -> list[dict[str, Any]]:
     """The rows as written: numbers as int (descent, photocells_used) or float, text as str,
     empty cells as None. Only the ``#`` lines above the column names are skipped: a line of
-    quoted notes may begin with ``#`` too."""
-    with open(path, encoding="utf-8", newline="") as fh:
-        lines = fh.readlines()
+    quoted notes may begin with ``#`` too.
+
+    The one reader of a results CSV (``station sessions``, ``annotate``'s check of the
+    descents, the tests). Only a regular file is opened, and at most :data:`MAX_RESULTS` bytes
+    of it are read, so a FIFO or a link to ``/dev/zero`` is one line, not a hang; a file that
+    is not a results CSV (binary, damaged, a number column with text) is one
+    :class:`InputError` naming the file, its line and the column."""
+    what = "results CSV"
+    text = decode_text(read_bytes(path, MAX_RESULTS, what), path, what)
+    lines = io.StringIO(text, newline="").readlines()  # line ends as the csv module wants
     start = next((i for i, line in enumerate(lines) if not line.startswith("#")), len(lines))
     reader = csv.reader(lines[start:])
-    names = next(reader, [])
-    rows = []
-    for cells in reader:
-        row: dict[str, Any] = {}
-        for col, cell in zip(names, cells, strict=False):
-            if cell == "":
-                row[col] = None
-            elif col in TEXT_COLUMNS or col == "start_time" or col not in COLUMNS:
-                row[col] = cell
-            else:
-                row[col] = int(cell) if col in INT_COLUMNS else float(cell)
-        rows.append(row)
+    try:
+        names = next(reader, [])
+        if names and "descent" not in names:
+            raise InputError(f"not a {what}: no descent column", path=path, line=start + 1)
+        rows = []
+        for cells in reader:
+            row: dict[str, Any] = {}
+            for col, cell in zip(names, cells, strict=False):
+                row[col] = _cell(cell, col, path, start + reader.line_num)
+            rows.append(row)
+    except csv.Error as exc:
+        raise InputError(f"not a {what}: {exc}", path=path, line=start + reader.line_num) from None
     return rows
+
+
+def _cell(cell: str, col: str, path: str, line: int) -> Any:
+    if cell == "":
+        return None
+    if col in TEXT_COLUMNS or col == "start_time" or col not in COLUMNS:
+        return cell
+    try:
+        return int(cell) if col in INT_COLUMNS else float(cell)
+    except ValueError:
+        kind = "a whole number" if col in INT_COLUMNS else "a number"
+        raise InputError(f"{cell[:20]!r} is not {kind}", path=path, line=line, field=col) from None
 
 
 def write_result_rows(rows: Sequence[ResultRow], path: str, header: dict[str, str]) -> None:

@@ -349,8 +349,8 @@ def recording_state(session: str) -> Recording:
     Opened read-only, so a read-only folder or medium (a session copied to a stick) is read as
     well; a session from before the lock file has none and reads as ended."""
     path = os.path.join(session, LOCK)
-    try:
-        fd = os.open(path, os.O_RDONLY)
+    try:  # without waiting: a FIFO put there must not hang a listing
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     except FileNotFoundError:
         return Recording.ENDED
     except OSError:
@@ -391,7 +391,8 @@ def annotations_locked(session: str, timeout_s: float | None = None) -> Iterator
     first; None on a file system without flock (the caller goes on as before the lock)."""
     path = os.path.join(session, ANNOTATIONS)
     try:
-        fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        # O_NONBLOCK: a FIFO there is an error at once (no reader), not a hang
+        fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NONBLOCK, 0o644)
     except OSError as exc:
         raise InputError(f"cannot write the annotation: {exc.strerror or exc}", path=path) from None
     try:

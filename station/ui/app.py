@@ -26,6 +26,7 @@ from station.report.text import count, local_time
 from station.session.acquisition import Acquisition
 from station.session.analysis import DescentResult
 from station.session.config import StationConfig
+from station.session.recorded import RecordedSession
 from station.session.records import (
     Annotation,
     FitModel,
@@ -38,6 +39,7 @@ from station.session.records import (
     ResultRow,
     ValidMark,
 )
+from station.session.store import is_session
 from station.timing.impulses import format_tod
 from station.ui.messages import (
     AcquisitionWarning,
@@ -239,10 +241,16 @@ class StationApp(App):
         date: dt.date | None = None,
         sim_command: list[str] | None = None,
         demo_skis: list[str] | None = None,
+        recorded: RecordedSession | None = None,
     ) -> None:
         super().__init__()
         self.mode = mode
         self.source = source
+        #: the session replayed (``replay --ui SESSION``): it replays itself, and what is
+        #: entered is saved in it at the end; None for a plain capture, live and demo
+        if recorded is None and mode == "replay" and source and is_session(source):
+            recorded = RecordedSession(source, config)
+        self.recorded = recorded
         self.session_dir = session_dir
         self.speed = speed
         self.date = date
@@ -283,20 +291,26 @@ class StationApp(App):
         self.main.query_one("#table", DataTable).focus()
         self._update_status()
         self.on_resize()
-        self.acq = Acquisition.open(
-            self.config,
-            PostingListener(self),
-            session_dir=self.session_dir,
-            date=self.date,
-            compare=True,
-            ski_rotation=self.demo_skis if self.mode == "demo" else (),
-        )
+        if self.mode == "replay" and self.recorded is not None:
+            self.acq = self.recorded.start_replay(
+                PostingListener(self), speed=self.speed, compare=True
+            )
+        else:
+            self.acq = Acquisition.open(
+                self.config,
+                PostingListener(self),
+                session_dir=self.session_dir,
+                date=self.date,
+                compare=True,
+                ski_rotation=self.demo_skis if self.mode == "demo" else (),
+            )
         self.photocell_ids = tuple(self.acq.track.photocell_ids)
         if self.session_dir is not None:
             self.sub_title = f"{self.mode} · {self.session_dir}"
         if self.mode == "replay":
             assert self.source is not None
-            self.acq.start_replay(self.source, self.speed)
+            if self.recorded is None:  # a plain capture
+                self.acq.start_replay(self.source, self.speed)
         elif self.mode == "demo":
             self.run_worker(self._start_demo, thread=True, group="demo", exit_on_error=False)
         else:
@@ -603,9 +617,7 @@ class StationApp(App):
         Returns what the notification adds."""
         if self.mode != "replay":
             return ""
-        from station.session import store as sessions
-
-        if self.source is not None and sessions.is_session(self.source):
+        if self.recorded is not None:
             self.kept.append(a if a.t is not None else replace(a, t=time.time()))
             return " (saved in the session when you quit)"
         return " (this replay only: a capture file has no session; e exports the results)"

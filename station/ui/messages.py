@@ -6,6 +6,7 @@ from __future__ import annotations
 from textual.app import App
 from textual.message import Message
 
+from station.report.text import summary
 from station.session.acquisition import Listener
 from station.session.analysis import DescentResult
 from station.session.records import LineCounts, Progress
@@ -97,5 +98,5 @@ class PostingListener(Listener):
     def warning(self, text: str) -> None:
         self.app.post_message(AcquisitionWarning(text))
 
-    def ended(self, summary: str) -> None:
-        self.app.post_message(SourceEnded(summary))
+    def ended(self, counts: LineCounts, results: tuple[DescentResult, ...]) -> None:
+        self.app.post_message(SourceEnded(summary(counts, results)))

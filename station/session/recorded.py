@@ -1,0 +1,306 @@
+"""A recorded session as one object: open a session folder, replay it, its descents and fits
+with the annotations applied, annotate it, compare its items, and say what it was computed
+from.
+
+``station annotate``, ``export``, ``sessions``, ``compare``, ``report`` and the UI's replay of a
+session all go through :class:`RecordedSession`, so each of them replays the same way, reads
+the same results CSV and keeps it current by the same rules (the recorder's lock honoured).
+Before, each command built its own replay from the command line's arguments and the day's
+comparison was glued together three times.
+
+No I/O happens when the object is made but the check that the folder is a session; the
+replay is run once, when a result is first asked for, and kept.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+import json
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from station import __version__
+from station.errors import InputError
+from station.files import MAX_OBSERVATIONS, MAX_RAWLOG, open_regular, staged_output
+from station.session import store as sessions
+from station.session.acquisition import Acquisition, Listener, replay
+from station.session.analysis import DescentResult
+from station.session.comparison import WIND_LIMIT_MS, DayComparison, compare_results
+from station.session.config import StationConfig
+from station.session.day import Day
+from station.session.rawlog import read_rawlog
+from station.session.records import Annotation
+from station.session.results import read_results
+from station.survey.track import Track
+
+_BLOCK = 1 << 20
+
+
+@dataclass(frozen=True)
+class Provenance:
+    """What a session's results were computed from, to tell two copies or two versions of a
+    day apart: the raw log, the config and the survey by their SHA-256 (hex, in full), the
+    station version that computes them now, and the host times of the first and last
+    records of the raw log (seconds since the epoch; None when it has none)."""
+
+    raw_sha256: str
+    config_sha256: str
+    survey_sha256: str
+    station_version: str
+    first_host_time: float | None
+    last_host_time: float | None
+
+
+@dataclass(frozen=True)
+class SessionRow:
+    """One descent of a session as its results CSV says, with the annotations entered since
+    the CSV was written applied to its ski, wax and invalid mark (without refitting)."""
+
+    descent: int
+    descent_status: str
+    status: str
+    ski: str
+    wax: str
+    invalid_reason: str
+
+
+def sha256_of(path: str, max_bytes: int, what: str) -> str:
+    """The SHA-256 of a regular file of at most ``max_bytes``, read in blocks."""
+    digest = hashlib.sha256()
+    with open_regular(path, max_bytes, what) as fh:
+        read = 0
+        while block := fh.read(_BLOCK):
+            read += len(block)
+            if read > max_bytes:
+                raise InputError(f"{what} grew past its limit while it was read", path=path)
+            digest.update(block)
+    return digest.hexdigest()
+
+
+class RecordedSession:
+    """A session folder (see :mod:`station.session.store` for what it holds)."""
+
+    def __init__(self, path: str, config: StationConfig | None = None) -> None:
+        if not sessions.is_session(path):
+            raise InputError("not a session directory (no raw.jsonl)", path=path)
+        self.path = path
+        self._config = config
+        self._run: Acquisition | None = None
+        #: what the raw log's reader passed over in the replay (a torn last record)
+        self.warnings: list[str] = []
+
+    # ------------------------------------------------------------------ what it is
+
+    @property
+    def name(self) -> str:
+        return os.path.basename(os.path.normpath(os.path.abspath(self.path))) or "session"
+
+    @property
+    def config(self) -> StationConfig:
+        """The session's own config snapshot (or the one it was opened with)."""
+        if self._config is None:
+            self._config = sessions.load_session_config(self.path)
+        return self._config
+
+    def file(self, name: str) -> str:
+        return os.path.join(self.path, name)
+
+    def recording_state(self) -> sessions.Recording:
+        return sessions.recording_state(self.path)
+
+    def started(self) -> str:
+        """Local date and time of the first raw-log record, "" when it cannot be read: a
+        bounded read of a regular file (a FIFO or a link to a device is "")."""
+        try:
+            with open_regular(self.file(sessions.RAW), MAX_RAWLOG, "raw log") as fh:
+                first = fh.readline(64 * 1024)
+            t = float(json.loads(first)["t"])
+            return dt.datetime.fromtimestamp(t).strftime("%Y-%m-%d %H:%M")
+        except (InputError, OSError, ValueError, KeyError, TypeError, OverflowError):
+            return ""
+
+    def provenance(self) -> Provenance:
+        """What the results are computed from (reads the raw log, config and survey)."""
+        raw = self.file(sessions.RAW)
+        times = [c.t for c in read_rawlog(raw)]
+        return Provenance(
+            raw_sha256=sha256_of(raw, MAX_RAWLOG, "raw log"),
+            config_sha256=sha256_of(self.config.path, MAX_OBSERVATIONS, "config"),
+            survey_sha256=sha256_of(self.config.survey_path, MAX_OBSERVATIONS, "survey file"),
+            station_version=__version__,
+            first_host_time=times[0] if times else None,
+            last_host_time=times[-1] if times else None,
+        )
+
+    # ------------------------------------------------------------------ replaying it
+
+    def replay(
+        self,
+        listener: Listener | None = None,
+        *,
+        speed: float | None = None,
+        warnings: list[str] | None = None,
+    ) -> Acquisition:
+        """Replay the session (its annotations applied) through the acquisition loop, in
+        line; a new replay each call, told to ``listener`` as it goes."""
+        return replay(self.path, self.config, listener, speed=speed, warnings=warnings)
+
+    def start_replay(
+        self, listener: Listener, *, speed: float | None = None, compare: bool = False
+    ) -> Acquisition:
+        """The replay in threads of its own, paced at ``speed`` (the UI): the acquisition
+        is returned at once; ``listener`` hears the day as it goes."""
+        acq = Acquisition.open(self.config, listener, compare=compare)
+        acq.start_replay(self.path, speed)
+        return acq
+
+    def run(self) -> Acquisition:
+        """The quiet replay of the session, run once and kept."""
+        if self._run is None:
+            self._run = self.replay(warnings=self.warnings)
+        return self._run
+
+    @property
+    def track(self) -> Track:
+        return self.run().track
+
+    def results(self) -> tuple[DescentResult, ...]:
+        """Every descent, fitted, with the annotations applied, as a replay gives them."""
+        return self.run().results()
+
+    def write_results_to(self, fh: Any) -> None:
+        """The results CSV into an open text file (as ``station export`` writes it)."""
+        self.run().write_csv_to(fh)
+
+    # ------------------------------------------------------------------ its results CSV
+
+    def results_rows(self) -> list[dict[str, Any]] | None:
+        """The rows of the session's own results CSV (:func:`read_results`), None when it
+        has none yet."""
+        path = self.file(sessions.RESULTS)
+        if not os.path.lexists(path):
+            return None
+        return read_results(path)
+
+    def rows(self) -> list[SessionRow]:
+        """The descents of the results CSV with the annotations entered since it was written
+        (``station annotate`` appends to annotations.jsonl and leaves the CSV as recorded
+        while a recorder owns it): ski, wax and invalid marks as a replay would give them,
+        by the same :class:`Day` rules, without replaying or refitting anything."""
+        rows = self.results_rows() or []
+        records = self.annotations()
+        day = None
+        if records:
+            try:
+                day = Day(self.config, None, None, None)  # type: ignore[arg-type]  # metadata only
+            except InputError:
+                day = None
+        if day is not None:
+            for rec in records:
+                day.annotate(rec)
+        out = []
+        for r in rows:
+            n = r.get("descent")
+            n = n if isinstance(n, int) else 0
+            ski, wax, invalid = r.get("ski"), r.get("wax"), r.get("invalid_reason")
+            if day is not None:
+                meta = day.metadata_for(n)
+                ski, wax, invalid = meta.ski, meta.wax, day.invalid.get(n, "")
+            out.append(SessionRow(n, _text(r.get("descent_status")), _text(r.get("status")),
+                                  _text(ski), _text(wax), _text(invalid)))  # fmt: skip
+        return out
+
+    def descent_numbers(self) -> list[int]:
+        """The descent numbers the session has: from its results CSV, else (none, or one
+        that cannot be read) by replaying it: the raw log knows them."""
+        try:
+            rows = self.results_rows()
+        except InputError:
+            rows = None
+        if rows is not None:
+            return [r["descent"] for r in rows if isinstance(r.get("descent"), int)]
+        return [r.number for r in self.results()]
+
+    # ------------------------------------------------------------------ annotating it
+
+    def annotations(self) -> list[Annotation]:
+        return sessions.read_annotations(self.path)
+
+    def check_descents(self, numbers: Sequence[int], field: str = "--descents") -> None:
+        """Refuse descents the session does not have: an annotation for descent 99 of an
+        8-descent day would be stored, replayed and do nothing, while the engineer believes it
+        took effect."""
+        if not numbers:
+            return
+        have = set(self.descent_numbers())
+        missing = sorted(set(numbers) - have)
+        if missing:
+            span = f"descents {min(have)}–{max(have)}" if have else "no descents yet"
+            raise InputError(
+                f"no descent {', '.join(map(str, missing))} in this session (it has {span})",
+                path=self.path,
+                field=field,
+            )
+
+    def annotate(self, records: Sequence[Annotation]) -> str:
+        """Append annotations and bring the results CSV up to date: rewritten here, or taken
+        up by the recorder when one is recording the session (``station annotate``, and what
+        was entered in a replay of the session). Returns the line that says what happened."""
+        with sessions.annotations_locked(self.path):  # another annotate waits: one CSV each
+            for rec in records:
+                sessions.append_annotation(self.path, rec)
+            said = f"{len(records)} annotation(s) added to {self.path}"
+            state = self.recording_state()
+            if state is sessions.Recording.NOW:  # the recorder takes them up (Acquisition)
+                return (f"{said}; it is being recorded now: the recording takes them up and "
+                        "its results.csv shows them in a moment")  # fmt: skip
+            if state is sessions.Recording.UNKNOWN:
+                return (f"{said}; whether it is being recorded cannot be told (recording.lock), "
+                        "so results.csv was left alone: station export "
+                        f"{self.path} --csv {self.file(sessions.RESULTS)} "
+                        "writes it with them")  # fmt: skip
+            self._run = None  # the annotations changed: replay again
+            path = self.rewrite_results()
+        return f"{said}; {path} rewritten"
+
+    def rewrite_results(self) -> str:
+        """Rewrite the results CSV from the raw log and the annotations, as ``station export``
+        writes it (the same replay, the same writer), once the recorder no longer owns it. A
+        CSV that cannot be written is one line that says the annotations are saved."""
+        path = self.file(sessions.RESULTS)
+        try:
+            with (
+                staged_output(path, sessions.RESULTS) as tmp,
+                open(tmp, "w", encoding="utf-8", newline="") as fh,
+            ):
+                self.run().write_csv_to(fh)
+        except InputError as exc:
+            why = exc.message if exc.path == path else str(exc)
+            raise InputError(
+                f"the annotations are saved, but results.csv was not rewritten: {why}; "
+                f"station export {self.path} --csv FILE writes the results elsewhere",
+                path=path,
+            ) from None
+        return path
+
+    # ------------------------------------------------------------------ comparing its items
+
+    def compare(
+        self,
+        *,
+        wind_limit_ms: float = WIND_LIMIT_MS,
+        reference: str | None = None,
+        **options: Any,
+    ) -> DayComparison:
+        """The joint fit of the day's valid descents (:func:`compare_results`)."""
+        return compare_results(
+            self.track, self.results(), wind_limit_ms=wind_limit_ms, reference=reference,
+            **options,
+        )  # fmt: skip
+
+
+def _text(value: Any) -> str:
+    return "" if value is None else str(value)
