@@ -176,3 +176,15 @@ def test_planned_days_resolve_the_difference_with_the_stated_power(demo_track, d
     assert abs(power(n, 1) - p.power) <= 0.05
     if n - 2 >= 2:
         assert power(n - 2, 2, days=100) < 0.9
+
+
+def test_the_readme_plan_example_is_what_station_plan_prints(run_station):
+    """README.md, "Planning the day": the command as typed, its output byte for byte."""
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    block = readme.split("\n$ station plan ", 1)[1].split("\n```", 1)[0]
+    command, expected = block.split("\n", 1)
+    r = run_station("plan", *command.split())
+    assert r.returncode == 0, r.stderr
+    assert r.stdout == expected + "\n"

@@ -144,10 +144,10 @@ def format_plan(plan: Any, posture_source: str, delta_ms: float | None) -> str:
         f"{plan.target_power * 100:.0f} % power (90 % intervals):",
         f"  {n} descents per item, {len(plan.order)} in all, in this order: {plan.order}",
         f"  about {plan.minutes:.0f} minutes at {a.minutes_between:g} minutes between descents",
-        f"  power {plan.power:.2f}; expected 90 % interval of Δμ ±{plan.halfwidth_mu:.5f}",
+        f"  power {plan.power:.3f}; expected 90 % interval of Δμ ±{plan.halfwidth_mu:.5f}",
     ]
     if n - 1 in plan.power_by_n:
-        lines.append(f"  ({n - 1} descents per item: power {plan.power_by_n[n - 1]:.2f})")
+        lines.append(f"  ({n - 1} descents per item: power {plan.power_by_n[n - 1]:.3f})")
     lines.append(
         f"assumed: {a.mass_kg:g} kg, air {a.air_density:.3f} kg/m³, CdA {a.cda:.3f} m², "
         f"v0 {a.v0:.1f} m/s, μ {a.mu:.4f}, timer {a.timer_sd_s * 1e3:.2f} ms, posture scatter "
