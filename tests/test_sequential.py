@@ -208,3 +208,15 @@ def test_the_comparison_panel_and_the_record_console_say_decided_or_not(session)
     assert "not yet: a comparison needs two descents of each item" in early
     console.comparison(early)
     assert len(said) == 2
+
+
+def test_the_watched_power_spends_alpha_on_one_side_and_costs_little():
+    """With no difference the rule names a given item faster on α/2 = 5 % of days; with a
+    difference a fixed day resolves with 90 % power, watching every descent over the same
+    horizon keeps most of it."""
+    from station.model.sequential import power_watched
+
+    run = "ABBA" * 4
+    assert power_watched(0.0, run, "A", "B", 8, draws=100_000) == pytest.approx(0.05, abs=0.003)
+    p = power_watched(1.6449 + 1.2816, run, "A", "B", 8)
+    assert 0.85 < p < 0.9

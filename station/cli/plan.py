@@ -148,6 +148,11 @@ def format_plan(plan: Any, posture_source: str, delta_ms: float | None) -> str:
     ]
     if n - 1 in plan.power_by_n:
         lines.append(f"  ({n - 1} descents per item: power {plan.power_by_n[n - 1]:.3f})")
+    if plan.power_watched is not None:
+        lines.append(
+            f"  watched after every descent (station compare --horizon {n}): power "
+            f"{plan.power_watched:.3f}, and the day may end early"
+        )
     lines.append(
         f"assumed: {a.mass_kg:g} kg, air {a.air_density:.3f} kg/m³, CdA {a.cda:.3f} m², "
         f"v0 {a.v0:.1f} m/s, μ {a.mu:.4f}, timer {a.timer_sd_s * 1e3:.2f} ms, posture scatter "

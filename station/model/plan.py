@@ -74,6 +74,9 @@ class Plan:
     dof: int
     assumptions: DayAssumptions
     power_by_n: dict[int, float] = field(default_factory=dict)
+    #: the power when the day is watched after every descent with the rule of
+    #: :mod:`station.model.sequential` (horizon: this plan's descents per item)
+    power_watched: float | None = None
 
     @property
     def reached(self) -> bool:
@@ -89,6 +92,7 @@ class Plan:
             "power": self.power,
             "halfwidth_mu": self.halfwidth_mu,
             "reached": self.reached,
+            "power_watched": self.power_watched,
             "assumptions": {
                 "delta_mu": self.delta_mu,
                 "target_power": self.target_power,
@@ -287,8 +291,11 @@ def plan_day(
             f"{per} descents per item on {len(track.photocells)} photocells cannot separate the "
             "items from the posture and the drift: more photocells are needed"
         )
+    from station.model.sequential import power_watched
+
     letters = item_letters(n_items)
     order = "".join(letters[i] for i in run_order(n_items, per))
+    watched = power_watched(delta_mu / se, order, letters[0], letters[1], per)
     return Plan(
         descents_per_item=per,
         order=order,
@@ -302,4 +309,5 @@ def plan_day(
         dof=dof,
         assumptions=a,
         power_by_n=power_by_n,
+        power_watched=watched,
     )

@@ -156,6 +156,31 @@ def look_boundaries(counts: Sequence[tuple[int, int]], horizon: int) -> list[flo
     return [bounds[min(k, len(bounds) - 1)] for k in range(len(fr))]
 
 
+def power_watched(
+    z_horizon: float,
+    run_items: Sequence[str],
+    a: str,
+    b: str,
+    horizon: int,
+    *,
+    draws: int = 20000,
+    seed: int = 0,
+) -> float:
+    """P(the rule declares the right item faster at some look) for a day run in
+    ``run_items`` when the true Δμ is ``z_horizon`` standard errors of the estimate at the
+    horizon: the z statistic as Brownian motion with drift in information time (seeded Monte
+    Carlo; the plan's "watched" power)."""
+    counts = pair_counts(run_items, a, b)
+    if not counts:
+        return 0.0
+    c = np.array(look_boundaries(counts, horizon))
+    t = np.array(_fractions(counts, horizon))
+    inc = np.diff(t, prepend=0.0)
+    rng = np.random.default_rng(seed)
+    path = np.cumsum(rng.normal(size=(draws, len(t))) * np.sqrt(inc) + z_horizon * inc, axis=1)
+    return float(np.mean((path / np.sqrt(t) >= c).any(axis=1)))
+
+
 def _t_boundary(c: float, dof: float | None) -> float:
     """The Student t quantile at ``dof`` with the nominal level of the z boundary ``c``."""
     from scipy.special import ndtr, stdtrit
