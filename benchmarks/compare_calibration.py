@@ -70,8 +70,7 @@ def one_day(args: tuple[float, int]) -> tuple[float, float, float, float, str]:
         t = run.solve(Params(cda, mu, rng.uniform(2.5, 4.5)), cond, sensitivities=False).t
         t = np.round(36000.0 + t + rng.normal(0.0, NOISE_S, len(t)), 4)
         f = fit_descent(tr.profile, xs, t, cond, run=run)
-        e = f.estimates
-        guess = (e.get("cda") or 0.25, e.get("mu") or 0.02, e.get("v0") or 3.0)
+        guess = (f.cda.value or 0.25, f.mu.value or 0.02, f.v0.value or 3.0)
         data.append(
             DescentData(
                 k + 1,

@@ -51,8 +51,8 @@ def day(track, n: int, seed: int = 0) -> list[DescentData]:
         cda = cda0 * float(np.exp(rng.normal(0.0, 0.01)))
         t = run.solve(Params(cda, mu, rng.uniform(2.5, 4.5)), cond, sensitivities=False).t
         t = np.round(t + rng.normal(0.0, 5e-4, len(t)), 4)
-        e = fit_descent(track.profile, xs, t, cond, run=run).estimates
-        guess = (e.get("cda") or 0.25, e.get("mu") or 0.02, e.get("v0") or 3.0)
+        f = fit_descent(track.profile, xs, t, cond, run=run)
+        guess = (f.cda.value or 0.25, f.mu.value or 0.02, f.v0.value or 3.0)
         out.append(
             DescentData(
                 k + 1, ski, who, tuple(track.photocell_ids), t - t[0], hours, mass, RHO, 0.0, guess

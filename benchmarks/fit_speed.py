@@ -72,8 +72,7 @@ def case(name, track, xs, truth, cond, model, noise_s, repeats, slow_repeats, st
         cpu.append(time.process_time() - c0)
     ours = statistics.median(times)
     ours_cpu = statistics.median(cpu)
-    p_best = np.array([res.estimates[k] for k in ("cda", "mu", "v0", "mu1")[:n_params]])
-    p_best = np.append(p_best, res.estimates["dt0"])
+    p_best = np.array([e.value for _, e in res.parameters()])  # cda, mu, v0, [mu1], dt0
     solves = res.nfev
 
     x0 = initial_guess(run, t - t[0], cond, n_params)
@@ -93,7 +92,7 @@ def case(name, track, xs, truth, cond, model, noise_s, repeats, slow_repeats, st
         return float(r @ r)
 
     s_best = sigma(p_best)
-    half_mu = res.ci90["mu"][1] - res.estimates["mu"]
+    half_mu = res.mu.ci90[1] - res.mu.value
 
     def reached(p):
         return sigma(p) <= 1.01 * s_best and abs(p[1] - p_best[1]) <= 0.1 * half_mu

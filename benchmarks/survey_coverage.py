@@ -79,15 +79,16 @@ def main(argv: list[str] | None = None) -> int:
             t = t_true + rng.normal(0.0, args.noise_ms * 1e-3, len(t_true))
             fit = fit_descent(track.profile, xs, t, cond, ids, survey=survey_error(track, ids))
             statuses[fit.status] += 1
-            if fit.ci90_timing is None:
+            if not fit.survey_in_intervals:
                 continue
-            mu_err.append(float(fit.estimates["mu"] or math.nan) - truth.mu)
+            mu_err.append(float(fit.mu.value or math.nan) - truth.mu)
             for k in NAMES:
                 value = getattr(truth, k)
-                ci, ct = fit.ci90.get(k), fit.ci90_timing.get(k)
+                est = getattr(fit, k)
+                ci, ct = est.ci90, est.ci90_timing
                 hits_total[k] += bool(ci and ci[0] <= value <= ci[1])
                 hits_timing[k] += bool(ct and ct[0] <= value <= ct[1])
-                shares[k].append((fit.survey_share or {}).get(k) or 0.0)
+                shares[k].append(est.survey_share or 0.0)
     n = len(mu_err)
     elapsed = time.perf_counter() - start
     print(

@@ -277,7 +277,12 @@ class Section:
         kind: type = float,
     ) -> Any:
         """A finite number within ``[lo, hi]``, the physically sane range of the field: a value
-        outside it is a typo (``885`` kg) or a wrong unit, and is refused naming the range."""
+        outside it is a typo (``885`` kg) or a wrong unit, and is refused naming the range. A
+        key written without a value (``angle_arcsec:``) is refused too: it is a number left
+        out, and taking the default for it would hide that."""
+        if key in self.data and self.data[key] is None:
+            default_text = "" if default is None else f" (or leave the key out for {default:g})"
+            raise self.error(key, f"has no value: give a number{default_text}")
         value = self.get(key, kind, default, required=required)
         if value is None:
             return None

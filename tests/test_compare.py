@@ -47,13 +47,13 @@ def synthetic(demo_track, order: str, mus: dict[str, float], drift_per_hour=0.0,
 def test_two_items_are_told_apart_and_drift_is_corrected(demo_track):
     data = synthetic(demo_track, "ABBAABBA", {"A": 0.0085, "B": 0.0095}, drift_per_hour=0.02)
     res = joint_fit(demo_track, data)
-    assert res.ranking == ["A", "B"]
+    assert res.ranking == ("A", "B")
     c = res.comparisons[0]
     assert (c.a, c.b) == ("A", "B")
     assert c.ci90[1] < 0 and c.ci90[0] <= -0.001 <= c.ci90[1] and c.p_a_faster > 0.99
     d, (lo, hi) = res.drift_per_hour
     assert lo <= 0.02 <= hi and res.drift_separable
-    assert res.cda["skier"][0] == pytest.approx(0.22, abs=0.002)
+    assert res.cda["skier"].value == pytest.approx(0.22, abs=0.002)
 
 
 def test_without_drift_correction_the_drift_biases_the_comparison(demo_track):
@@ -93,7 +93,7 @@ def test_delta_mu_in_time_over_the_run_agrees_with_the_dae(demo_track):
     c = res.comparisons[0]
     xs = np.array([pc.x for pc in demo_track.photocells])
     a, b = (next(i.mu for i in res.items if i.item == k) for k in ("A", "B"))
-    cda = res.cda["skier"][0]
+    cda = res.cda["skier"].value
     ta = simulate_dae(demo_track.profile, xs, Params(cda, a, res.typical_v0), Conditions(88, RHO)).t
     tb = simulate_dae(demo_track.profile, xs, Params(cda, b, res.typical_v0), Conditions(88, RHO)).t
     assert c.delta_t_s == pytest.approx(ta[-1] - tb[-1], abs=1e-6)
@@ -115,8 +115,8 @@ def test_along_track_wind_and_its_effect_on_the_fit(demo_track):
     )
     right = fit_descent(demo_track.profile, xs, t, Conditions(88, RHO, 2.0))
     wrong = fit_descent(demo_track.profile, xs, t, Conditions(88, RHO, 0.0))
-    assert right.estimates["mu"] == pytest.approx(0.0085, abs=1e-6)
-    assert abs(wrong.estimates["mu"] - 0.0085) > 5e-4 or abs(wrong.estimates["cda"] - 0.22) > 0.02
+    assert right.mu.value == pytest.approx(0.0085, abs=1e-6)
+    assert abs(wrong.mu.value - 0.0085) > 5e-4 or abs(wrong.cda.value - 0.22) > 0.02
 
 
 def _record_day(tmp_path, skis: str, seed: int):
@@ -265,6 +265,21 @@ def test_p_best_for_every_item(demo_track):
     assert sum(p.values()) == pytest.approx(1.0)
     assert p["A"] > 0.9 and p["B"] < 0.05 and p["A"] >= p["C"] >= p["B"]
     assert len(res.comparisons) == 3
+    assert res.item("A").p_best == p["A"]
+
+
+def test_the_day_result_is_built_once(demo_track):
+    """Left-out and wind-flagged descents go in, not onto the result afterwards."""
+    import dataclasses
+
+    data = synthetic(demo_track, "ABBA", {"A": 0.0085, "B": 0.0095})
+    res = joint_fit(demo_track, data, excluded=[(5, "marked invalid: fell")], wind_flagged=[2],
+                    wind_limit_ms=1.0)  # fmt: skip
+    assert res.excluded == ((5, "marked invalid: fell"),) and res.wind_flagged == (2,)
+    assert any("descents 2 had more than 1 m/s" in w for w in res.warnings)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        res.status = "ok"  # type: ignore[misc]
+    assert isinstance(res.warnings, tuple) and isinstance(res.items, tuple)
 
 
 def test_residuals_the_timer_cannot_explain_are_a_poor_fit(demo_track):

@@ -73,10 +73,10 @@ def test_the_configs_latitude_gives_the_days_gravity_when_the_survey_has_none(
     assert analyser.gravity.value == pytest.approx(g, abs=1e-9)
     res = analyser.run(job)
     assert res.row.gravity == pytest.approx(g, abs=1e-9)
-    assert res.fit.estimates["mu"] == pytest.approx(0.0085, abs=2e-6)
+    assert res.fit.mu.value == pytest.approx(0.0085, abs=2e-6)
     plain = Analyser(_config(tmp_path, ""), demo_track)
     assert plain.gravity.value == G_STANDARD
-    assert abs(plain.run(job).fit.estimates["mu"] - 0.0085) > 5e-5
+    assert abs(plain.run(job).fit.mu.value - 0.0085) > 5e-5
 
 
 def test_the_surveys_latitude_wins_and_a_disagreement_is_one_warning(tmp_path, demo_track):

@@ -27,8 +27,8 @@ def test_the_days_fits_use_the_surveys_latitude(demo_track, demo_xs):
     res = analyser.run(job)
     fit = res.fit
     assert res.row.gravity == pytest.approx(g)  # the results and the UI say which g was used
-    assert fit is not None and fit.estimates["mu"] == pytest.approx(0.0085, abs=2e-6)
+    assert fit is not None and fit.mu.value == pytest.approx(0.0085, abs=2e-6)
     # standard gravity on the same times: μ off by about (g0 − g)/g·(tan α − μ)
     plain = Analyser(None, demo_track).run(job).fit  # type: ignore[arg-type]
-    assert abs(plain.estimates["mu"] - 0.0085) > 5e-5
-    assert np.isfinite(plain.estimates["mu"])
+    assert abs(plain.mu.value - 0.0085) > 5e-5
+    assert np.isfinite(plain.mu.value)

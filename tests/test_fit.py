@@ -31,10 +31,9 @@ def test_exact_times_give_the_true_parameters_from_a_cold_start(
     t = run.solve(Params(cda, mu, v0), COND).t + 36000.0  # a time-of-day clock
     res = fit_descent(demo_track.profile, demo_xs, t, COND, demo_track.photocell_ids, run=run)
     assert res.status == "ok", res.message
-    e = res.estimates
-    assert e["mu"] == pytest.approx(mu, abs=1e-7)
-    assert e["cda"] == pytest.approx(cda, abs=1e-6)
-    assert e["v0"] == pytest.approx(v0, abs=1e-6)
+    assert res.mu.value == pytest.approx(mu, abs=1e-7)
+    assert res.cda.value == pytest.approx(cda, abs=1e-6)
+    assert res.v0.value == pytest.approx(v0, abs=1e-6)
     assert res.sigma_s2 < 1e-16
 
 
@@ -42,9 +41,10 @@ def test_fitted_times_agree_with_the_independent_dae(demo_track, demo_xs, run):
     rng = np.random.default_rng(11)
     t = run.solve(Params(0.22, 0.0085, 3.4), COND).t + rng.normal(0, 5e-4, len(demo_xs))
     res = fit_descent(demo_track.profile, demo_xs, t, COND, demo_track.photocell_ids, run=run)
-    e = res.estimates
-    ref = simulate_dae(demo_track.profile, demo_xs, Params(e["cda"], e["mu"], e["v0"]), COND)
-    model = (t - t[0]) + np.array(list(res.residuals_s.values())) - e["dt0"]
+    assert res.dt0 is not None
+    p = Params(res.cda.value, res.mu.value, res.v0.value)
+    ref = simulate_dae(demo_track.profile, demo_xs, p, COND)
+    model = (t - t[0]) + np.array(list(res.residuals_s.values())) - res.dt0.value
     assert np.max(np.abs(ref.t - model)) < 1e-6
 
 
@@ -65,7 +65,7 @@ def test_ninety_percent_intervals_cover_the_truth_about_ninety_percent_of_the_ti
         res = fit_descent(demo_track.profile, demo_xs, t, COND, run=run)
         assert res.status == "ok"
         for k, v in truth.items():
-            lo, hi = res.ci90[k]
+            lo, hi = getattr(res, k).ci90
             hits[k] += lo <= v <= hi
     for k in truth:
         assert 0.85 <= hits[k] / n <= 0.95, (k, hits[k])
@@ -93,8 +93,8 @@ def test_known_traps_do_not_derail_the_search(demo_track, demo_xs, run, monkeypa
     monkeypatch.setattr(fitmod, "initial_guess", lambda *a, **k: np.array(start))
     res = fit_descent(demo_track.profile, demo_xs, t, COND, run=run)
     assert res.status == "ok"
-    assert res.estimates["mu"] == pytest.approx(0.0085, abs=1e-6)
-    assert res.estimates["cda"] == pytest.approx(0.22, abs=1e-5)
+    assert res.mu.value == pytest.approx(0.0085, abs=1e-6)
+    assert res.cda.value == pytest.approx(0.22, abs=1e-5)
 
 
 def test_a_missing_photocell_leaves_a_fit_of_the_rest(demo_track, demo_xs, run):
@@ -103,7 +103,7 @@ def test_a_missing_photocell_leaves_a_fit_of_the_rest(demo_track, demo_xs, run):
     ids = [demo_track.photocell_ids[i] for i in keep]
     res = fit_descent(demo_track.profile, demo_xs[keep], t[keep], COND, ids)
     assert res.status == "ok" and res.dof == 4
-    assert res.estimates["mu"] == pytest.approx(0.0085, abs=1e-6)
+    assert res.mu.value == pytest.approx(0.0085, abs=1e-6)
     assert "PC5" not in res.residuals_s
 
 
@@ -116,7 +116,7 @@ def test_velocity_dependent_friction_is_recovered(demo_track):
     res = fit_descent(prof, xs, t, COND, model="velocity")
     assert res.status == "ok", res.message
     for k in ("cda", "mu", "v0", "mu1"):
-        lo, hi = res.ci90[k]
+        lo, hi = getattr(res, k).ci90
         assert lo <= getattr(truth, k) <= hi
     assert "mu1" in res.to_dict()
 
@@ -124,13 +124,30 @@ def test_velocity_dependent_friction_is_recovered(demo_track):
 def test_too_few_photocells(demo_track, demo_xs, run):
     t = run.solve(Params(0.22, 0.0085, 3.4), COND).t
     three = fit_descent(demo_track.profile, demo_xs[:3], t[:3], COND)
-    assert three.status == "too-few-photocells" and three.estimates["mu"] is None
+    assert three.status == "too-few-photocells" and three.mu.value is None
     four = fit_descent(demo_track.profile, demo_xs[:4], t[:4], COND)
     assert four.status == "too-few-photocells"
-    assert four.estimates["mu"] == pytest.approx(0.0085, abs=1e-6)  # exact, but no interval
-    assert four.ci90["mu"] is None
+    assert four.mu.value == pytest.approx(0.0085, abs=1e-6)  # exact, but no interval
+    assert four.mu.ci90 is None
     five = fit_descent(demo_track.profile, demo_xs[:5], t[:5], COND)
     assert five.status == "ok" and five.dof == 1
+
+
+def test_a_fit_is_built_once_and_its_json_names_every_parameter(demo_track, demo_xs, run):
+    """The result handed to the UI thread cannot change under it; the JSON keys stay those of
+    earlier versions (the parameters, then the offset)."""
+    import dataclasses
+
+    t = run.solve(Params(0.22, 0.0085, 3.4), COND).t
+    res = fit_descent(demo_track.profile, demo_xs, t, COND)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        res.status = "ok"  # type: ignore[misc]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        res.mu.value = 0.0  # type: ignore[misc]
+    out = res.to_dict()
+    assert list(out["ci90"]) == list(out["stderr"]) == ["cda", "mu", "v0", "dt0"]
+    assert out["mu"] == res.mu.value and out["ci90"]["mu"] == list(res.mu.ci90)
+    assert out["status"] == "ok" and type(out["status"]) is str
 
 
 def test_a_skier_at_terminal_speed_makes_mu_and_cda_unidentifiable():
@@ -143,7 +160,7 @@ def test_a_skier_at_terminal_speed_makes_mu_and_cda_unidentifiable():
     t = xs / math.cos(a) / vt + np.concatenate([[0], np.random.default_rng(1).normal(0, 1e-3, 8)])
     res = fit_descent(plane(deg), xs, t, Conditions(m, rho))
     assert res.status == "ill-conditioned"
-    assert res.estimates["cda"] is None or res.estimates["mu"] is None
+    assert res.cda.value is None or res.mu.value is None
     assert "not identifiable" in res.message
 
 

@@ -352,10 +352,10 @@ def test_a_descent_whose_start_line_is_bit_flipped_is_recovered_and_fitted(demo_
     assert res.descent.status == DescentStatus.INCOMPLETE
     assert res.fit is not None and res.fit.status == "ok", res.fit
     assert res.fit.photocells == d.photocells
-    mu = res.fit.estimates["mu"]
+    mu = res.fit.mu.value
     assert mu is not None and abs(mu - 0.0085) < 0.002
     # v0 is the speed at the first photocell it has: PC2
-    v0 = res.fit.estimates["v0"]
+    v0 = res.fit.v0.value
     assert v0 is not None and abs(v0 - truth.v[1]) < 0.3
 
 

@@ -45,17 +45,19 @@ def test_intervals_carry_the_survey(demo_track, demo_xs):
     with_survey = fit_descent(
         demo_track.profile, demo_xs, t, COND, ids, survey=survey_error(demo_track, ids)
     )
-    assert plain.ci90_timing is None and plain.survey_share is None
-    assert with_survey.ci90_timing == plain.ci90
+    assert not plain.survey_in_intervals and with_survey.survey_in_intervals
     for k in ("mu", "cda", "v0"):
-        lo, hi = with_survey.ci90[k]
-        tlo, thi = with_survey.ci90_timing[k]
+        alone, est = getattr(plain, k), getattr(with_survey, k)
+        assert alone.ci90_timing is None and alone.survey_share is None
+        assert est.ci90_timing == alone.ci90
+        lo, hi = est.ci90
+        tlo, thi = est.ci90_timing
         assert hi - lo > thi - tlo
-        assert 0.0 < with_survey.survey_share[k] < 1.0
+        assert 0.0 < est.survey_share < 1.0
     # with 0.1 ms timing the survey dominates μ's uncertainty
-    assert with_survey.survey_share["mu"] > 0.5
+    assert with_survey.mu.survey_share > 0.5
     out = with_survey.to_dict()
-    assert out["ci90_timing"]["mu"] == list(with_survey.ci90_timing["mu"])
+    assert out["ci90_timing"]["mu"] == list(with_survey.mu.ci90_timing)
 
 
 @pytest.mark.parametrize(("noise_ms", "status"), [(0.3, "ok"), (2.0, "poor-fit")])
@@ -68,7 +70,7 @@ def test_residuals_far_above_the_timer_precision_are_a_poor_fit(
     assert res.timer_precision_s == 0.5e-3
     if status == "poor-fit":
         assert res.chi2_p < 1e-3 and "timer precision 0.50 ms" in res.message
-        assert res.estimates["mu"] is not None  # the numbers stay, the status warns
+        assert res.mu.value is not None  # the numbers stay, the status warns
         relaxed = fit_descent(demo_track.profile, demo_xs, t, COND, timer_precision_s=2.5e-3)
         assert relaxed.status == "ok"
 

@@ -19,6 +19,7 @@ from station.cli.common import (
     _positive,
     _print_json,
     _warn,
+    add_timer_option,
     open_output,
     output_path,
     plausible,
@@ -102,7 +103,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     day = compare_results(
         session.track, results, wind_limit_ms=args.wind_limit, reference=reference,
         cda_fixed=args.cda, model=args.model, drift=args.drift,
-        timer_sd_s=args.timer_ms / 1000.0,
+        timer_sd_s=None if args.timer_ms is None else args.timer_ms / 1000.0,
     )  # fmt: skip
     if day.result is None:
         raise InputError(day.error, path=args.session)
@@ -137,7 +138,7 @@ def _write_compare_csv(res: JointResult, path: str) -> None:
         w.writerow(["rank", "item", "descents", "mu", "mu_lo", "mu_hi", "delta_mu_vs_reference",
                     "delta_lo", "delta_hi", "p_faster_than_reference", "delta_t_s"])  # fmt: skip
         for k, name in enumerate(res.ranking, start=1):
-            it = next(i for i in res.items if i.item == name)
+            it = res.item(name)
             c = next((c for c in res.comparisons if c.b == name and c.a == res.reference), None)
             if c is None or c.ci90 is None or c.p_a_faster is None:  # no comparison possible
                 row = [None] * 5
@@ -194,9 +195,8 @@ def add_parsers(sub: Any) -> None:
         default="auto",
         help="fit a linear drift of μ per hour of the day (auto: when an item recurs)",
     )
-    p.add_argument("--timer-ms", type=_positive, default=0.5, metavar="MS",
-                   help="the timer's precision (SD of one time, ms), against which the residuals "
-                        "are judged (default 0.5)")  # fmt: skip
+    add_timer_option(p, None, "the session's: its config's timer.precision_ms, else from the "
+                              "resolution the timer states, 0.5 for 1 ms and finer")  # fmt: skip
     p.add_argument("--wind-limit", type=_positive, default=1.0, metavar="MS",
                    help="flag descents with more along-track wind (m/s)")  # fmt: skip
     p.add_argument("--upto", type=_descent_number, metavar="K",

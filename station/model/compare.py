@@ -45,30 +45,50 @@ its own posture well, so the scatter's estimate costs little).
 Goodness of fit. The residual standard deviation is compared with the timer's precision
 (χ² test of PRSS/σ_timer² on n − p degrees of freedom): a day whose residuals the timer cannot
 explain is flagged ``poor-fit``, not "ok".
+
+Use. :func:`joint_fit` is the day model: inputs in, an immutable :class:`JointResult` out, no
+I/O. Its inputs are :class:`DescentData` records, which :func:`collect` makes from a day's
+results (a planner may make them from simulated descents instead)::
+
+    day = collect(results)                       # DayInputs(data, excluded, wind_flagged)
+    res = joint_fit(track, day.data, reference="A / blue", excluded=day.excluded,
+                    wind_flagged=day.wind_flagged, wind_limit_ms=1.0)
+    res.comparisons[0].ci90, res.item("A / blue").p_best, res.to_dict()
+
+:mod:`station.session.comparison` is that glue for the recorded sessions.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
+from enum import StrEnum
 from itertools import combinations
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
+from scipy.optimize import minimize_scalar
+from scipy.special import chdtrc, stdtr, stdtrit  # χ² survival, Student t (no scipy.stats)
+from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
 
 from station.model.batch import Rows, solve_rows
+from station.model.estimate import Estimate
 from station.model.physics import G_STANDARD, Conditions, Params, StraightRun
+from station.model.timer import POOR_FIT_P, TIMER_PRECISION_S
 from station.survey.track import Track
 
 US_PER_HOUR = 3.6e9
-#: the timer's precision (SD of one recorded time) assumed when none is given: a 1/10 000 s
-#: timer and the jitter of a body breaking a beam
-TIMER_SD_S = 5e-4
-#: a day is flagged when its residuals are this unlikely under the timer's precision
-POOR_FIT_P = 1e-3
 #: search range of log γ, γ = s²/σ² (s posture scatter, relative; σ timing noise, s)
 LOG_GAMMA = (-14.0, 22.0)
+
+
+class ComparisonStatus(StrEnum):
+    """The verdict of the day's joint fit (the strings earlier versions wrote)."""
+
+    OK = "ok"
+    POOR_FIT = "poor-fit"  # residuals the timer's precision cannot explain (χ² test)
+    NOT_CONVERGED = "not-converged"
 
 
 @dataclass(frozen=True)
@@ -85,12 +105,26 @@ class DescentData:
     air_density: float
     wind_ms: float
     start_guess: tuple[float, float, float]  # (cda, mu, v0) from the single fit
+    #: the timer's precision its single fit was judged against (station.model.timer)
+    timer_sd_s: float = TIMER_PRECISION_S
 
 
-@dataclass
+class DayInputs(NamedTuple):
+    """A day's descents as the comparison sees them (:func:`collect`)."""
+
+    data: list[DescentData]  # those that enter the joint fit, in order
+    excluded: list[tuple[int, str]]  # those left out, with why
+    wind_flagged: list[int]  # those with more along-track wind than the limit
+
+    def items(self) -> list[str]:
+        """The test items that enter the fit, sorted (for ``--reference`` prefixes)."""
+        return sorted({d.item for d in self.data})
+
+
+@dataclass(frozen=True)
 class ItemResult:
     item: str
-    descents: list[int]
+    descents: tuple[int, ...]
     mu: float
     ci90: tuple[float, float]
     stderr: float
@@ -99,7 +133,7 @@ class ItemResult:
     p_best: float | None = None  # P(this item has the lowest μ); None: not comparable
 
 
-@dataclass
+@dataclass(frozen=True)
 class Comparison:
     a: str
     b: str
@@ -111,7 +145,7 @@ class Comparison:
     note: str = ""
 
 
-@dataclass
+@dataclass(frozen=True)
 class DescentEffect:
     """What the day's fit says of one descent."""
 
@@ -121,39 +155,48 @@ class DescentEffect:
     dt0_s: float
 
 
-@dataclass
+@dataclass(frozen=True)
 class JointResult:
-    items: list[ItemResult]
-    cda: dict[
-        str, tuple[float, tuple[float, float] | None]
-    ]  # group -> (mean value, ci or None if fixed)
+    """The day's comparison: built once by :func:`joint_fit`, never changed after (hand it to
+    the UI thread, the report and the season store as it is)."""
+
+    items: tuple[ItemResult, ...]
+    #: skier (group) -> mean CdA with its 90 % interval (interval None: fixed by ``--cda``)
+    cda: dict[str, Estimate]
     drift_per_hour: tuple[float, tuple[float, float]] | None
     drift_separable: bool
-    comparisons: list[Comparison]
-    ranking: list[str]
+    comparisons: tuple[Comparison, ...]
+    ranking: tuple[str, ...]
     reference: str | None
     dof: int
     sigma_s: float
     typical_v0: float
     posture_sd: float = 0.0  # between-descent SD of CdA, relative (0.01 = 1 %)
     posture_ci90: tuple[float, float] | None = None
-    timer_sd_s: float = TIMER_SD_S
+    timer_sd_s: float = TIMER_PRECISION_S
     chi2_p: float | None = None
-    descents: list[DescentEffect] = field(default_factory=list)
-    excluded: list[tuple[int, str]] = field(default_factory=list)
-    wind_flagged: list[int] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
-    status: str = "ok"
+    descents: tuple[DescentEffect, ...] = ()
+    excluded: tuple[tuple[int, str], ...] = ()
+    wind_flagged: tuple[int, ...] = ()
+    warnings: tuple[str, ...] = ()
+    status: ComparisonStatus = ComparisonStatus.OK
     message: str = ""
+    #: covariance of the items' μ, in the order of ``items`` (the season store joins the days
+    #: by it: station.model.season)
+    item_cov: tuple[tuple[float, ...], ...] = ()
+
+    def item(self, name: str) -> ItemResult:
+        """The result of the item called ``name``."""
+        return next(i for i in self.items if i.item == name)
 
     def to_dict(self) -> dict[str, Any]:
         return {
-            "status": self.status,
+            "status": self.status.value,
             "message": self.message,
             "items": [
                 {
                     "item": i.item,
-                    "descents": i.descents,
+                    "descents": list(i.descents),
                     "mu": i.mu,
                     "ci90": list(i.ci90),
                     "stderr": i.stderr,
@@ -164,7 +207,8 @@ class JointResult:
                 for i in self.items
             ],
             "cda": {
-                g: {"value": v, "ci90": list(c) if c else None} for g, (v, c) in self.cda.items()
+                g: {"value": e.value, "ci90": list(e.ci90) if e.ci90 else None}
+                for g, e in self.cda.items()
             },
             "posture_sd_pct": 100.0 * self.posture_sd,
             "posture_ci90_pct": (
@@ -194,7 +238,7 @@ class JointResult:
                 }
                 for c in self.comparisons
             ],
-            "ranking": self.ranking,
+            "ranking": list(self.ranking),
             "reference": self.reference,
             "dof": self.dof,
             "sigma_s": self.sigma_s,
@@ -206,8 +250,8 @@ class JointResult:
                 for d in self.descents
             ],
             "excluded": [{"descent": n, "reason": r} for n, r in self.excluded],
-            "wind_flagged": self.wind_flagged,
-            "warnings": self.warnings,
+            "wind_flagged": list(self.wind_flagged),
+            "warnings": list(self.warnings),
         }
 
 
@@ -275,115 +319,205 @@ def joint_fit(
     model: str = "constant",
     drift: str = "auto",
     reference: str | None = None,
-    timer_sd_s: float = TIMER_SD_S,
+    timer_sd_s: float | None = None,
+    excluded: Iterable[tuple[int, str]] = (),
+    wind_flagged: Iterable[int] = (),
+    wind_limit_ms: float | None = None,
 ) -> JointResult:
-    """Fit all descents at once; ``drift`` is ``auto`` (when an item recurs), ``on`` or ``off``.
-    ``timer_sd_s``: the timer's precision, against which the residuals are judged."""
-    from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
+    """The day model: all descents of a day at once, inputs in, an immutable result out.
 
+    ``data``: the descents that enter (:func:`collect` makes them from a day's results, with
+    ``excluded`` and ``wind_flagged``, which the result carries; ``wind_limit_ms`` given, the
+    flagged descents are also a warning). ``cda_fixed``: one CdA for all (m²) instead of a
+    skier's mean and the posture scatter around it. ``model``: ``constant`` μ per item, or
+    ``velocity`` (μ + μ1·v). ``drift``: a linear drift of μ over the day, ``auto`` (when the
+    reference recurs), ``on`` or ``off``. ``reference``: the item every other is compared with
+    (default: the one skied most). ``timer_sd_s``: the timer's precision the residuals are
+    judged against (default: the one the descents' single fits used, see
+    :mod:`station.model.timer`). Raises :class:`CompareError` when the data cannot answer.
+    Pure: no I/O; BLAS is held to one thread while it runs."""
+    if timer_sd_s is None:
+        timer_sd_s = day_timer_sd(data)
     with threadpool_limits(limits=1, user_api="blas"):
-        return _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s)
+        res = _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s)
+    flagged = tuple(wind_flagged)
+    warnings = res.warnings
+    if flagged and wind_limit_ms is not None:
+        warnings += (
+            f"descents {', '.join(map(str, flagged))} had more than {wind_limit_ms:g} m/s of "
+            "along-track wind: check them, or mark them invalid",
+        )
+    return replace(res, excluded=tuple(excluded), wind_flagged=flagged, warnings=warnings)
 
 
-def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> JointResult:
-    from scipy.optimize import minimize_scalar
-    from scipy.special import chdtrc, stdtr, stdtrit  # χ² survival, Student t (no scipy.stats)
+def day_timer_sd(data: Iterable[DescentData]) -> float:
+    """The timer's precision of a day: the coarsest its descents' single fits were judged
+    against (they share one timer, so all are the same unless a config changed)."""
+    return max((d.timer_sd_s for d in data), default=TIMER_PRECISION_S)
 
-    if not data:
-        raise CompareError("no valid descent to compare")
-    items = sorted(
-        {d.item for d in data}, key=lambda it: min(x.number for x in data if x.item == it)
-    )
-    groups = sorted({d.group for d in data})
-    if reference is not None and reference not in items:
-        raise CompareError(f"reference item {reference!r} is not among {', '.join(items)}")
-    counts = {it: sum(d.item == it for d in data) for it in items}
-    recurring = [it for it in items if counts[it] >= 2]
-    ref = reference or (max(items, key=lambda it: counts[it]) if items else None)
-    use_drift = drift == "on" or (drift == "auto" and ref in recurring and len(data) >= 4)
-    t_mean = float(np.mean([d.start_hours for d in data]))
 
-    # global parameter layout: skiers' mean CdA, μ (and μ1) per item, drift
-    n_d = len(data)
-    n_g = 0 if cda_fixed is not None else len(groups)
-    per_item = 2 if model == "velocity" else 1
-    i_mu = n_g
-    i_drift = n_g + len(items) * per_item
-    n_glob = i_drift + (1 if use_drift else 0)
-    n_cells = np.array([len(d.times_s) for d in data])
-    n_res = int(n_cells.sum())
-    n_fixed = n_glob + 2 * n_d  # v0 and offset per descent are fixed effects too
-    dof = n_res - n_fixed
-    if dof < 1 or np.any(n_cells < 3):
-        raise CompareError(f"{n_res} times for {n_fixed} unknowns: too few photocells or descents")
+@dataclass(frozen=True)
+class _Layout:
+    """Who is in the day and where each global parameter sits: the skiers' mean CdA, μ (and
+    μ1) per item, the drift; v0 and the offset per descent are local."""
 
-    n_max = int(n_cells.max())
-    mask = np.arange(n_max)[None, :] < n_cells[:, None]
-    times = np.zeros((n_d, n_max))
-    for k, d in enumerate(data):
-        times[k, : n_cells[k]] = d.times_s
-    col_g = np.array([groups.index(d.group) for d in data])
-    col_mu = np.array([i_mu + items.index(d.item) * per_item for d in data])
-    dth = np.array([d.start_hours - t_mean for d in data])
-    kk = np.array([d.air_density / d.mass_kg for d in data])
-    wind = np.array([d.wind_ms for d in data])
-    runs: dict[tuple[str, ...], tuple[StraightRun, np.ndarray]] = {}
-    for pcs in {d.photocells for d in data}:
-        xs = np.array([track.photocell(p).x for p in pcs])
-        idx = np.array([k for k, d in enumerate(data) if d.photocells == pcs])
-        runs[pcs] = (StraightRun(track.profile, xs), idx)
-    rows_d = np.arange(n_d)
+    items: list[str]
+    groups: list[str]
+    counts: dict[str, int]
+    ref: str | None
+    use_drift: bool
+    drift: str
+    t_mean: float
+    n_g: int
+    per_item: int
+    i_mu: int
+    i_drift: int
+    n_glob: int
+    dof: int
 
-    def evaluate(glob: np.ndarray, loc: np.ndarray):
+    @classmethod
+    def of(cls, data, cda_fixed, model, drift, reference) -> _Layout:
+        if not data:
+            raise CompareError("no valid descent to compare")
+        items = sorted(
+            {d.item for d in data}, key=lambda it: min(x.number for x in data if x.item == it)
+        )
+        groups = sorted({d.group for d in data})
+        if reference is not None and reference not in items:
+            raise CompareError(f"reference item {reference!r} is not among {', '.join(items)}")
+        counts = {it: sum(d.item == it for d in data) for it in items}
+        recurring = [it for it in items if counts[it] >= 2]
+        ref = reference or (max(items, key=lambda it: counts[it]) if items else None)
+        use_drift = drift == "on" or (drift == "auto" and ref in recurring and len(data) >= 4)
+        t_mean = float(np.mean([d.start_hours for d in data]))
+        n_d = len(data)
+        n_g = 0 if cda_fixed is not None else len(groups)
+        per_item = 2 if model == "velocity" else 1
+        i_drift = n_g + len(items) * per_item
+        n_glob = i_drift + (1 if use_drift else 0)
+        n_cells = np.array([len(d.times_s) for d in data])
+        n_res = int(n_cells.sum())
+        n_fixed = n_glob + 2 * n_d  # v0 and offset per descent are fixed effects too
+        dof = n_res - n_fixed
+        if dof < 1 or np.any(n_cells < 3):
+            raise CompareError(
+                f"{n_res} times for {n_fixed} unknowns: too few photocells or descents"
+            )
+        return cls(items, groups, counts, ref, use_drift, drift, t_mean, n_g, per_item, n_g,
+                   i_drift, n_glob, dof)  # fmt: skip
+
+    def mu_index(self, item: str) -> int:
+        return self.i_mu + self.items.index(item) * self.per_item
+
+
+class _DayModel:
+    """The day's descents as arrays (one row per descent, padded to the most photocells) and
+    the forward model of all of them at once (:mod:`station.model.batch`)."""
+
+    def __init__(self, track: Track, data: list[DescentData], lay: _Layout, cda_fixed) -> None:
+        self.data, self.lay, self.cda_fixed = data, lay, cda_fixed
+        n_d = self.n_d = len(data)
+        n_cells = np.array([len(d.times_s) for d in data])
+        n_max = self.n_max = int(n_cells.max())
+        self.mask = np.arange(n_max)[None, :] < n_cells[:, None]
+        self.times = np.zeros((n_d, n_max))
+        for k, d in enumerate(data):
+            self.times[k, : n_cells[k]] = d.times_s
+        self.col_g = np.array([lay.groups.index(d.group) for d in data])
+        self.col_mu = np.array([lay.mu_index(d.item) for d in data])
+        self.dth = np.array([d.start_hours - lay.t_mean for d in data])
+        self.kk = np.array([d.air_density / d.mass_kg for d in data])
+        self.wind = np.array([d.wind_ms for d in data])
+        self.runs: dict[tuple[str, ...], tuple[StraightRun, np.ndarray]] = {}
+        for pcs in {d.photocells for d in data}:
+            xs = np.array([track.photocell(p).x for p in pcs])
+            idx = np.array([k for k, d in enumerate(data) if d.photocells == pcs])
+            self.runs[pcs] = (StraightRun(track.profile, xs), idx)
+
+    def base_cda(self, glob: np.ndarray) -> np.ndarray:
+        """Each descent's skier's mean CdA (or the fixed one)."""
+        if self.cda_fixed is not None:
+            return np.full(self.n_d, self.cda_fixed)
+        return glob[self.col_g]
+
+    def evaluate(self, glob: np.ndarray, loc: np.ndarray):
         """Residuals (D, n) and Jacobians of the globals (D, n, G) and locals (D, n, 3)."""
-        base = np.full(n_d, cda_fixed) if cda_fixed is not None else glob[col_g]
-        cda = base * np.exp(loc[:, 0])
-        mu = glob[col_mu] + (glob[i_drift] * dth if use_drift else 0.0)
+        lay, n_d, n_max = self.lay, self.n_d, self.n_max
+        col_g, col_mu, dth, per_item = self.col_g, self.col_mu, self.dth, lay.per_item
+        cda = self.base_cda(glob) * np.exp(loc[:, 0])
+        mu = glob[col_mu] + (glob[lay.i_drift] * dth if lay.use_drift else 0.0)
         mu1 = glob[col_mu + 1] if per_item == 2 else np.zeros(n_d)
         r = np.zeros((n_d, n_max))
-        a = np.zeros((n_d, n_max, n_glob))
+        a = np.zeros((n_d, n_max, lay.n_glob))
         b = np.zeros((n_d, n_max, 3))
         stopped = np.zeros(n_d, dtype=bool)
         converged = True
-        for run, idx in runs.values():
+        for run, idx in self.runs.values():
             sol = solve_rows(
                 run,
-                Rows(cda[idx], mu[idx], loc[idx, 1], mu1[idx], kk[idx], wind[idx], G_STANDARD),
+                Rows(cda[idx], mu[idx], loc[idx, 1], mu1[idx], self.kk[idx], self.wind[idx],
+                     G_STANDARD),
                 n_params=3 + (per_item - 1),
-            )
+            )  # fmt: skip
             m = sol.t.shape[1]
-            r[idx, :m] = sol.t + loc[idx, 2:3] - times[idx, :m]
+            r[idx, :m] = sol.t + loc[idx, 2:3] - self.times[idx, :m]
             dt = sol.dt_dp
-            if cda_fixed is None:
+            if self.cda_fixed is None:
                 a[idx, :m, col_g[idx]] = dt[:, :, 0] * np.exp(loc[idx, 0:1])
             a[idx, :m, col_mu[idx]] = dt[:, :, 1]
             if per_item == 2:
                 a[idx, :m, col_mu[idx] + 1] = dt[:, :, 3]
-            if use_drift:
-                a[idx, :m, i_drift] = dt[:, :, 1] * dth[idx, None]
+            if lay.use_drift:
+                a[idx, :m, lay.i_drift] = dt[:, :, 1] * dth[idx, None]
             b[idx, :m, 0] = dt[:, :, 0] * cda[idx, None]
             b[idx, :m, 1] = dt[:, :, 2]
             b[idx, :m, 2] = 1.0
             stopped[idx] = sol.stopped
             converged = converged and bool(sol.converged.all())
-        r *= mask
-        a *= mask[:, :, None]
-        b *= mask[:, :, None]
+        r *= self.mask
+        a *= self.mask[:, :, None]
+        b *= self.mask[:, :, None]
         return r, a, b, stopped, converged
 
-    # start: the single fits' medians
-    glob = np.zeros(n_glob)
-    for g_i, g in enumerate(groups[:n_g]):
-        glob[g_i] = np.median([d.start_guess[0] for d in data if d.group == g])
-    for ii, it in enumerate(items):
-        glob[i_mu + ii * per_item] = np.median([d.start_guess[1] for d in data if d.item == it])
-    loc = np.zeros((n_d, 3))
-    loc[:, 1] = [d.start_guess[2] for d in data]
-    lower = np.full(n_glob, -np.inf)
-    lower[:n_g] = 1e-3
-    lower[i_mu:i_drift] = 0.0
+    def start(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The single fits' medians as the start; the lower bounds of the globals."""
+        lay, data = self.lay, self.data
+        glob = np.zeros(lay.n_glob)
+        for g_i, g in enumerate(lay.groups[: lay.n_g]):
+            glob[g_i] = np.median([d.start_guess[0] for d in data if d.group == g])
+        for ii, it in enumerate(lay.items):
+            glob[lay.i_mu + ii * lay.per_item] = np.median(
+                [d.start_guess[1] for d in data if d.item == it]
+            )
+        loc = np.zeros((self.n_d, 3))
+        loc[:, 1] = [d.start_guess[2] for d in data]
+        lower = np.full(lay.n_glob, -np.inf)
+        lower[: lay.n_g] = 1e-3
+        lower[lay.i_mu : lay.i_drift] = 0.0
+        return glob, loc, lower
 
-    r, a, b, stopped, converged = evaluate(glob, loc)
+
+@dataclass
+class _Solution:
+    """Where the REML / Gauss-Newton iteration ended."""
+
+    glob: np.ndarray
+    loc: np.ndarray
+    pc: _Pieces  # the normal-equation pieces there
+    cs: np.ndarray  # column scales of the globals
+    lg: float  # log γ
+    stopped: np.ndarray
+    converged: bool  # every model solve converged
+    converged_outer: bool  # the iteration itself
+
+
+def _solve(day: _DayModel) -> _Solution:
+    """γ and the parameters updated together: each outer iteration linearises the model once,
+    finds γ by a one-dimensional search of the REML criterion of that linearisation, and takes
+    the (damped where needed) Gauss-Newton step at that γ."""
+    dof, n_d = day.lay.dof, day.n_d
+    glob, loc, lower = day.start()
+    r, a, b, stopped, converged = day.evaluate(glob, loc)
     cs = 1.0 / np.maximum(np.sqrt(np.sum(a * a, axis=(0, 1))), 1e-300)  # column scales
 
     def pieces(r, a, b, loc) -> _Pieces:
@@ -407,7 +541,6 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
     pc = pieces(r, a, b, loc)
     lg = 2.0 * math.log(0.01 / 5e-4)
     converged_outer = False
-    nfev = 1
     for _ in range(60):
         lg_prev = lg
         opt = minimize_scalar(
@@ -428,8 +561,7 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
             g_new = np.maximum(glob + st.dg * cs, lower)
             l_new = loc + st.dl
             l_new[:, 1] = np.maximum(l_new[:, 1], 0.0)
-            r2, a2, b2, stopped2, conv2 = evaluate(g_new, l_new)
-            nfev += 1
+            r2, a2, b2, stopped2, conv2 = day.evaluate(g_new, l_new)
             cost2 = float(np.sum(r2**2) + wu * np.sum(l_new[:, 0] ** 2))
             if np.isfinite(cost2) and cost2 <= cost:
                 glob, loc, r, a, b, stopped, converged = g_new, l_new, r2, a2, b2, stopped2, conv2
@@ -439,85 +571,160 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
         else:
             break
         pc = pieces(r, a, b, loc)
+    return _Solution(glob, loc, pc, cs, lg, stopped, converged, converged_outer)
 
-    # at the solution: σ̂², posture scatter, covariance of the globals
-    wu = math.exp(-lg)
-    st = _linear_step(pc, wu)
-    prss = float(np.sum(pc.r**2) + wu * np.sum(pc.u**2))
-    sigma2 = prss / dof
-    posture = math.sqrt(math.exp(lg) * sigma2)
-    cov = sigma2 * (cs[:, None] * st.s_inv * cs[None, :])
-    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
 
-    # curvature of the REML criterion in (log σ², log γ): Satterthwaite degrees of freedom
-    h = 0.05
-    probe = {dx: _linear_step(pc, math.exp(-(lg + dx))) for dx in (-h, h)}
-    p_m, p_p = probe[-h].prss, probe[h].prss
-    l0, l_m, l_p = st.logdet, probe[-h].logdet, probe[h].logdet
-    d1p = (p_p - p_m) / (2 * h)
-    d2p = (p_p - 2 * prss + p_m) / h**2
-    d2l = (l_p - 2 * l0 + l_m) / h**2
-    hess = np.array([[prss / sigma2, -d1p / sigma2], [-d1p / sigma2, d2p / sigma2 + d2l]])
-    try:
-        vcov = 2.0 * np.linalg.inv(hess)
-        if not (np.all(np.isfinite(vcov)) and vcov[0, 0] > 0 and vcov[1, 1] > 0):
+class _Inference:
+    """At the solution: σ̂², the posture scatter, the covariance of the globals, and the
+    Satterthwaite degrees of freedom from the curvature of the REML criterion in
+    (log σ², log γ)."""
+
+    H = 0.05  # step in log γ of the curvature's differences
+
+    def __init__(self, sol: _Solution, dof: int) -> None:
+        self.sol, self.dof = sol, dof
+        pc, lg, cs, h = sol.pc, sol.lg, sol.cs, self.H
+        wu = math.exp(-lg)
+        st = self.st = _linear_step(pc, wu)
+        prss = self.prss = float(np.sum(pc.r**2) + wu * np.sum(pc.u**2))
+        sigma2 = self.sigma2 = prss / dof
+        self.posture = math.sqrt(math.exp(lg) * sigma2)
+        self.cov = sigma2 * (cs[:, None] * st.s_inv * cs[None, :])
+        self.sd = np.sqrt(np.maximum(np.diag(self.cov), 0.0))
+        probe = self.probe = {dx: _linear_step(pc, math.exp(-(lg + dx))) for dx in (-h, h)}
+        p_m, p_p = probe[-h].prss, probe[h].prss
+        l0, l_m, l_p = st.logdet, probe[-h].logdet, probe[h].logdet
+        d1p = (p_p - p_m) / (2 * h)
+        d2p = (p_p - 2 * prss + p_m) / h**2
+        d2l = (l_p - 2 * l0 + l_m) / h**2
+        hess = np.array([[prss / sigma2, -d1p / sigma2], [-d1p / sigma2, d2p / sigma2 + d2l]])
+        vcov: np.ndarray | None
+        try:
+            vcov = 2.0 * np.linalg.inv(hess)
+            if not (np.all(np.isfinite(vcov)) and vcov[0, 0] > 0 and vcov[1, 1] > 0):
+                vcov = None
+        except np.linalg.LinAlgError:
             vcov = None
-    except np.linalg.LinAlgError:
-        vcov = None
+        self.vcov = vcov
 
-    def satterthwaite(c: np.ndarray) -> float:
+    def satterthwaite(self, c: np.ndarray) -> float:
         """Degrees of freedom of the variance of c·globals."""
-        c_s = c * cs
-        f = sigma2 * float(c_s @ st.s_inv @ c_s)
+        h, vcov, sigma2 = self.H, self.vcov, self.sigma2
+        c_s = c * self.sol.cs
+        f = sigma2 * float(c_s @ self.st.s_inv @ c_s)
         if vcov is None or f <= 0:
-            return float(dof)
-        fm = sigma2 * float(c_s @ probe[-h].s_inv @ c_s)
-        fp = sigma2 * float(c_s @ probe[h].s_inv @ c_s)
+            return float(self.dof)
+        fm = sigma2 * float(c_s @ self.probe[-h].s_inv @ c_s)
+        fp = sigma2 * float(c_s @ self.probe[h].s_inv @ c_s)
         grad = np.array([f, (fp - fm) / (2 * h)])
         var_f = float(grad @ vcov @ grad)
         if var_f <= 0:
-            return float(dof)
-        return float(min(max(2.0 * f * f / var_f, 1.0), dof))
+            return float(self.dof)
+        return float(min(max(2.0 * f * f / var_f, 1.0), self.dof))
 
-    posture_ci = None
-    if vcov is not None and posture > 0 and lg > LOG_GAMMA[0] + 2.0:
+    def posture_ci(self) -> tuple[float, float] | None:
+        """The posture scatter's 90 % interval, where the day says enough about it."""
+        posture, vcov = self.posture, self.vcov
+        if vcov is None or not posture > 0 or not self.sol.lg > LOG_GAMMA[0] + 2.0:
+            return None
         se = math.sqrt(max(float(np.ones(2) @ vcov @ np.ones(2)), 0.0))
-        if se < 10.0:  # else the day says next to nothing about it
-            posture_ci = (posture * math.exp(-1.645 * se / 2), posture * math.exp(1.645 * se / 2))
+        if not se < 10.0:  # the day says next to nothing about it
+            return None
+        return posture * math.exp(-1.645 * se / 2), posture * math.exp(1.645 * se / 2)
 
-    def interval(j: int) -> tuple[float, float]:
-        c = np.zeros(n_glob)
+    def interval(self, j: int) -> tuple[float, float]:
+        """The 90 % interval of global parameter ``j``."""
+        c = np.zeros(len(self.sol.glob))
         c[j] = 1.0
-        q = float(stdtrit(satterthwaite(c), 0.95))
-        return float(glob[j] - q * sd[j]), float(glob[j] + q * sd[j])
+        q = float(stdtrit(self.satterthwaite(c), 0.95))
+        g, sd = self.sol.glob, self.sd
+        return float(g[j] - q * sd[j]), float(g[j] + q * sd[j])
 
+
+def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> JointResult:
+    lay = _Layout.of(data, cda_fixed, model, drift, reference)
+    day = _DayModel(track, data, lay, cda_fixed)
+    sol = _solve(day)
+    inf = _Inference(sol, lay.dof)
+    glob = sol.glob
+
+    cda_out: dict[str, Estimate] = {}
+    for g_i, g in enumerate(lay.groups):
+        cda_out[g] = Estimate(cda_fixed) if cda_fixed is not None else Estimate(
+            float(glob[g_i]), inf.interval(g_i), float(inf.sd[g_i])
+        )  # fmt: skip
+    drift_out, separable, warnings = _drift(data, lay, inf)
+    typical_v0 = float(np.median(sol.loc[:, 1]))
+    run_time = _run_time(track, day, data, cda_out, typical_v0)
+    mus = {it: float(glob[lay.mu_index(it)]) for it in lay.items}
+    comparisons, dofs = _comparisons(lay, inf, mus, {it: run_time(mus[it]) for it in lay.items})
+    p_best = _p_best(lay, inf, dofs)
     out_items = []
-    for ii, it in enumerate(items):
-        j = i_mu + ii * per_item
+    for it in lay.items:
+        j = lay.mu_index(it)
+        velocity = lay.per_item == 2
         out_items.append(
             ItemResult(
                 item=it,
-                descents=[d.number for d in data if d.item == it],
-                mu=float(glob[j]),
-                ci90=interval(j),
-                stderr=float(sd[j]),
-                mu1=float(glob[j + 1]) if per_item == 2 else None,
-                mu1_ci90=interval(j + 1) if per_item == 2 else None,
+                descents=tuple(d.number for d in data if d.item == it),
+                mu=mus[it],
+                ci90=inf.interval(j),
+                stderr=float(inf.sd[j]),
+                mu1=float(glob[j + 1]) if velocity else None,
+                mu1_ci90=inf.interval(j + 1) if velocity else None,
+                p_best=p_best.get(it),
             )
         )
-    cda_out: dict[str, tuple[float, tuple[float, float] | None]] = {}
-    for g_i, g in enumerate(groups):
-        cda_out[g] = (cda_fixed, None) if cda_fixed is not None else (
-            float(glob[g_i]), interval(g_i)
+    status, message, chi2_p = _status(data, sol, inf, timer_sd_s)
+    base = day.base_cda(glob)
+    loc = sol.loc
+    effects = tuple(
+        DescentEffect(
+            d.number, float(base[k] * math.exp(loc[k, 0])), float(loc[k, 1]), float(loc[k, 2])
         )  # fmt: skip
+        for k, d in enumerate(data)
+    )
+    return JointResult(
+        items=tuple(out_items),
+        cda=cda_out,
+        drift_per_hour=drift_out,
+        drift_separable=separable,
+        comparisons=tuple(comparisons),
+        ranking=tuple(it.item for it in sorted(out_items, key=lambda i: i.mu)),
+        reference=lay.ref,
+        dof=lay.dof,
+        sigma_s=math.sqrt(inf.sigma2),
+        typical_v0=typical_v0,
+        posture_sd=inf.posture,
+        posture_ci90=inf.posture_ci(),
+        timer_sd_s=timer_sd_s,
+        chi2_p=chi2_p,
+        descents=effects,
+        warnings=tuple(warnings),
+        status=status,
+        message=message,
+        item_cov=_item_cov(lay, inf),
+    )
 
+
+def _item_cov(lay: _Layout, inf: _Inference) -> tuple[tuple[float, ...], ...]:
+    cols = [lay.mu_index(it) for it in lay.items]
+    sub = inf.cov[np.ix_(cols, cols)]
+    return tuple(tuple(float(x) for x in row) for row in sub)
+
+
+def _drift(data, lay: _Layout, inf: _Inference):
+    """The drift of μ per hour with its interval (None: not fitted), whether the run order
+    separates it from the items, and the warnings about the design of the day."""
+    items, glob, cov, sd = lay.items, inf.sol.glob, inf.cov, inf.sd
     warnings: list[str] = []
     drift_out = None
     separable = True
-    if use_drift:
-        drift_out = (float(glob[i_drift]), interval(i_drift))
+    i_drift = lay.i_drift
+    if lay.use_drift:
+        drift_out = (float(glob[i_drift]), inf.interval(i_drift))
         for ii in range(len(items)):
-            j = i_mu + ii * per_item
+            j = lay.i_mu + ii * lay.per_item
             c = cov[j, i_drift] / (sd[j] * sd[i_drift]) if sd[j] > 0 and sd[i_drift] > 0 else 1.0
             if abs(c) > 0.9:
                 separable = False
@@ -532,44 +739,49 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
                 "other): the difference between items and the drift explain the times equally "
                 "well; interleave the items (ABBA) and repeat the reference through the day"
             )
-    elif len(items) >= 2 and drift != "off":
+    elif len(items) >= 2 and lay.drift != "off":
         warnings.append(
-            f"no drift estimated: the reference item {ref!r} does not recur; a change of the "
+            f"no drift estimated: the reference item {lay.ref!r} does not recur; a change of the "
             "snow during the session would show as a difference between items"
         )
-    single = [it for it in items if counts[it] < 2]
+    single = [it for it in items if lay.counts[it] < 2]
     if single:
         warnings.append(
             f"{', '.join(single)}: one descent each, so no comparison is possible for "
             f"{'it' if len(single) == 1 else 'them'}: one descent's glide cannot be told from "
             "that descent's posture; ski every item at least twice (ABBA)"
         )
+    return drift_out, separable, warnings
 
-    # comparisons, P(best), and what Δμ means in time over the run
-    typical_v0 = float(np.median(loc[:, 1]))
+
+def _run_time(track: Track, day: _DayModel, data, cda_out: dict[str, Estimate], v0: float):
+    """What a μ means in time over the whole run, for the day's typical skier, air and v0."""
     full_ids = tuple(track.photocell_ids)
     run_full = (
-        runs[full_ids][0]
-        if full_ids in runs
+        day.runs[full_ids][0]
+        if full_ids in day.runs
         else StraightRun(track.profile, np.array([pc.x for pc in track.photocells]))
     )
     mass = float(np.median([d.mass_kg for d in data]))
     rho = float(np.median([d.air_density for d in data]))
-    cda_typ = float(np.median([v for v, _ in cda_out.values()]))
+    cda_typ = float(np.median([e.value for e in cda_out.values() if e.value is not None]))
 
     def run_time(mu: float) -> float:
-        sol = run_full.solve(
-            Params(cda_typ, mu, typical_v0), Conditions(mass, rho), sensitivities=False
-        )
+        sol = run_full.solve(Params(cda_typ, mu, v0), Conditions(mass, rho), sensitivities=False)
         return float(sol.t[-1])
 
-    run_times = {it.item: run_time(it.mu) for it in out_items}
+    return run_time
+
+
+def _comparisons(lay: _Layout, inf: _Inference, mus: dict[str, float], run_times):
+    """Every pair of items, the reference first: Δμ with its interval, P(a faster), Δt over
+    the run; and the degrees of freedom of those intervals."""
+    glob, cov, counts, ref = inf.sol.glob, inf.cov, lay.counts, lay.ref
     comparisons = []
-    order = [ref] + [it for it in items if it != ref] if ref else items
+    order = [ref] + [it for it in lay.items if it != ref] if ref else lay.items
     dofs = []
     for ia, ib in combinations(order, 2):
-        ja = i_mu + items.index(ia) * per_item
-        jb = i_mu + items.index(ib) * per_item
+        ja, jb = lay.mu_index(ia), lay.mu_index(ib)
         delta = float(glob[ja] - glob[jb])
         dts = run_times[ia] - run_times[ib]
         few = [x for x in (ia, ib) if counts[x] < 2]
@@ -580,95 +792,87 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
             )
             comparisons.append(Comparison(ia, ib, delta, None, None, dts, None, note))
             continue
-        c = np.zeros(n_glob)
+        c = np.zeros(lay.n_glob)
         c[ja], c[jb] = 1.0, -1.0
         s = math.sqrt(max(float(c @ cov @ c), 0.0))
-        nu = satterthwaite(c)
+        nu = inf.satterthwaite(c)
         dofs.append(nu)
         q = float(stdtrit(nu, 0.95))
         prob = float(stdtr(nu, -delta / s)) if s > 0 else (1.0 if delta < 0 else 0.0)
         comparisons.append(Comparison(ia, ib, delta, (delta - q * s, delta + q * s), prob, dts, nu))
-    comparable = [ii for ii, it in enumerate(items) if counts[it] >= 2]
+    return comparisons, dofs
+
+
+def _p_best(lay: _Layout, inf: _Inference, dofs: list[float]) -> dict[str, float]:
+    """P(this item has the lowest μ) of the items skied at least twice, by simulation from the
+    joint Student t of their μ (seeded: the same day gives the same numbers)."""
+    comparable = [ii for ii, it in enumerate(lay.items) if lay.counts[it] >= 2]
+    out: dict[str, float] = {}
     if len(comparable) >= 2:
-        cols = [i_mu + ii * per_item for ii in comparable]
-        sub = cov[np.ix_(cols, cols)]
+        cols = [lay.i_mu + ii * lay.per_item for ii in comparable]
+        sub = inf.cov[np.ix_(cols, cols)]
         rng = np.random.default_rng(0)
-        nu = min(dofs) if dofs else float(dof)
+        nu = min(dofs) if dofs else float(lay.dof)
         z = rng.multivariate_normal(np.zeros(len(cols)), sub, size=20000, method="eigh")
         w = np.sqrt(rng.chisquare(nu, size=20000) / nu)
-        best = np.argmin(glob[cols][None, :] + z / w[:, None], axis=1)
+        best = np.argmin(inf.sol.glob[cols][None, :] + z / w[:, None], axis=1)
         for n, ii in enumerate(comparable):
-            out_items[ii].p_best = float(np.mean(best == n))
-    elif len(comparable) == 1 and len(items) == 1:
-        out_items[comparable[0]].p_best = 1.0
-    ranking = [it.item for it in sorted(out_items, key=lambda i: i.mu)]
+            out[lay.items[ii]] = float(np.mean(best == n))
+    elif len(comparable) == 1 and len(lay.items) == 1:
+        out[lay.items[comparable[0]]] = 1.0
+    return out
 
-    chi2_stat = prss / timer_sd_s**2
+
+def _status(data, sol: _Solution, inf: _Inference, timer_sd_s: float):
+    """The day's verdict and why, and the χ² p of its residuals against the timer."""
+    dof = inf.dof
+    chi2_stat = inf.prss / timer_sd_s**2
     chi2_p = float(chdtrc(dof, chi2_stat))
-    status, message = "ok", ""
-    if not converged_outer or not converged or stopped.any():
-        status = "not-converged"
-        message = (
-            "the joint fit did not reach a verified minimum"
-            + (
-                f" (descents {', '.join(str(data[k].number) for k in rows_d[stopped])} stop "
-                "before the last photocell)"
-                if stopped.any()
-                else ""
-            )  # fmt: skip
-            + ": the numbers are not a least-squares solution"
-        )
-    elif chi2_p < POOR_FIT_P:
-        status = "poor-fit"
-        message = (
-            f"the timing residual {math.sqrt(sigma2) * 1e3:.2f} ms is more than the timer's "
-            f"precision {timer_sd_s * 1e3:.2f} ms explains (χ² {chi2_stat:.0f} on {dof} dof, "
+    stopped = sol.stopped
+    if not sol.converged_outer or not sol.converged or stopped.any():
+        where = ""
+        if stopped.any():
+            which = ", ".join(str(data[k].number) for k in np.arange(len(data))[stopped])
+            where = f" (descents {which} stop before the last photocell)"
+        why = f"the joint fit did not reach a verified minimum{where}: the numbers are not a "
+        return ComparisonStatus.NOT_CONVERGED, why + "least-squares solution", chi2_p
+    if chi2_p < POOR_FIT_P:
+        sigma_ms = math.sqrt(inf.sigma2) * 1e3
+        why = (
+            f"the timing residual {sigma_ms:.2f} ms is more than the timer's precision "
+            f"{timer_sd_s * 1e3:.2f} ms explains (χ² {chi2_stat:.0f} on {dof} dof, "
             f"p = {chi2_p:.1e}): the model does not describe these descents (wind, edging, a "
             "photocell or survey error, a wrong item); the intervals are not to be trusted"
         )
-    base = np.full(n_d, cda_fixed) if cda_fixed is not None else glob[col_g]
-    effects = [
-        DescentEffect(
-            d.number, float(base[k] * math.exp(loc[k, 0])), float(loc[k, 1]), float(loc[k, 2])
-        )  # fmt: skip
-        for k, d in enumerate(data)
-    ]
-    return JointResult(
-        items=out_items,
-        cda=cda_out,
-        drift_per_hour=drift_out,
-        drift_separable=separable,
-        comparisons=comparisons,
-        ranking=ranking,
-        reference=ref,
-        dof=dof,
-        sigma_s=math.sqrt(sigma2),
-        typical_v0=typical_v0,
-        posture_sd=posture,
-        posture_ci90=posture_ci,
-        timer_sd_s=timer_sd_s,
-        chi2_p=chi2_p,
-        descents=effects,
-        warnings=warnings,
-        status=status,
-        message=message,
-    )
+        return ComparisonStatus.POOR_FIT, why, chi2_p
+    return ComparisonStatus.OK, "", chi2_p
+
+
+def _count(n: int, word: str) -> str:
+    """``1 item``, ``2 items`` (as station.report.text.count, which the model does not import)."""
+    return f"{n} {word}{'s' * (n != 1)}"
 
 
 def format_comparison(res: JointResult, n_desc: int) -> str:
     """The comparison as the terminal shows it (CLI and UI)."""
-    verdict = {"ok": "ok", "poor-fit": "POOR FIT", "not-converged": "NOT CONVERGED"}
+    verdict = {
+        ComparisonStatus.OK: "ok",
+        ComparisonStatus.POOR_FIT: "POOR FIT",
+        ComparisonStatus.NOT_CONVERGED: "NOT CONVERGED",
+    }
     lines = [
-        f"joint fit of {n_desc} descents, {len(res.items)} items, {res.dof} dof, timing "
+        f"joint fit of {_count(n_desc, 'descent')}, {_count(len(res.items), 'item')}, "
+        f"{res.dof} dof, timing "
         f"residual {res.sigma_s * 1000:.2f} ms against a timer of {res.timer_sd_s * 1000:.2f} ms"
         + (f" (χ² p = {res.chi2_p:.2g})" if res.chi2_p is not None else "")
-        + f": {verdict.get(res.status, res.status)}"
+        + f": {verdict[res.status]}"
     ]
     if res.message:
         lines.append(f"  {res.message}")
-    for g, (v, c) in res.cda.items():
+    for g, est in res.cda.items():
+        c = est.ci90
         rng = f"[{c[0]:.4f}, {c[1]:.4f}]" if c else "(fixed)"
-        lines.append(f"  CdA {g}: {v:.4f} m² {rng} (mean over the skier's descents)")
+        lines.append(f"  CdA {g}: {est.value:.4f} m² {rng} (mean over the skier's descents)")
     pci = (
         f" [{res.posture_ci90[0] * 100:.2f}, {res.posture_ci90[1] * 100:.2f}] %"
         if res.posture_ci90
@@ -689,7 +893,7 @@ def format_comparison(res: JointResult, n_desc: int) -> str:
     w = min(28, max([6, *(len(i.item) + 2 for i in res.items)]))
     lines.append(f"{'rank':<5}{'item':<{w}}{'descents':>9}{'μ':>10}   90 % CI{'':<14}P(best)")
     for k, name in enumerate(res.ranking, start=1):
-        it = next(i for i in res.items if i.item == name)
+        it = res.item(name)
         pb = f"{it.p_best:.3f}" if it.p_best is not None else "—"
         ci = f"[{it.ci90[0]:.5f}, {it.ci90[1]:.5f}]"
         lines.append(f"{k:<5}{it.item:<{w}}{len(it.descents):>9}{it.mu:>10.5f}   {ci:<21}{pb}")
@@ -727,9 +931,7 @@ def item_name(ski: str | None, wax: str | None) -> str:
     return ski or wax or "(no item)"
 
 
-def collect(
-    results: Iterable[Any], wind_limit_ms: float = 1.0
-) -> tuple[list[DescentData], list[tuple[int, str]], list[int]]:
+def collect(results: Iterable[Any], wind_limit_ms: float = 1.0) -> DayInputs:
     """The descents that enter the comparison, those left out (with why) and those flagged for
     wind, from a day's results (:class:`station.session.analysis.DescentResult`, in order)."""
     data: list[DescentData] = []
@@ -754,8 +956,7 @@ def collect(
         wind = float(row.wind_ms or 0.0)
         if abs(wind) > wind_limit_ms:
             windy.append(n)
-        e = f.estimates
-        guess = (e.get("cda") or 0.25, e.get("mu") or 0.02, e.get("v0") or 3.0)
+        guess = (f.cda.value or 0.25, f.mu.value or 0.02, f.v0.value or 3.0)
         data.append(
             DescentData(
                 number=n,
@@ -768,6 +969,7 @@ def collect(
                 air_density=float(row.air_density),
                 wind_ms=wind,
                 start_guess=(float(guess[0]), float(guess[1]), float(guess[2])),
+                timer_sd_s=f.timer_precision_s or TIMER_PRECISION_S,
             )
         )
-    return data, excluded, windy
+    return DayInputs(data, excluded, windy)

@@ -30,6 +30,7 @@ reported as not identifiable (status ``ill-conditioned``) rather than as a numbe
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any
@@ -38,10 +39,13 @@ import numpy as np
 from scipy.optimize import least_squares, nnls
 from scipy.special import stdtrit  # Student-t quantile, without loading scipy.stats
 
+from station.model.estimate import MISSING, Estimate, FitStatus
 from station.model.physics import PARAM_NAMES, Conditions, Params, StraightRun
+from station.model.timer import TIMER_PRECISION_S
 from station.model.track_error import (
-    DEFAULT_TIMER_PRECISION_S,
+    Goodness,
     SurveyError,
+    SurveyIntervals,
     add_survey_uncertainty,
     judge_goodness,
     survey_time_covariance,
@@ -58,65 +62,82 @@ CI_METHOD = "linearised (Wald) interval, Student t on the residual degrees of fr
 TOLERANCES = {"ftol": 1e-12, "xtol": 1e-12, "gtol": 1e-12}
 
 
-@dataclass
+@dataclass(frozen=True)
 class FitResult:
-    """Everything a user needs to judge a fit: estimates, intervals, residuals and a status."""
+    """Everything a user needs to judge a fit: estimates with their intervals, residuals and a
+    status. Built once, at the end of :func:`fit_descent`; never changed after."""
 
-    status: str
+    status: FitStatus
     model: str
     photocells: list[str]
-    estimates: dict[str, float | None]
-    ci90: dict[str, tuple[float, float] | None]
-    stderr: dict[str, float | None]
+    cda: Estimate
+    mu: Estimate
+    v0: Estimate
+    #: the time offset at the first photocell (that time is data too); None: not fitted
+    dt0: Estimate | None
     corr_mu_cda: float | None
     covariance: list[list[float]] | None
     sigma_s2: float | None
     grad_norm2: float | None
     dof: int
     residuals_s: dict[str, float]
+    #: velocity-dependent friction (s/m), only in the ``velocity`` model
+    mu1: Estimate | None = None
     message: str = ""
-    not_identifiable: list[str] = field(default_factory=list)
     liftoff_x: float | None = None
     stopped_x: float | None = None
     min_normal_force_n: float | None = None
     nfev: int = 0
     starts: int = 0
     speeds_ms: dict[str, float] = field(default_factory=dict)
-    #: parameters (μ1) whose 90 % interval includes 0: shown, with this flag, not hidden
-    consistent_with_zero: list[str] = field(default_factory=list)
     # goodness of fit and the survey's part in the intervals (station.model.track_error)
     timer_precision_s: float | None = None
     chi2: float | None = None
     chi2_p: float | None = None
-    ci90_timing: dict[str, tuple[float, float] | None] | None = None
-    stderr_timing: dict[str, float | None] | None = None
-    survey_share: dict[str, float | None] | None = None
+    #: the intervals carry the survey's uncertainty (each estimate keeps its timing-only one)
+    survey_in_intervals: bool = False
     #: the survey's covariance (s²) of the computed times t_i − t_1 used, for reuse by later
     #: fits on the same photocells (not part of the JSON)
     survey_time_cov: np.ndarray | None = field(default=None, repr=False, compare=False)
 
+    def parameters(self) -> list[tuple[str, Estimate]]:
+        """The fitted parameters in the order of the JSON: cda, mu, v0, [mu1], [dt0]."""
+        out = [("cda", self.cda), ("mu", self.mu), ("v0", self.v0)]
+        if self.mu1 is not None:
+            out.append(("mu1", self.mu1))
+        if self.dt0 is not None:
+            out.append((OFFSET_NAME, self.dt0))
+        return out
+
+    @property
+    def not_identifiable(self) -> list[str]:
+        """Names of the parameters the data do not determine."""
+        return [k for k, e in self.parameters() if e.not_identifiable]
+
+    @property
+    def consistent_with_zero(self) -> list[str]:
+        """Names of the signed effects (μ1) whose 90 % interval includes 0."""
+        return [k for k, e in self.parameters() if e.consistent_with_zero]
+
     def to_dict(self) -> dict[str, Any]:
         """The JSON form documented in the README."""
-        e = self.estimates
-        out: dict[str, Any] = {
-            "cda": e.get("cda"),
-            "mu": e.get("mu"),
-            "v0": e.get("v0"),
-        }
+        params = self.parameters()
+        out: dict[str, Any] = {"cda": self.cda.value, "mu": self.mu.value, "v0": self.v0.value}
         if self.model == "velocity":
-            out["mu1"] = e.get("mu1")
+            out["mu1"] = self.mu1.value if self.mu1 is not None else None
+        survey = self.survey_in_intervals
         out.update(
             {
-                "ci90": {k: (list(v) if v is not None else None) for k, v in self.ci90.items()},
+                "ci90": {k: _pair(e.ci90) for k, e in params},
                 "ci_method": CI_METHOD,
-                "stderr": self.stderr,
+                "stderr": {k: e.stderr for k, e in params},
                 "corr_mu_cda": self.corr_mu_cda,
                 "sigma_s2": self.sigma_s2,
                 "grad_norm2": self.grad_norm2,
                 "dof": self.dof,
                 "residuals_s": self.residuals_s,
                 "speeds_ms": self.speeds_ms,
-                "status": self.status,
+                "status": self.status.value,
                 "message": self.message,
                 "not_identifiable": self.not_identifiable,
                 "consistent_with_zero": self.consistent_with_zero,
@@ -131,18 +152,16 @@ class FitResult:
                 "timer_precision_s": self.timer_precision_s,
                 "chi2": self.chi2,
                 "chi2_p": self.chi2_p,
-                "ci90_timing": (
-                    None
-                    if self.ci90_timing is None
-                    else {
-                        k: (list(v) if v is not None else None) for k, v in self.ci90_timing.items()
-                    }
-                ),
-                "stderr_timing": self.stderr_timing,
-                "survey_share": self.survey_share,
+                "ci90_timing": {k: _pair(e.ci90_timing) for k, e in params} if survey else None,
+                "stderr_timing": {k: e.stderr_timing for k, e in params} if survey else None,
+                "survey_share": {k: e.survey_share for k, e in params} if survey else None,
             }
         )
         return out
+
+
+def _pair(ci: tuple[float, float] | None) -> list[float] | None:
+    return list(ci) if ci is not None else None
 
 
 @dataclass
@@ -385,6 +404,76 @@ def _solver(run: StraightRun, conditions: Conditions, n_params: int):
     return solve
 
 
+@dataclass
+class _Problem:
+    """The least-squares problem of one descent: the residuals and Jacobian of (physical
+    parameters, offset), the bounded search and the test of a verified minimum."""
+
+    solve: Callable[[np.ndarray], Any]
+    t: np.ndarray
+    scale: np.ndarray
+    upper: np.ndarray
+    bounded: np.ndarray
+
+    def fun(self, p: np.ndarray) -> np.ndarray:
+        return self.solve(p).t + p[-1] - self.t
+
+    def jac(self, p: np.ndarray) -> np.ndarray:
+        return np.column_stack([self.solve(p).dt_dp, np.ones(len(self.t))])
+
+    def search(self, x0: np.ndarray):
+        """Gauss-Newton from ``x0`` (offset 0), scipy's dogbox where it gives up."""
+        x0 = np.append(x0, 0.0)
+        upper, bounded = self.upper, self.bounded
+        res = gauss_newton(lambda p: (self.fun(p), self.jac(p)), x0, upper, self.scale, bounded)
+        if res.status > 0 and self.solve(res.x).stopped_x is None:
+            return res
+        out = least_squares(
+            self.fun,
+            np.clip(x0, np.where(bounded, 0.0, -upper), upper),
+            jac=self.jac,
+            bounds=(np.where(bounded, 0.0, -upper), upper),
+            method="dogbox",
+            x_scale=self.scale,
+            max_nfev=200,
+            **TOLERANCES,
+        )
+        out.nfev += res.nfev
+        return out
+
+    def verified(self, res) -> bool:
+        """A minimum only if Gauss-Newton can gain nothing more and the skier reaches every
+        photocell (a point where the model skier stops has a flat, huge Σ)."""
+        if self.solve(res.x).stopped_x is not None:
+            return False
+        if isinstance(res, Search):
+            return res.status > 0  # gauss_newton stops only on this very test
+        r = res.fun
+        sigma = float(r @ r)
+        gain = _predicted_decrease(res.jac, r, res.x, self.scale, self.bounded)
+        return bool(np.isfinite(sigma)) and gain <= 1e-6 * sigma + 1e-18
+
+    def minimise(self, x0: np.ndarray, n_params: int) -> tuple[Any, int, int]:
+        """The search from the data's start, then from a small grid of starts until one ends
+        at a verified minimum; the best search, model evaluations and starts."""
+        best = self.search(x0)
+        nfev, starts = best.nfev, 1
+        if not self.verified(best):
+            for cda0 in (0.1, 0.4, 1.0):
+                for mu0 in (0.005, 0.03, 0.1):
+                    start = np.array([cda0, mu0, x0[2], 0.0][:n_params])
+                    res = self.search(start)
+                    nfev += res.nfev
+                    starts += 1
+                    if res.cost < best.cost or (not self.verified(best) and self.verified(res)):
+                        best = res
+                    if self.verified(best):
+                        break
+                if self.verified(best):
+                    break
+        return best, nfev, starts
+
+
 def fit_descent(
     profile: Profile,
     xs: np.ndarray,
@@ -394,7 +483,7 @@ def fit_descent(
     model: str = "constant",
     step: float = 0.5,
     run: StraightRun | None = None,
-    timer_precision_s: float = DEFAULT_TIMER_PRECISION_S,
+    timer_precision_s: float = TIMER_PRECISION_S,
     survey: SurveyError | None = None,
     survey_time_cov: np.ndarray | None = None,
 ) -> FitResult:
@@ -402,13 +491,12 @@ def fit_descent(
     times may be on any clock (the offset ``dt0`` absorbs it and the noise of the first).
 
     ``timer_precision_s``: standard deviation of one crossing time, for the goodness-of-fit
-    test (default 0.5 ms: a 1 ms timer resolution and typical photocell jitter, see
-    :data:`station.model.track_error.DEFAULT_TIMER_PRECISION_S`). ``survey``: the track's
-    uncertainty (:func:`station.model.track_error.survey_error`); with it the 90 % intervals
-    carry the survey too, and the timing-only ones are kept beside them. ``survey_time_cov``:
-    that survey's covariance of the times as an earlier fit on the same photocells returned it
-    (``FitResult.survey_time_cov``), instead of ``survey``: its ~60 model solves are then not
-    repeated for every descent of a day."""
+    test (default :data:`station.model.timer.TIMER_PRECISION_S`, 0.5 ms). ``survey``: the
+    track's uncertainty (:func:`station.model.track_error.survey_error`); with it the 90 %
+    intervals carry the survey too, and the timing-only ones are kept beside them.
+    ``survey_time_cov``: that survey's covariance of the times as an earlier fit on the same
+    photocells returned it (``FitResult.survey_time_cov``), instead of ``survey``: its ~60
+    model solves are then not repeated for every descent of a day."""
     if model not in ("constant", "velocity"):
         raise ValueError(f"unknown model {model!r}")
     n_params = 4 if model == "velocity" else 3
@@ -418,184 +506,195 @@ def fit_descent(
     ids = ids or [f"PC{i + 1}" for i in range(len(xs))]
     n_res = len(xs) - 1
     dof = n_res - n_params
-
-    def empty(status: str, message: str) -> FitResult:
-        return FitResult(
-            status=status,
-            model=model,
-            photocells=ids,
-            estimates={k: None for k in names},
-            ci90={k: None for k in names},
-            stderr={k: None for k in names},
-            corr_mu_cda=None,
-            covariance=None,
-            sigma_s2=None,
-            grad_norm2=None,
-            dof=max(dof, 0),
-            residuals_s={},
-            message=message,
-        )
-
     if n_res < n_params:
-        return empty(
-            "too-few-photocells",
+        return _no_fit(
+            model, ids, names, max(dof, 0),
             f"{len(xs)} photocells give {n_res} time differences for {n_params} unknowns; "
             f"at least {n_params + 2} photocells are needed for a fit with uncertainty",
-        )
+        )  # fmt: skip
+
+    # the search
     run = run or StraightRun(profile, xs, step)
     fit_names, scale, upper, bounded = with_offset(names, n_params)
-    solve = _solver(run, conditions, n_params)
-
-    def fun(p: np.ndarray) -> np.ndarray:
-        return solve(p).t + p[-1] - t
-
-    def jac(p: np.ndarray) -> np.ndarray:
-        return np.column_stack([solve(p).dt_dp, np.ones(len(t))])
-
-    def search(x0: np.ndarray):
-        x0 = np.append(x0, 0.0)
-        res = gauss_newton(lambda p: (fun(p), jac(p)), x0, upper, scale, bounded)
-        if res.status > 0 and solve(res.x).stopped_x is None:
-            return res
-        out = least_squares(
-            fun,
-            np.clip(x0, np.where(bounded, 0.0, -upper), upper),
-            jac=jac,
-            bounds=(np.where(bounded, 0.0, -upper), upper),
-            method="dogbox",
-            x_scale=scale,
-            max_nfev=200,
-            **TOLERANCES,
-        )
-        out.nfev += res.nfev
-        return out
-
-    def verified(res) -> bool:
-        """A minimum only if Gauss-Newton can gain nothing more and the skier reaches every
-        photocell (a point where the model skier stops has a flat, huge Σ)."""
-        if solve(res.x).stopped_x is not None:
-            return False
-        if isinstance(res, Search):
-            return res.status > 0  # gauss_newton stops only on this very test
-        r = res.fun
-        sigma = float(r @ r)
-        gain = _predicted_decrease(res.jac, r, res.x, scale, bounded)
-        return bool(np.isfinite(sigma)) and gain <= 1e-6 * sigma + 1e-18
-
+    problem = _Problem(_solver(run, conditions, n_params), t, scale, upper, bounded)
     x0 = initial_guess(run, t, conditions, n_params)
-    best = search(x0)
-    nfev, starts = best.nfev, 1
-    if not verified(best):
-        for cda0 in (0.1, 0.4, 1.0):
-            for mu0 in (0.005, 0.03, 0.1):
-                start = np.array([cda0, mu0, x0[2], 0.0][:n_params])
-                res = search(start)
-                nfev += res.nfev
-                starts += 1
-                if res.cost < best.cost or (not verified(best) and verified(res)):
-                    best = res
-                if verified(best):
-                    break
-            if verified(best):
-                break
+    best, nfev, starts = problem.minimise(x0, n_params)
 
+    # at the solution: residuals, linearised uncertainty, the verdict
     p = best.x
-    desc = solve(p)
-    r, jm = fun(p), jac(p)
-    sigma_s2 = float(r @ r)
+    desc = problem.solve(p)
+    r, jm = problem.fun(p), problem.jac(p)
+    values: dict[str, float | None] = {k: float(v) for k, v in zip(fit_names, p, strict=True)}
+    unc = uncertainty(jm, r, p, fit_names, dof, scale)
+    status, message = _verdict(
+        len(xs), n_params, dof, desc, problem.verified(best) and desc.converged, best.message,
+        starts, unc.not_identifiable,
+    )  # fmt: skip
+    if status == FitStatus.ILL_CONDITIONED:
+        for k in unc.not_identifiable:
+            values[k] = None
+            unc.ci90[k] = None
+
+    # the survey's share of the intervals, then the χ² test (station.model.track_error)
+    relative, survey_cov, widened = _survey_part(
+        run, p, conditions, jm, r, step, dof, values, unc, survey, survey_time_cov
+    )
+    good = judge_goodness(r, dof, timer_precision_s, survey_cov)
+    if good is not None and status == FitStatus.OK and good.poor:
+        status, message = FitStatus.POOR_FIT, _poor_fit_message(good, timer_precision_s, dof)
+
+    def estimate(k: str) -> Estimate:
+        return _estimate(k, values[k], unc, widened)
+
     grad = 2.0 * jm.T @ r
-    estimates = {k: float(v) for k, v in zip(fit_names, p, strict=True)}
-    result = FitResult(
-        status="ok",
+    return FitResult(
+        status=status,
         model=model,
         photocells=ids,
-        estimates=estimates,  # type: ignore[arg-type]
-        ci90={k: None for k in names},
-        stderr={k: None for k in names},
-        corr_mu_cda=None,
-        covariance=None,
-        sigma_s2=sigma_s2,
+        cda=estimate("cda"),
+        mu=estimate("mu"),
+        v0=estimate("v0"),
+        mu1=estimate("mu1") if n_params == 4 else None,
+        dt0=estimate(OFFSET_NAME),
+        corr_mu_cda=unc.corr_mu_cda,
+        covariance=widened.covariance if widened else unc.covariance,
+        sigma_s2=float(r @ r),
         grad_norm2=float(grad @ grad),
         dof=dof,
         residuals_s={i: float(v) for i, v in zip(ids, r, strict=True)},
+        message=message,
         liftoff_x=desc.liftoff_x,
         stopped_x=desc.stopped_x,
         min_normal_force_n=desc.min_normal_force_n,
         nfev=nfev,
         starts=starts,
         speeds_ms={i: float(v) for i, v in zip(ids, desc.v, strict=True)},
+        timer_precision_s=timer_precision_s,
+        chi2=good.chi2 if good else None,
+        chi2_p=good.p if good else None,
+        survey_in_intervals=widened is not None,
+        survey_time_cov=relative,
     )
 
-    unc = uncertainty(jm, r, p, fit_names, dof, scale)
-    result.covariance, result.stderr, result.ci90 = unc.covariance, unc.stderr, unc.ci90
-    result.corr_mu_cda, result.not_identifiable = unc.corr_mu_cda, unc.not_identifiable
-    result.consistent_with_zero = unc.consistent_with_zero
 
-    # status, most serious first
+def _poor_fit_message(good: Goodness, timer_precision_s: float, dof: int) -> str:
+    return (
+        f"the residuals (RMS {good.rms_s * 1000:.2f} ms) are far above the timer precision "
+        f"{timer_precision_s * 1000:.2f} ms (χ² {good.chi2:.1f} on {dof} dof, "
+        f"p = {good.p:.1e}): a photocell triggered by something else, a photocell position "
+        "or a track that is wrong, or a descent the model does not describe; the numbers "
+        "are not to be trusted"
+    )
+
+
+def _estimate(
+    k: str, value: float | None, unc: Uncertainty, widened: SurveyIntervals | None
+) -> Estimate:
+    """Parameter ``k`` as the result gives it: its timing-only uncertainty, or the one widened
+    by the survey with the timing-only one beside it."""
+    return Estimate(
+        value=value,
+        ci90=widened.ci90[k] if widened else unc.ci90[k],
+        stderr=widened.stderr[k] if widened else unc.stderr[k],
+        ci90_timing=widened.ci90_timing[k] if widened else None,
+        stderr_timing=widened.stderr_timing[k] if widened else None,
+        survey_share=widened.survey_share[k] if widened else None,
+        not_identifiable=k in unc.not_identifiable,
+        consistent_with_zero=k in unc.consistent_with_zero,
+    )
+
+
+def _no_fit(model: str, ids: list[str], names: list[str], dof: int, message: str) -> FitResult:
+    """Too few photocells for the unknowns: no search, no numbers, the reason."""
+    return FitResult(
+        status=FitStatus.TOO_FEW_PHOTOCELLS,
+        model=model,
+        photocells=ids,
+        cda=MISSING,
+        mu=MISSING,
+        v0=MISSING,
+        mu1=MISSING if "mu1" in names else None,
+        dt0=None,
+        corr_mu_cda=None,
+        covariance=None,
+        sigma_s2=None,
+        grad_norm2=None,
+        dof=dof,
+        residuals_s={},
+        message=message,
+    )
+
+
+def _verdict(
+    n_cells: int,
+    n_params: int,
+    dof: int,
+    desc: Any,
+    verified: bool,
+    search_message: str,
+    starts: int,
+    not_identifiable: list[str],
+) -> tuple[FitStatus, str]:
+    """The fit's status and why, most serious first (the χ² test comes after, on ``ok``)."""
     if dof < 1:
-        result.status = "too-few-photocells"
-        result.message = (
-            f"{len(xs)} photocells leave no degree of freedom for {n_params} unknowns: "
+        return FitStatus.TOO_FEW_PHOTOCELLS, (
+            f"{n_cells} photocells leave no degree of freedom for {n_params} unknowns: "
             "the fit passes through every time and has no uncertainty"
         )
-    elif desc.liftoff_x is not None:
-        result.status = "lift-off"
-        result.message = (
+    if desc.liftoff_x is not None:
+        return FitStatus.LIFT_OFF, (
             f"the fitted skier leaves the snow at x = {desc.liftoff_x:.1f} m (normal force "
             "≤ 0); the particle-on-track model does not hold there"
         )
-    elif desc.stopped_x is not None:
-        result.status = "stopped"
-        result.message = (
+    if desc.stopped_x is not None:
+        return FitStatus.STOPPED, (
             f"the fitted skier stops at x = {desc.stopped_x:.1f} m, before the last photocell"
         )
-    elif not verified(best) or not desc.converged:
-        result.status = "not-converged"
-        result.message = (
-            f"the search ended ({best.message}) without a verified minimum after {starts} "
+    if not verified:
+        return FitStatus.NOT_CONVERGED, (
+            f"the search ended ({search_message}) without a verified minimum after {starts} "
             "start(s); the numbers are not a least-squares solution"
         )
-    elif result.not_identifiable:
-        result.status = "ill-conditioned"
-        which = ", ".join(result.not_identifiable)
-        result.message = (
+    if not_identifiable:
+        which = ", ".join(not_identifiable)
+        return FitStatus.ILL_CONDITIONED, (
             f"{which} not identifiable from these times: the 90 % interval is wider than the "
             "estimate itself"
         )
-        for k in result.not_identifiable:
-            result.estimates[k] = None
-            result.ci90[k] = None
-    _survey_and_goodness(
-        result, run, p, conditions, jm, r, step, timer_precision_s, survey, survey_time_cov
-    )
-    return result
+    return FitStatus.OK, ""
 
 
-def _survey_and_goodness(
-    result: FitResult,
+def _survey_part(
     run: StraightRun,
     p: np.ndarray,
     conditions: Conditions,
     jm: np.ndarray,
     r: np.ndarray,
     step: float,
-    timer_precision_s: float,
+    dof: int,
+    values: dict[str, float | None],
+    unc: Uncertainty,
     survey: SurveyError | None,
-    relative: np.ndarray | None = None,
-) -> None:
-    """The survey's share of the intervals, then the χ² test (station.model.track_error).
+    relative: np.ndarray | None,
+) -> tuple[np.ndarray | None, np.ndarray | None, SurveyIntervals | None]:
+    """The survey's covariance of the times t_i − t_1 (given, or computed from ``survey``),
+    padded for the fit, and the intervals widened by it; Nones without a survey or without an
+    uncertainty to widen.
 
     The fit has every crossing time as data and a free offset (the last parameter), so the
     survey's covariance of the computed times t_i − t_1 is padded with a zero first row and
     column: the model's own first time is 0 whatever the track."""
-    survey_cov = None
-    if relative is None and survey is not None and result.covariance is not None:
+    if unc.covariance is None:
+        return None, None, None
+    if relative is None and survey is not None:
         n_phys = len(p) - 1
         phys = Params(p[0], p[1], p[2], mu1=p[3] if n_phys == 4 else 0.0)
         relative = survey_time_covariance(survey, run.xs, phys, conditions, step)
-    if relative is not None and result.covariance is not None:
-        result.survey_time_cov = relative
-        survey_cov = np.zeros((len(r), len(r)))
-        survey_cov[1:, 1:] = relative
-        add_survey_uncertainty(result, jm, r, survey_cov)
-    judge_goodness(result, r, timer_precision_s, survey_cov)
+    if relative is None:
+        return None, None, None
+    survey_cov = np.zeros((len(r), len(r)))
+    survey_cov[1:, 1:] = relative
+    if dof < 1:
+        return relative, survey_cov, None
+    widened = add_survey_uncertainty(values, unc.ci90, unc.stderr, dof, jm, r, survey_cov)
+    return relative, survey_cov, widened

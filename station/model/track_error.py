@@ -18,17 +18,20 @@ than the timing-only one. Both intervals are reported, and the survey's share of
 
 Goodness of fit: the residuals against the timer's precision (χ² on the residual degrees of
 freedom, with the first photocell's error common to every time difference). A fit far above
-it (p < 0.001) has status ``poor-fit``: the numbers are a least-squares solution, but the model,
-the track or a photocell is wrong somewhere.
+it (p < ``POOR_FIT_P``, :mod:`station.model.timer`) has status ``poor-fit``: the numbers are a
+least-squares solution, but the model, the track or a photocell is wrong somewhere.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy.interpolate import BSpline
+from scipy.special import chdtrc, stdtrit  # χ² survival, Student t, without scipy.stats
 
 from station.model.physics import (
     Conditions,
@@ -38,17 +41,11 @@ from station.model.physics import (
     make_grid,
     solve_grid,
 )
+from station.model.timer import POOR_FIT_P
 
 if TYPE_CHECKING:
-    from station.model.fit import FitResult
     from station.survey.track import ProfileUncertainty, Track
 
-#: default precision (s) of one crossing time: a 1 ms timer resolution (rounding, sd
-#: 1 ms/√12 = 0.29 ms) combined with ~0.4 ms of photocell trigger jitter (which part of the
-#: body breaks a beam some 1 cm wide, at 20–25 m/s); sqrt(0.29² + 0.4²) ≈ 0.5 ms
-DEFAULT_TIMER_PRECISION_S = 0.5e-3
-#: a fit whose residuals are this improbable under the timer's precision is a poor fit
-POOR_FIT_P = 1e-3
 #: forward-difference steps: profile coefficients (m) and photocell positions (m)
 H_STEP_M = 1e-3
 X_STEP_M = 1e-3
@@ -126,8 +123,6 @@ def _perturbed_profile_times(
     One batched solve instead of one per coefficient (some 60 on a real run): every row is
     computed by the same operations as a lone profile, so the numbers are the same.
     """
-    from scipy.interpolate import BSpline
-
     x, idx = grid_nodes(xs, step)
     xm = 0.5 * (x[1:] + x[:-1])
     # column 0: the coefficients as they are; column r + 1: coefficient support[r] + H_STEP_M
@@ -140,13 +135,34 @@ def _perturbed_profile_times(
     return solve_grid(grid, p, conditions, 3, False).time[:, idx[1:]]
 
 
+@dataclass(frozen=True)
+class SurveyIntervals:
+    """A fit's uncertainty with the survey's in it (:func:`add_survey_uncertainty`), and the
+    timing-only one it was built from; each a mapping of the fit's parameter names."""
+
+    covariance: list[list[float]]
+    ci90: dict[str, tuple[float, float] | None]
+    stderr: dict[str, float | None]
+    ci90_timing: dict[str, tuple[float, float] | None]
+    stderr_timing: dict[str, float | None]
+    survey_share: dict[str, float | None]
+
+
+#: residual degrees of freedom a fit needs before it says the survey's share of the variance
+MIN_DOF_SHARE = 3
+
+
 def add_survey_uncertainty(
-    result: FitResult,
+    values: Mapping[str, float | None],
+    ci90: Mapping[str, tuple[float, float] | None],
+    stderr: Mapping[str, float | None],
+    dof: int,
     jac: np.ndarray,
     residuals: np.ndarray,
     survey_cov: np.ndarray,
-) -> None:
-    """Widen ``result``'s intervals by the survey's time covariance; keep the timing-only ones.
+) -> SurveyIntervals:
+    """A fit's timing-only intervals (``ci90``, ``stderr``; ``values`` None where there is no
+    estimate) widened by the survey's time covariance; the timing-only ones kept beside them.
 
     The timing variance in the total is estimated from the residuals *less* what the survey
     alone leaves in them, E[rᵀr] = σ_t²·dof + tr((I − P) S (I − P)) with P the least-squares
@@ -154,59 +170,65 @@ def add_survey_uncertainty(
     once through S (measured: 95 % coverage of the "90 %" intervals instead of 92 %). The
     estimate is floored at a tenth of the raw one, so the timing never vanishes.
     """
-    from scipy.special import stdtrit  # Student-t quantile, without scipy.stats' start-up
-
-    if result.covariance is None or result.dof < 1:
-        return
-    names = list(result.ci90)
+    names = list(ci90)
     jtj_inv = np.linalg.inv(jac.T @ jac)
     g = jtj_inv @ jac.T
     r = np.asarray(residuals, dtype=float)
-    raw = float(r @ r) / result.dof
+    raw = float(r @ r) / dof
     q_perp = np.eye(len(r)) - jac @ g
-    survey_in_residuals = float(np.trace(q_perp @ survey_cov @ q_perp.T)) / result.dof
+    survey_in_residuals = float(np.trace(q_perp @ survey_cov @ q_perp.T)) / dof
     sigma2 = max(raw - survey_in_residuals, 0.1 * raw)
     cov_t = sigma2 * jtj_inv
     cov_s = g @ survey_cov @ g.T
     cov = cov_t + cov_s
-    result.ci90_timing = dict(result.ci90)
-    result.stderr_timing = dict(result.stderr)
-    result.survey_share = {}
-    result.covariance = cov.tolist()
+    out = SurveyIntervals(cov.tolist(), dict(ci90), dict(stderr), dict(ci90), dict(stderr), {})
     for i, k in enumerate(names):
-        est = result.estimates.get(k)
+        est = values.get(k)
         vt, vs = float(cov_t[i, i]), float(cov_s[i, i])
         vtot = vt + vs
-        result.survey_share[k] = vs / vtot if vtot > 0 else None
-        if est is None or result.ci90[k] is None:
+        # with fewer than MIN_DOF_SHARE residual degrees of freedom the timing variance is one
+        # or two squared residuals: a split of the variance on it said "survey 100 %"
+        out.survey_share[k] = vs / vtot if vtot > 0 and dof >= MIN_DOF_SHARE else None
+        if est is None or ci90[k] is None:
             continue
         # Welch-Satterthwaite: only the timing part is estimated (from dof residuals)
-        dof_eff = result.dof * (vtot / vt) ** 2 if vt > 0 else math.inf
+        dof_eff = dof * (vtot / vt) ** 2 if vt > 0 else math.inf
         q = float(stdtrit(min(dof_eff, 1e6), 0.95))
         sd = math.sqrt(vtot)
         lo, hi = est - q * sd, est + q * sd
         if k in ("cda", "mu", "v0", "mu1"):
             lo = max(lo, 0.0)
         # never narrower than the timing-only interval: the survey cannot make a fit surer
-        tlo, thi = result.ci90_timing[k] or (lo, hi)
-        result.ci90[k] = (float(min(lo, tlo)), float(max(hi, thi)))
-        result.stderr[k] = max(sd, result.stderr_timing.get(k) or 0.0)
+        tlo, thi = out.ci90_timing[k] or (lo, hi)
+        out.ci90[k] = (float(min(lo, tlo)), float(max(hi, thi)))
+        out.stderr[k] = max(sd, out.stderr_timing.get(k) or 0.0)
+    return out
+
+
+@dataclass(frozen=True)
+class Goodness:
+    """The χ² test of a fit's residuals against the timer's precision."""
+
+    chi2: float
+    p: float
+    rms_s: float  # root mean square of the residuals
+
+    @property
+    def poor(self) -> bool:
+        return self.p < POOR_FIT_P
 
 
 def judge_goodness(
-    result: FitResult,
     residuals: np.ndarray,
+    dof: int,
     timer_precision_s: float,
     survey_cov: np.ndarray | None = None,
-) -> None:
+) -> Goodness | None:
     """χ² of the residuals against the timer precision (and the survey's share of the times'
-    covariance, so that an honest rough survey is not called a poor fit); status ``poor-fit``
-    if improbable."""
-    from scipy.special import chdtrc  # χ² survival function, without scipy.stats' start-up
-
-    result.timer_precision_s = timer_precision_s
-    if result.dof < 1 or not timer_precision_s > 0:
-        return
+    covariance, so that an honest rough survey is not called a poor fit); None without a
+    degree of freedom or a precision."""
+    if dof < 1 or not timer_precision_s > 0:
+        return None
     r = np.asarray(residuals, dtype=float)
     # every crossing time is data with its own timer error (the fit's free offset takes the
     # first photocell's): Cov = σ²·I
@@ -215,15 +237,5 @@ def judge_goodness(
     if survey_cov is not None:
         cov = cov + survey_cov
     q = float(r @ np.linalg.solve(cov, r))
-    p = float(chdtrc(result.dof, q))
-    result.chi2 = q
-    result.chi2_p = p
-    if result.status == "ok" and p < POOR_FIT_P:
-        rms = math.sqrt(float(r @ r) / len(r))
-        result.status = "poor-fit"
-        result.message = (
-            f"the residuals (RMS {rms * 1000:.2f} ms) are far above the timer precision "
-            f"{timer_precision_s * 1000:.2f} ms (χ² {q:.1f} on {result.dof} dof, p = {p:.1e}): "
-            "a photocell triggered by something else, a photocell position or a track that is "
-            "wrong, or a descent the model does not describe; the numbers are not to be trusted"
-        )
+    p = float(chdtrc(dof, q))
+    return Goodness(q, p, math.sqrt(float(r @ r) / len(r)))

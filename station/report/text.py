@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from station.model.estimate import Estimate
 from station.session.analysis import DescentResult
 from station.session.records import LineCounts
 
@@ -41,18 +42,17 @@ def describe(res: DescentResult) -> str:
     mark = f"  INVALID: {row.invalid_reason or 'marked invalid'}" if row.invalid else ""
     if f is None:
         return f"{head}  {row.status}: {'; '.join(row.flags)}{mark}"
-    e, ci = f.estimates, f.ci90
 
-    def part(name: str, key: str, spec: str) -> str:
-        if e.get(key) is None:
+    def part(name: str, est: Estimate, spec: str) -> str:
+        if est.value is None:
             return f"{name} —"
-        c = ci.get(key)
+        c = est.ci90
         rng = f" [{format(c[0], spec)}, {format(c[1], spec)}]" if c else ""
-        return f"{name} {format(e[key], spec)}{rng}"
+        return f"{name} {format(est.value, spec)}{rng}"
 
     text = (
-        f"{head}  {part('μ', 'mu', '.5f')}  {part('CdA', 'cda', '.4f')}  "
-        f"v0 {num(e.get('v0'), '.2f')}  rms {num(row.rms_residual_ms, '.2f')} ms  {row.status}"
+        f"{head}  {part('μ', f.mu, '.5f')}  {part('CdA', f.cda, '.4f')}  "
+        f"v0 {num(f.v0.value, '.2f')}  rms {num(row.rms_residual_ms, '.2f')} ms  {row.status}"
     )
     if row.flags:
         text += f"  ({'; '.join(row.flags)})"

@@ -36,7 +36,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import IO, Any
 
 from station.errors import InputError
@@ -57,6 +57,7 @@ from station.session.records import (
     MetadataAnnotation,
     ModelChange,
     Progress,
+    ResultRow,
 )
 from station.session.replay import replay_chunks, source_date
 from station.survey.load import load_survey
@@ -134,6 +135,9 @@ _STOP = object()
 #: how often an idle fit worker looks for annotations another process (``station annotate``)
 #: appended to the session being recorded
 ANNOTATIONS_POLL_S = 0.5
+#: the comparison waits until the results have not changed for this long (a refit of many
+#: descents, a replay: one comparison at the end, not one per descent)
+COMPARE_QUIET_S = 0.3
 #: how long the recorder waits for another writer of the annotations file (it appends one
 #: record) before it appends its own without the lock
 ANNOTATIONS_WAIT_S = 2.0
@@ -159,6 +163,10 @@ class Acquisition:
         self.session_dir = session_dir
         self.rawlog = rawlog
         self.compare = compare
+        #: a replay in line keeps every descent's speed curve (the report draws them all); a
+        #: recording or the UI keeps it only in what it hands to the listener: 12 kB a
+        #: descent, half a 2000-descent day's memory (the UI asks again for the one it shows)
+        self.keep_curves = not threaded
         self.ski_rotation = tuple(ski_rotation)
         self.lock = threading.Lock()  # guards the day: processor, results, annotations
         self.finished_descents = 0  # descents the processor ended, aborted ones not counted
@@ -169,6 +177,12 @@ class Acquisition:
         self._announced: int | None = None
         self._closed = False
         self._csv_problem: str | None = None  # said once, not after every descent
+        # what the session's results CSV holds (rows by descent, its size): a new descent is
+        # appended to it; None: unknown (not written yet, or a write failed): rewritten in full
+        self._csv_rows: dict[int, ResultRow] | None = None
+        self._csv_size = 0
+        self._csv_inode = 0
+        self._header: dict[str, str] | None = None  # the CSV's header, made once
         self._closing = False
         self._jobs: queue.Queue[object] = queue.Queue()
         #: held while the session is recorded (``station sessions``, ``annotate`` try it)
@@ -177,9 +191,22 @@ class Acquisition:
         self._own_lines: list[str] = []  # own records appended, not yet read back
         self._last_poll = 0.0
         self._worker: threading.Thread | None = None
+        # the comparison (the UI's): a thread of its own, never the fit worker's (at 2000
+        # descents a joint fit takes seconds, and the next descent's fit would wait for it)
+        self._cmp = threading.Condition()
+        self._cmp_dirty = False  # results changed since the comparison last shown
+        self._cmp_changed_at = 0.0  # when (monotonic): the comparison waits for quiet
+        self._cmp_shown = False  # the UI shows it: only then is it computed
+        self._cmp_ended = False  # the source ended: computed once more, shown or not
+        self._comparer: threading.Thread | None = None
         if threaded:
             self._worker = threading.Thread(target=self._work, name="fit-worker", daemon=True)
             self._worker.start()
+            if compare:
+                self._comparer = threading.Thread(
+                    target=self._compare_loop, name="comparison", daemon=True
+                )
+                self._comparer.start()
 
     @classmethod
     def open(
@@ -361,6 +388,10 @@ class Acquisition:
                 self._tell(self.listener.impulses, new, proc.line_counts())
             if new or done:
                 self._tell(self.listener.progress, self.day.progress())
+        if not self.keep_curves:
+            # a recording hands each impulse's fate to the listener once and keeps none: a
+            # replay of the raw log lists them all (--events); 1.5 kB a descent otherwise
+            del proc.events[:]
         for d in done:
             times = DescentTimes.of(d)
             if times.status != DescentStatus.ABORTED:
@@ -497,8 +528,6 @@ class Acquisition:
             if job is _STOP:
                 return
             self._run(job)  # type: ignore[arg-type]
-            if self.compare and self._jobs.empty() and not self._closing:
-                self._compare()
             if time.monotonic() - self._last_poll > 2 * ANNOTATIONS_POLL_S:
                 self._run_poll()  # a busy worker looks too
 
@@ -528,6 +557,11 @@ class Acquisition:
             with self.lock:
                 counts, snapshot = day.processor.line_counts(), day.snapshot()
             self._tell(self.listener.ended, counts, snapshot)
+            with self._cmp:  # the whole day's comparison, once, shown or not
+                self._cmp_ended = True
+                self._cmp.notify_all()
+            if self.compare and self._comparer is None:
+                self._compare()
             return
         with self.lock:
             if isinstance(job, _Fit):
@@ -538,37 +572,128 @@ class Acquisition:
                 effect = _effect_now(day, a) if job.applied else day.annotate(a)
                 fit_jobs = [day.fit_job(day.results[n].descent) for n in effect.refit]
         fitted = [day.analyser.run(j) for j in fit_jobs]  # outside the lock: the reader goes on
+        kept = fitted if self.keep_curves else [_without_curve(r) for r in fitted]
         with self.lock:
-            views = [day.store(r) for r in fitted] + [day.view(n) for n in effect.changed]
-            snapshot = day.snapshot() if self.session_dir is not None and views else None
-        if snapshot is not None:
-            self._write_session_csv(snapshot)
-        for v in views:
+            views = [day.store(r) for r in kept] + [day.view(n) for n in effect.changed]
+        if views:
+            self._save_csv(views)
+        for i, v in enumerate(views):
+            if i < len(fitted) and v.speed_x is None:  # the listener shows the new fit's curve
+                v = replace(v, speed_x=fitted[i].speed_x, speed_v=fitted[i].speed_v)
             self._tell(self.listener.result, v)
+        if views and self.compare:
+            with self._cmp:
+                self._cmp_dirty = True
+                self._cmp_changed_at = time.monotonic()
+                self._cmp.notify_all()
+
+    # -- the comparison of the day's items (the UI's): off the fit path
+    #
+    # Computed by a thread of its own, only while the UI shows it (and once when the source
+    # ended), after the results have been quiet for COMPARE_QUIET_S, and not while fits wait:
+    # the fit worker never runs it, so a descent's fit never waits for the day's joint fit.
+
+    def show_comparison(self, shown: bool) -> None:
+        """The UI opened (True) or closed (False) the comparison: computed only while shown."""
+        with self._cmp:
+            self._cmp_shown = shown
+            self._cmp.notify_all()
+
+    def _compare_loop(self) -> None:
+        while True:
+            with self._cmp:
+                while not (
+                    self._closed or (self._cmp_dirty and (self._cmp_shown or self._cmp_ended))
+                ):
+                    self._cmp.wait()
+                if self._closed:
+                    return
+                quiet = self._cmp_changed_at + COMPARE_QUIET_S - time.monotonic()
+                if quiet > 0 or not self._jobs.empty():  # debounced; fits first
+                    self._cmp.wait(max(quiet, COMPARE_QUIET_S / 4))
+                    continue
+                self._cmp_dirty = False
+            try:
+                self._compare()
+            except Exception as exc:  # noqa: BLE001 - the comparison is a view: the day goes on
+                self._tell(self.listener.warning, f"comparison failed: {type(exc).__name__}: "
+                           f"{exc}")  # fmt: skip
 
     def _compare(self) -> None:
         with self.lock:
             snapshot = self.day.snapshot()
         self._tell(self.listener.comparison, comparison_text(self.day.track, snapshot))
 
+    def _save_csv(self, results: Sequence[DescentResult]) -> None:
+        """Bring the session's results CSV up to date with ``results`` (those just fitted or
+        marked; at the end, all). A descent after every one the file holds is appended to it,
+        so a 2000-descent day costs per descent what its first did; an earlier row that changed
+        (an annotation, a refit, descents ending out of order) rewrites the file in full. The
+        bytes are the same either way: those of a replay's CSV."""
+        if self.session_dir is None:
+            return
+        rows = self._csv_rows
+        new: dict[int, ResultRow] = {}
+        if rows is not None:
+            last = max(rows, default=0)
+            for r in sorted(results, key=lambda r: r.number):
+                old = rows.get(r.number)
+                if old is r.row or old == r.row:
+                    new.pop(r.number, None)  # unchanged (a later view may change it again)
+                elif r.number in rows or r.number < last:
+                    rows = None  # an earlier row changed: the file is rewritten
+                    break
+                else:
+                    new[r.number] = r.row
+        if rows is not None and not new:
+            return  # the file holds them already
+        if rows is not None:
+            from station.session.results import append_result_rows
+
+            path = os.path.join(self.session_dir, sessions.RESULTS)
+            try:
+                self._csv_size = append_result_rows(
+                    path, list(new.values()), self._csv_size, self._csv_inode
+                )
+            except Exception:  # noqa: BLE001 - written in full below, which says what failed
+                self._csv_rows = None
+            else:
+                rows.update(new)
+                return
+        with self.lock:
+            snapshot = self.day.snapshot()
+        self._write_session_csv(snapshot)
+
     def _write_session_csv(self, snapshot: Sequence[DescentResult]) -> None:
-        """The session's results CSV; one that cannot be written is said once, and written
-        again after the next descent (the raw log, written first, is not affected)."""
+        """The session's results CSV in full; one that cannot be written is said once, and
+        written again after the next descent (the raw log, written first, is not affected)."""
         if self.session_dir is None:
             return
         path = os.path.join(self.session_dir, sessions.RESULTS)
+        self._csv_rows = None
         problem = sessions.save_results(path, lambda p: self._write(snapshot, p))
+        if problem is None:
+            with contextlib.suppress(OSError):  # unknown size: the next write is in full
+                st = os.stat(path)
+                self._csv_size, self._csv_inode = st.st_size, st.st_ino
+                self._csv_rows = {r.number: r.row for r in snapshot}
         if problem is not None and problem != self._csv_problem:
             self._tell(self.listener.warning, problem)
         elif problem is None and self._csv_problem is not None:
             self._tell(self.listener.warning, f"{path} written again: it is complete")
         self._csv_problem = problem
 
+    def _results_header(self) -> dict[str, str]:
+        """What the results were computed from: the session's config and survey do not change
+        during the day, so their digests are read once."""
+        if self._header is None:
+            self._header = sessions.results_header(self.config, self.day.track.name)
+        return self._header
+
     def _write(self, snapshot: Sequence[DescentResult], path: str) -> None:
         from station.session.results import write_result_rows
 
-        header = sessions.results_header(self.config, self.day.track.name)
-        write_result_rows([r.row for r in snapshot], path, header)
+        write_result_rows([r.row for r in snapshot], path, self._results_header())
 
     def _tell(self, fn: Callable[..., None], *args: Any) -> None:
         """Call the listener; what it raises stays with it."""
@@ -592,6 +717,8 @@ class Acquisition:
         if self._closed:
             return
         self._closed = True
+        with self._cmp:  # the comparison thread ends (one under way is not waited for)
+            self._cmp.notify_all()
         try:
             self.stop()
             self.end_of_input()
@@ -613,7 +740,7 @@ class Acquisition:
                     self._run(job)
                 with self.lock:
                     snapshot = self.day.snapshot()
-                self._write_session_csv(snapshot)
+                self._save_csv(snapshot)  # written already, unless a write failed
                 if self.rawlog is not None:
                     self.rawlog.close()
                 if self.recording_lock is not None:  # inside the annotations lock: see above
@@ -623,6 +750,11 @@ class Acquisition:
                 self.recording_lock.release()  # the results CSV is final: no longer recording
 
     # ------------------------------------------------------------------ views
+
+    def speed_curve(self, res: DescentResult) -> tuple[Any, Any] | None:
+        """The fitted speed along the run of a result kept without it (one model solve, no
+        fit; the UI's plot of the descent it shows)."""
+        return self.day.analyser.speed_curve(res)
 
     def results(self) -> tuple[DescentResult, ...]:
         """Every descent as the results show it."""
@@ -634,16 +766,24 @@ class Acquisition:
         with self.lock:
             return self.day.processor.line_counts()
 
-    def write_csv(self, path: str) -> None:
-        """The results CSV at ``path`` (export, ``replay --csv``, the UI's ``e``)."""
-        self._write(self.results(), path)
+    def write_csv(self, path: str) -> int:
+        """The results CSV at ``path`` (export, ``replay --csv``, the UI's ``e``); returns the
+        number of descents written."""
+        results = self.results()
+        self._write(results, path)
+        return len(results)
 
     def write_csv_to(self, fh: IO[str]) -> None:
         """The results CSV into an open text file: ``--csv -`` writes to standard output."""
         from station.session.results import write_result_rows_to
 
-        header = sessions.results_header(self.config, self.day.track.name)
-        write_result_rows_to(fh, [r.row for r in self.results()], header)
+        write_result_rows_to(fh, [r.row for r in self.results()], self._results_header())
+
+
+def _without_curve(res: DescentResult) -> DescentResult:
+    if res.speed_x is None and res.speed_v is None:
+        return res
+    return replace(res, speed_x=None, speed_v=None)
 
 
 def _effect_now(day: Day, a: Annotation) -> Effect:
@@ -730,9 +870,17 @@ def replay(
     """Feed a session (with its annotations) or a plain capture through the loop, in line.
     Without a listener the replay says nothing as it goes: the caller reports its results
     (and ``warnings`` collects what the raw log's reader passed over)."""
+    import gc
+
     acq = Acquisition.open(
         config, listener or QuietListener(), date=source_date(source, date), threaded=False
     )
-    acq.replay(source, speed, warnings)
-    acq.close()
+    # a replay makes objects by the hundred thousand and keeps most: the garbage collector
+    # need not scan the set-up's (modules, the track, the grids) at every full collection
+    gc.freeze()
+    try:
+        acq.replay(source, speed, warnings)
+        acq.close()
+    finally:
+        gc.unfreeze()
     return acq

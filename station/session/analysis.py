@@ -13,8 +13,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from station.model.estimate import MISSING, FitStatus
 from station.model.fit import FitResult, fit_descent
 from station.model.physics import G_STANDARD, Conditions, Params, StraightRun, gravity_for
+from station.model.timer import TIMER_PRECISION_S
 from station.model.track_error import survey_error
 from station.session.config import StationConfig, site_track
 from station.session.records import (
@@ -23,7 +25,7 @@ from station.session.records import (
     FitModel,
     Metadata,
     ResultRow,
-    Status,
+    ResultStatus,
     fit_status,
 )
 from station.survey.track import Track
@@ -43,6 +45,7 @@ class FitJob:
     air_density: float
     wind_ms: float = 0.0
     gravity: float | None = None  # m/s²; None: the analyser's (the survey's site, else standard)
+    timer_precision_s: float = TIMER_PRECISION_S  # SD of one crossing time (station.model.timer)
     problem: str = ""  # what makes the fit impossible (e.g. wind without a direction)
 
 
@@ -139,18 +142,40 @@ class Analyser:
         fit = fit_descent(
             self.track.profile, xs, t, cond, list(ids), model=job.model.value, run=run,
             survey=survey_error(self.track, list(ids)) if cov is None else None,
-            survey_time_cov=cov,
+            survey_time_cov=cov, timer_precision_s=job.timer_precision_s,
         )  # fmt: skip
-        if cov is None and fit.status == "ok" and fit.survey_time_cov is not None:
+        if cov is None and fit.status == FitStatus.OK and fit.survey_time_cov is not None:
             self._survey_cov[ids] = fit.survey_time_cov
         row = result_row(job, fit)
-        speed_x = speed_v = None
-        e = fit.estimates
-        if all(e.get(k) is not None for k in ("cda", "mu", "v0")):
-            p = Params(e["cda"], e["mu"], e["v0"], e.get("mu1") or 0.0)  # type: ignore[arg-type]
-            sol = run.solve(p, cond, sensitivities=False)
-            speed_x, speed_v = _frozen(sol.x), _frozen(sol.speed)
+        curve = _speed_curve(run, fit, cond)
+        speed_x, speed_v = curve if curve is not None else (None, None)
         return DescentResult(d, fit, row, speed_x, speed_v)
+
+    def speed_curve(self, res: DescentResult) -> tuple[np.ndarray, np.ndarray] | None:
+        """The fitted skier's speed along the run of a result kept without it (a recording
+        keeps a descent's ~12 kB curve only where it is shown: the UI asks for the one it
+        shows). The same solve as the fit's own; None where there is no fit to draw."""
+        if res.fit is None:
+            return None
+        ids = res.descent.photocells
+        run = self._runs.get(ids)
+        if run is None:
+            xs = np.array([self.track.photocell(p).x for p in ids])
+            run = self._runs[ids] = StraightRun(self.track.profile, xs)
+        row = res.row
+        cond = Conditions(row.mass_kg, row.air_density, row.wind_ms, g=row.gravity)
+        return _speed_curve(run, res.fit, cond)
+
+
+def _speed_curve(
+    run: StraightRun, fit: FitResult, cond: Conditions
+) -> tuple[np.ndarray, np.ndarray] | None:
+    cda, mu, v0 = fit.cda.value, fit.mu.value, fit.v0.value
+    if cda is None or mu is None or v0 is None:
+        return None
+    mu1 = fit.mu1.value if fit.mu1 is not None else None
+    sol = run.solve(Params(cda, mu, v0, mu1 or 0.0), cond, sensitivities=False)
+    return _frozen(sol.x), _frozen(sol.speed)
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
@@ -162,13 +187,10 @@ def _frozen(a: np.ndarray) -> np.ndarray:
 def result_row(job: FitJob, fit: FitResult | None) -> ResultRow:
     """The row of the results for a descent and its fit (None: not fitted)."""
     d = job.descent
-
-    def ci(key: str, i: int) -> float | None:
-        if fit is None or fit.ci90.get(key) is None:
-            return None
-        return fit.ci90[key][i]  # type: ignore[index]
-
-    est = fit.estimates if fit else {}
+    cda = fit.cda if fit else MISSING
+    mu = fit.mu if fit else MISSING
+    v0 = fit.v0 if fit else MISSING
+    mu1 = fit.mu1 if fit and fit.mu1 is not None and job.model == FitModel.VELOCITY else MISSING
     rms = None
     if fit is not None and fit.residuals_s:
         # every photocell: each time is data (the fit's free offset takes the first one's noise)
@@ -176,7 +198,7 @@ def result_row(job: FitJob, fit: FitResult | None) -> ResultRow:
         rms = float(np.sqrt(np.mean(r**2)) * 1000) if r.size else None
     flags = d.flags
     if fit is None:
-        status = Status.ABORTED
+        status = ResultStatus.ABORTED
     else:
         status, why = fit_status(fit.status)
         flags = (*flags, why) if why else flags
@@ -185,14 +207,14 @@ def result_row(job: FitJob, fit: FitResult | None) -> ResultRow:
         start_time=job.start_time,
         photocells_used=len(d.photocells),
         missing=d.missing,
-        v0=est.get("v0"),
-        cda=est.get("cda"),
-        cda_lo=ci("cda", 0),
-        cda_hi=ci("cda", 1),
-        mu=est.get("mu"),
-        mu_lo=ci("mu", 0),
-        mu_hi=ci("mu", 1),
-        mu1=est.get("mu1") if job.model == FitModel.VELOCITY else None,
+        v0=v0.value,
+        cda=cda.value,
+        cda_lo=cda.lo,
+        cda_hi=cda.hi,
+        mu=mu.value,
+        mu_lo=mu.lo,
+        mu_hi=mu.hi,
+        mu1=mu1.value,
         sigma_s2=fit.sigma_s2 if fit else None,
         rms_residual_ms=rms,
         status=status,
@@ -210,5 +232,5 @@ def result_row(job: FitJob, fit: FitResult | None) -> ResultRow:
 def error_result(job: FitJob, reason: str) -> DescentResult:
     """A descent whose fit failed: ``status: error``, the reason last among its flags."""
     row = result_row(job, None)
-    row = replace(row, status=Status.ERROR, flags=(*row.flags, reason))
+    row = replace(row, status=ResultStatus.ERROR, flags=(*row.flags, reason))
     return DescentResult(job.descent, None, row)

@@ -13,7 +13,6 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from station.model.compare import (
-    TIMER_SD_S,
     CompareError,
     DescentData,
     JointResult,
@@ -55,7 +54,7 @@ def compare_results(
     cda_fixed: float | None = None,
     model: str = "constant",
     drift: str = "auto",
-    timer_sd_s: float = TIMER_SD_S,
+    timer_sd_s: float | None = None,
 ) -> DayComparison:
     """The joint fit of the valid descents among ``results`` (marked invalid, failed fits and
     descents with fewer than three photocells are left out and listed in the result), with a
@@ -64,14 +63,9 @@ def compare_results(
     try:
         res = joint_fit(
             track, data, cda_fixed=cda_fixed, model=model, drift=drift,
-            reference=reference, timer_sd_s=timer_sd_s,
+            reference=reference, timer_sd_s=timer_sd_s, excluded=excluded,
+            wind_flagged=windy, wind_limit_ms=wind_limit_ms,
         )  # fmt: skip
     except CompareError as exc:
         return DayComparison(data, None, str(exc))
-    res.excluded, res.wind_flagged = excluded, windy
-    if windy:
-        res.warnings.append(
-            f"descents {', '.join(map(str, windy))} had more than {wind_limit_ms:g} m/s of "
-            "along-track wind: check them, or mark them invalid"
-        )
     return DayComparison(data, res)

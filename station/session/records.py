@@ -18,14 +18,16 @@ from enum import StrEnum
 from typing import TYPE_CHECKING, Any
 
 from station.errors import InputError
+from station.model.estimate import FitStatus
 
 if TYPE_CHECKING:  # for annotations only: `station fit` need not load the assembler
     from station.timing.assembly import TimedDescent
 
 
-class Status(StrEnum):
-    """The status column of the results: the fit's verdict, or why there is no fit. The values
-    are the strings earlier versions wrote, so existing results files read the same."""
+class ResultStatus(StrEnum):
+    """The status column of the results: the fit's verdict (:class:`station.model.estimate.
+    FitStatus`, each of which is one of these), or why there is no fit. The values are the
+    strings earlier versions wrote, so existing results files read the same."""
 
     OK = "ok"
     ILL_CONDITIONED = "ill-conditioned"
@@ -36,6 +38,7 @@ class Status(StrEnum):
     POOR_FIT = "poor-fit"  # residuals far above the timer's precision (χ² test)
     ABORTED = "aborted"  # a lone start impulse: nothing to fit
     ERROR = "error"  # the fit raised: the reason is in the flags
+    INVALID = "invalid"  # the results CSV's word for a descent marked invalid (invalid_reason)
 
 
 class DescentStatus(StrEnum):
@@ -54,13 +57,17 @@ class FitModel(StrEnum):
     VELOCITY = "velocity"
 
 
-def fit_status(text: str) -> tuple[Status, str]:
-    """The fit's status string as a :class:`Status`; one this version does not know is an error
-    with a reason, never passed over."""
+#: the name earlier code used: the status column of the results
+Status = ResultStatus
+
+
+def fit_status(status: FitStatus | str) -> tuple[ResultStatus, str]:
+    """The fit's status as the results' :class:`ResultStatus`; a string this version does not
+    know is an error with a reason, never passed over."""
     try:
-        return Status(text), ""
+        return ResultStatus(str(status)), ""
     except ValueError:
-        return Status.ERROR, f"unknown fit status {text!r}"
+        return ResultStatus.ERROR, f"unknown fit status {status!r}"
 
 
 # ----------------------------------------------------------------------------- metadata
@@ -81,6 +88,7 @@ class MetadataField:
     check: str = "text"  # text | number | positive | nonnegative | percent | celsius
     column: bool = True
     help: str | None = None
+    choices: tuple[str, ...] = ()  # the values a class takes (snow type, wetness, hardness)
 
     @property
     def title(self) -> str:
@@ -89,6 +97,30 @@ class MetadataField:
 
 def _meta(label: str, kind: type = float, unit: str = "", **kw: Any) -> Any:
     return field(default=None, metadata={"spec": (kind, label, unit, kw)})
+
+
+#: the snow as testers record it: the grain-shape classes of the international classification
+#: for seasonal snow on the ground (Fierz et al. 2009): PP new snow (precipitation particles),
+#: MM machine-made, DF decomposing fragments, RG rounded grains, FC faceted crystals, DH depth
+#: hoar, SH surface hoar, MF melt forms, IF ice formations
+SNOW_TYPES = ("PP", "MM", "DF", "RG", "FC", "DH", "SH", "MF", "IF")
+#: liquid water content: dry 0 %, moist < 3 %, wet 3–8 %, very wet 8–15 %, soaked > 15 %
+WETNESS = ("dry", "moist", "wet", "very wet", "soaked")
+#: hand hardness: fist, four fingers, one finger, pencil, knife blade, ice
+HARDNESS = ("F", "4F", "1F", "P", "K", "I")
+_WETNESS_CODES = dict(zip("DMWVS", WETNESS, strict=True))
+
+
+def choice(value: str, choices: tuple[str, ...], key: str) -> str:
+    """A class as the table spells it, whatever the case (``mf`` is MF, ``very-wet`` and the
+    classification's letter ``V`` are "very wet"); anything else is an :class:`InputError`."""
+    text = " ".join(str(value).replace("-", " ").replace("_", " ").split())
+    for c in choices:
+        if text.casefold() == c.casefold():
+            return c
+    if choices == WETNESS and text.upper() in _WETNESS_CODES:
+        return _WETNESS_CODES[text.upper()]
+    raise InputError(f"{value!r} is not one of {', '.join(choices)}", field=key)
 
 
 @dataclass(frozen=True)
@@ -104,9 +136,29 @@ class Metadata:
         "mass incl. equipment", unit="kg", option="--mass", check="positive", column=False
     )
     ski: str | None = _meta("ski / pair id", str, help="ski or pair id")
+    # the item beside ski and wax: kept in the annotations and the season store; results.csv
+    # keeps the columns it always had (column=False), so its bytes do not change
+    grind: str | None = _meta("grind / structure", str, column=False)
+    base: str | None = _meta("base", str, column=False, help="base material or model")
     wax: str | None = _meta("wax", str)
     air_temperature_c: float | None = _meta("air temperature", unit="°C", check="celsius")
     snow_temperature_c: float | None = _meta("snow temperature", unit="°C", check="celsius")
+    snow_type: str | None = _meta(
+        "snow type",
+        str,
+        column=False,
+        choices=SNOW_TYPES,
+        help="grain shape: PP new, MM machine-made, DF, RG, FC, DH, SH, MF melt forms, IF",
+    )
+    grain_size_mm: float | None = _meta(
+        "grain size", unit="mm", check="positive", column=False, help="grain size (mm)"
+    )
+    wetness: str | None = _meta(
+        "wetness", str, column=False, choices=WETNESS, help="dry, moist, wet, very wet, soaked"
+    )
+    hardness: str | None = _meta(
+        "hand hardness", str, column=False, choices=HARDNESS, help="hand hardness: F 4F 1F P K I"
+    )
     pressure_hpa: float | None = _meta("station pressure", unit="hPa", check="positive")
     humidity_pct: float | None = _meta("relative humidity", unit="%", check="percent")
     wind_ms: float | None = _meta(
@@ -138,6 +190,8 @@ class Metadata:
                 if not math.isfinite(number) or isinstance(v, bool):
                     raise InputError(f"{v!r} is not a finite number", field=where + f.key)
                 out[f.key] = number
+            elif f.choices:
+                out[f.key] = choice(str(v), f.choices, where + f.key)
             else:
                 out[f.key] = str(v)
         return cls(**out)
@@ -349,7 +403,7 @@ class ResultRow:
     mu1: float | None
     sigma_s2: float | None
     rms_residual_ms: float | None
-    status: Status
+    status: ResultStatus
     descent_status: DescentStatus
     flags: tuple[str, ...]
     model: FitModel
@@ -399,6 +453,10 @@ def csv_record(row: ResultRow) -> dict[str, Any]:
             v = (" " if key == "missing" else "; ").join(v)
         elif isinstance(v, StrEnum):
             v = v.value
+        if key == "status" and row.invalid_reason:
+            # a descent marked invalid does not read "ok" to whoever filters on the status;
+            # its fit stays in the other columns, the reason in invalid_reason
+            v = ResultStatus.INVALID.value
         out[key] = v
     for f in METADATA_FIELDS:
         if f.column:

@@ -14,6 +14,7 @@ note contains.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import math
@@ -131,6 +132,39 @@ def write_results_to(fh: IO[str], rows: list[dict[str, Any]], header: dict[str, 
     w.writerows(cells)
 
 
+def append_results(
+    path: str, rows: list[dict[str, Any]], size: int, inode: int | None = None
+) -> int:
+    """Append rows to a results CSV that is ``size`` bytes long, as :func:`write_results_to`
+    would have written them after the rows before: a recording adds each descent's row
+    without rewriting the day's (the per-descent cost stays flat over a 2000-descent day).
+
+    Returns the new size. The file must still be ``size`` bytes and the file ``inode`` (no one
+    else wrote or replaced it since): otherwise ``ValueError``, and the caller rewrites it. A
+    write that fails (disk full) is undone (the file cut back to ``size``) and raised: no
+    reader sees half a row."""
+    buf = io.StringIO()
+    w = csv.writer(buf, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
+    w.writerows(results_frame(rows))
+    data = buf.getvalue().encode("utf-8")
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+    try:
+        st = os.fstat(fd)
+        if st.st_size != size or (inode is not None and st.st_ino != inode):
+            raise ValueError(f"{path} changed since it was written")
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view) :]
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.ftruncate(fd, size)
+            raise
+    finally:
+        os.close(fd)
+    return size + len(data)
+
+
 def write_results(rows: list[dict[str, Any]], path: str, header: dict[str, str]) -> None:
     """Write atomically (temp file + rename), so a reader never sees half a file."""
     folder = os.path.dirname(os.path.abspath(path))
@@ -210,6 +244,13 @@ def _cell(cell: str, col: str, path: str, line: int) -> Any:
 def write_result_rows(rows: Sequence[ResultRow], path: str, header: dict[str, str]) -> None:
     """The results CSV of typed rows: each row's one CSV view (:func:`csv_record`)."""
     write_results([csv_record(r) for r in rows], path, header)
+
+
+def append_result_rows(
+    path: str, rows: Sequence[ResultRow], size: int, inode: int | None = None
+) -> int:
+    """:func:`append_results` of typed rows; returns the file's new size."""
+    return append_results(path, [csv_record(r) for r in rows], size, inode)
 
 
 def write_result_rows_to(fh: IO[str], rows: Sequence[ResultRow], header: dict[str, str]) -> None:

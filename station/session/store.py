@@ -32,12 +32,23 @@ import socket
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from types import ModuleType
 
 from station.errors import InputError
 from station.files import MAX_OBSERVATIONS, MAX_YAML, read_bytes, read_text
 from station.session.config import StationConfig, load_config
 from station.session.records import Annotation, annotation_from_json, annotation_to_json
 from station.yamlfile import load_yaml
+
+#: flock, where the system has it (not on Windows: whether a session is recorded is then
+#: "cannot tell", and the annotations file is written without a lock)
+fcntl: ModuleType | None
+try:
+    import fcntl as _fcntl
+
+    fcntl = _fcntl
+except ImportError:
+    fcntl = None
 
 #: an annotations file is the engineer's typing: kilobytes
 MAX_ANNOTATIONS = 64 * 1024 * 1024
@@ -102,18 +113,7 @@ def snapshot(cfg: StationConfig, session: str) -> None:
 def create(cfg: StationConfig, session: str) -> str:
     """Make the session folder and its snapshot; refuse a folder that holds anything (another
     session's files are never overwritten) and say in one line why a folder cannot be made."""
-    if os.path.exists(os.path.join(session, RAW)):
-        raise InputError(
-            "a session is already recorded there; choose a new --session-dir", path=session
-        )
-    if os.path.lexists(session) and not os.path.isdir(session):
-        raise InputError("is a file, not a folder; choose a new --session-dir", path=session)
-    if os.path.isdir(session) and os.listdir(session):
-        raise InputError(
-            "the folder is not empty and a session never overwrites files; "
-            "choose a new --session-dir",
-            path=session,
-        )
+    check_new(session)
     made = not os.path.exists(session)
     try:
         os.makedirs(session, exist_ok=True)
@@ -126,6 +126,24 @@ def create(cfg: StationConfig, session: str) -> str:
             path=session,
         ) from None
     return session
+
+
+def check_new(session: str) -> None:
+    """Refuse, in one line, a folder a new session cannot be made in (a session there, a
+    file, a folder that holds anything): what :func:`create` checks, for the commands that
+    must say it before the terminal UI starts (``live``, ``demo``)."""
+    if os.path.exists(os.path.join(session, RAW)):
+        raise InputError(
+            "a session is already recorded there; choose a new --session-dir", path=session
+        )
+    if os.path.lexists(session) and not os.path.isdir(session):
+        raise InputError("is a file, not a folder; choose a new --session-dir", path=session)
+    if os.path.isdir(session) and os.listdir(session):
+        raise InputError(
+            "the folder is not empty and a session never overwrites files; "
+            "choose a new --session-dir",
+            path=session,
+        )
 
 
 def _remove_partial(session: str) -> None:
@@ -174,7 +192,7 @@ def _digest(path: str) -> str:
 def results_header(cfg: StationConfig, survey_name: str) -> dict[str, str]:
     """What the results were computed from, the same live and in replay."""
     # the config's air data, then the density it gives (a given density is not said twice)
-    air = "".join(f"{k} {v:g} | " for k, v in cfg.air.items() if k != "density")
+    air = "".join(f"{k} {v:g} | " for k, v in cfg.air.given())
     return {
         "survey": f"{survey_name} ({os.path.basename(cfg.survey_path)} | "
         f"sha256 {_digest(cfg.survey_path)})",
@@ -272,7 +290,7 @@ def read_annotations_after(session: str, offset: int) -> tuple[list[AppendedReco
 # ----------------------------------------------------------------------------- being recorded
 
 
-class Recording(enum.Enum):
+class RecordingStatus(enum.Enum):
     """Whether a session is being recorded now, as its lock file says (:class:`RecordingLock`)."""
 
     NOW = "recording"  # a live process holds the lock
@@ -280,6 +298,9 @@ class Recording(enum.Enum):
     INTERRUPTED = "interrupted"  # a lock file nobody holds: the recorder was killed or crashed
     UNKNOWN = "unknown"  # the lock cannot be read or tried (permissions, a file system without)
 
+
+#: the name earlier code used
+Recording = RecordingStatus
 
 _BUSY = (errno.EWOULDBLOCK, errno.EAGAIN)
 
@@ -320,11 +341,11 @@ class RecordingLock:
             ) from None
         problem = ""
         try:
-            import fcntl
-
+            if fcntl is None:
+                raise OSError(0, "this system has no flock")
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except (ImportError, OSError) as exc:
-            why = getattr(exc, "strerror", None) or str(exc)
+        except OSError as exc:
+            why = exc.strerror or str(exc)
             problem = (f"cannot lock {path} ({why}): station sessions cannot tell whether this "
                        "session is being recorded")  # fmt: skip
         info = {"pid": os.getpid(), "host": socket.gethostname(), "t": time.time()}
@@ -343,7 +364,7 @@ class RecordingLock:
         os.close(fd)
 
 
-def recording_state(session: str) -> Recording:
+def recording_state(session: str) -> RecordingStatus:
     """Is ``session`` being recorded now? A non-blocking try of its lock, released at once.
 
     Opened read-only, so a read-only folder or medium (a session copied to a stick) is read as
@@ -356,8 +377,8 @@ def recording_state(session: str) -> Recording:
     except OSError:
         return Recording.UNKNOWN
     try:
-        import fcntl
-
+        if fcntl is None:
+            return Recording.UNKNOWN
         try:
             fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
         except OSError as exc:
@@ -368,8 +389,6 @@ def recording_state(session: str) -> Recording:
         except FileNotFoundError:
             same = False
         return Recording.INTERRUPTED if same else Recording.ENDED
-    except ImportError:
-        return Recording.UNKNOWN
     finally:
         os.close(fd)
 
@@ -402,9 +421,7 @@ def annotations_locked(session: str, timeout_s: float | None = None) -> Iterator
 
 
 def _flock_within(fd: int, timeout_s: float | None) -> bool | None:
-    try:
-        import fcntl
-    except ImportError:
+    if fcntl is None:
         return None
     deadline = None if timeout_s is None else time.monotonic() + timeout_s
     while True:

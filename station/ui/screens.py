@@ -12,9 +12,10 @@ from textual.screen import ModalScreen
 from textual.validation import ValidationResult, Validator
 from textual.widgets import Button, Input, Label, Static
 
+from station.errors import InputError
 from station.limits import PLAUSIBLE
 from station.numbers import parse_number
-from station.session.records import METADATA_FIELDS
+from station.session.records import METADATA_FIELDS, choice
 
 #: fits 80×24 without scrolling (tests/test_ui.py checks it)
 HELP = """\
@@ -39,6 +40,8 @@ Every byte from the timer is recorded first: [i]station replay SESSION --ui[/i]"
 #: the form's labels, from the one table of metadata keys
 LABELS = {f.key: f.title for f in METADATA_FIELDS}
 KINDS = {f.key: f.kind for f in METADATA_FIELDS}
+#: the classes a field takes (snow type, wetness, hand hardness), from the same table
+CHOICES = {f.key: f.choices for f in METADATA_FIELDS if f.choices}
 
 
 class HelpScreen(ModalScreen[None]):
@@ -168,6 +171,12 @@ class MetadataScreen(ModalScreen[dict[str, Any] | None]):
                     self._refuse(key, result.failure_descriptions[0])
                     return None
                 out[key] = parse_number(text)
+            elif key in CHOICES:
+                try:
+                    out[key] = choice(text, CHOICES[key], key)
+                except InputError:
+                    self._refuse(key, " ".join(CHOICES[key]))
+                    return None
             else:
                 out[key] = text
         wind_dir = "wind_from_deg" in out or self.initial.get("wind_from_deg", "").strip()

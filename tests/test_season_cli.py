@@ -1,0 +1,161 @@
+"""`station season` as typed: add (one line per session, idempotent, damaged folders refused
+while the others are added), list, export, compare across days, report and push, on an SQLite
+file and on a real PostgreSQL server."""
+
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import io
+import json
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from tests.season_helpers import PgServer, make_day
+
+#: the true μ of each ski against SA: SC glides best, SB worst
+THETA = {"A": 0.0, "B": 0.0010, "C": -0.0006}
+
+
+@pytest.fixture(scope="module")
+def pg() -> Iterator[PgServer]:
+    server = PgServer()
+    try:
+        yield server
+    finally:
+        server.close()
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def store(request, tmp_path: Path) -> str:
+    if request.param == "sqlite":
+        return str(tmp_path / "season.db")
+    server = request.getfixturevalue("pg")
+    return server.url(server.create_db())
+
+
+@pytest.fixture(scope="module")
+def season(tmp_path_factory) -> list[Path]:
+    """Six days: A–B, B–C, A–C in turn, at −14 … −2 °C, new snow on the cold days."""
+    base = tmp_path_factory.mktemp("season")
+    pairs = ["AB", "BC", "AC", "AB", "BC", "AC"]
+    out = []
+    for d, (a, b) in enumerate(pairs):
+        temp = -14.0 + 2.4 * d
+        level = 0.02 + 0.0008 * temp  # the snow of the day moves μ far more than the skis
+        out.append(
+            make_day(
+                base, f"day{d}", dt.date(2026, 1, 10 + d), (a + b + b + a) * 2,
+                {x: level + THETA[x] for x in (a, b)},
+                items={x: {"ski": f"S{x}", "wax": "blue"} for x in (a, b)},
+                conditions={"snow_temperature_c": temp, "snow_type": "PP" if d < 3 else "RG"},
+                seed=d,
+            )
+        )  # fmt: skip
+    return out
+
+
+def test_add_list_export_compare(run_station, store, season, tmp_path):
+    r = run_station("season", "add", *season, "--store", store)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.splitlines() == [f"{s}: added" for s in season]
+    r = run_station("season", "add", season[0], "--store", store)
+    assert r.stdout.splitlines() == [f"{season[0]}: unchanged"]
+
+    r = run_station("season", "list", "--json", "--store", store)
+    rows = json.loads(r.stdout)["sessions"]
+    assert [x["session"] for x in rows] == [f"day{d}" for d in range(6)]
+    assert rows[0]["items"] == ["SA / blue", "SB / blue"]
+    assert rows[0]["snow_temperature_c"] == pytest.approx(-14.0)
+    assert rows[0]["snow_type"] == "PP" and rows[0]["descents"] == 8
+
+    out = tmp_path / "season.csv"
+    r = run_station("season", "export", "--csv", out, "--store", store)
+    assert r.returncode == 0, r.stderr
+    data = list(csv.DictReader(io.StringIO(out.read_text())))
+    assert len(data) == 48 and data[0]["session"] == "day0" and data[0]["ski"] == "SA"
+    assert float(data[0]["snow_temperature_c"]) == -14.0
+
+    r = run_station("season", "compare", "--json", "--reference", "SA", "--store", store)
+    assert r.returncode == 0, r.stderr
+    res = json.loads(r.stdout)
+    assert res["reference"] == "SA / blue" and res["days"] == 6 and res["descents"] == 48
+    got = {x["item"]: x for x in res["items"]}
+    for k in ("B", "C"):
+        x = got[f"S{k} / blue"]
+        lo, hi = x["ci90"]
+        assert lo < THETA[k] < hi, (k, x)
+    assert got["SC / blue"]["p_best"] > 0.9
+    assert set(res) >= {"reference", "by", "at", "items", "heterogeneity", "days", "descents",
+                        "warnings"}  # fmt: skip
+
+    r = run_station("season", "compare", "--where", "snow_type=RG", "--store", store)
+    assert r.returncode == 0, r.stderr
+    assert "3 days" in r.stdout
+
+
+def test_compare_at_a_condition_warns_outside_the_tested_range(run_station, store, season):
+    run_station("season", "add", *season[:3], "--store", store)  # −14 … −9.2 °C
+    r = run_station("season", "compare", "--json", "--at", "snow_temperature_c=-1",
+                    "--store", store)  # fmt: skip
+    res = json.loads(r.stdout)
+    assert any("not tested near snow_temperature_c=-1" in w for w in res["warnings"])
+    assert all(x["p_best"] is None for x in res["items"])  # nobody is declared best there
+
+
+def test_a_damaged_session_is_one_line_and_the_others_are_added(run_station, store, season,
+                                                                 tmp_path):  # fmt: skip
+    bad = tmp_path / "broken"
+    bad.mkdir()
+    (bad / "raw.jsonl").write_text("this is not a raw log\n")
+    r = run_station("season", "add", season[0], bad, tmp_path / "nowhere", season[1],
+                    "--store", store)  # fmt: skip
+    assert r.returncode == 2
+    assert r.stdout.splitlines() == [f"{season[0]}: added", f"{season[1]}: added"]
+    errs = r.stderr.strip().splitlines()
+    assert len(errs) == 2 and "refused" in errs[0] and "refused" in errs[1]
+    assert "Traceback" not in r.stderr
+
+
+def test_not_a_store_and_a_wrong_url_are_one_line(run_station, tmp_path, pg):
+    junk = tmp_path / "junk.db"
+    junk.write_text("hello\n" * 50)
+    for store in (str(junk), pg.url("nosuchdb"), pg.url("postgres", password="nope")):
+        r = run_station("season", "list", "--store", store)
+        assert r.returncode == 2, r
+        assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
+        assert "nope" not in r.stderr
+
+
+def test_the_store_from_the_environment(run_station, season, tmp_path, monkeypatch):
+    monkeypatch.setenv("STATION_STORE", str(tmp_path / "env.db"))
+    assert run_station("season", "add", season[0]).returncode == 0
+    assert (tmp_path / "env.db").exists()
+
+
+def test_report_is_one_self_contained_page(run_station, store, season, tmp_path):
+    run_station("season", "add", *season, "--store", store)
+    r = run_station("season", "report", "--out", tmp_path / "rep", "--store", store)
+    assert r.returncode == 0, r.stderr
+    page = (tmp_path / "rep" / "season.html").read_text()
+    assert page.count("data:image/png;base64,") == 2 and "http" not in page.replace(
+        "http-equiv", "")  # fmt: skip
+    assert "SC / blue" in page and "day5" in page
+
+
+def test_push_is_idempotent_and_resumable(run_station, pg, season, tmp_path):
+    local = str(tmp_path / "local.db")
+    run_station("season", "add", *season[:4], "--store", local)
+    server = pg.url(pg.create_db())
+    run_station("season", "add", season[0], "--store", server)  # already there
+    r = run_station("season", "push", "--to", server, "--store", local)
+    assert r.returncode == 0, r.stderr
+    assert "4 session(s) pushed" in r.stdout and "1 unchanged" in r.stdout
+    assert "3 added" in r.stdout
+    r = run_station("season", "push", "--to", server, "--store", local)
+    assert "4 unchanged" in r.stdout
+    a = run_station("season", "compare", "--json", "--store", local).stdout
+    b = run_station("season", "compare", "--json", "--store", server).stdout
+    assert json.loads(a) == json.loads(b)
