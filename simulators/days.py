@@ -53,8 +53,7 @@ def simulate_day(
         t = run.solve(Params(cda, mu, v0), cond, sensitivities=False).t
         t = np.round(36000.0 + t + rng.normal(0.0, setup.timer_sd_s, len(t)), 4)
         f = fit_descent(track.profile, xs, t, cond, run=run)
-        e = f.estimates
-        guess = (e.get("cda") or 0.25, e.get("mu") or 0.02, e.get("v0") or 3.0)
+        guess = (f.cda.value or 0.25, f.mu.value or 0.02, f.v0.value or 3.0)
         out.append(
             DescentData(
                 number=k + 1,

@@ -66,7 +66,7 @@ def _from_session(args: argparse.Namespace) -> dict[str, Any]:
             "scatter is not to be trusted: give --posture-scatter",
             path=args.from_session,
         )
-    cdas = sorted(v for v, _ in res.cda.values())
+    cdas = sorted(e.value for e in res.cda.values() if e.value is not None) or [args.cda]
     return {
         "posture_sd": res.posture_sd,
         "posture_ci90": res.posture_ci90,
