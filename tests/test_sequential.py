@@ -220,3 +220,28 @@ def test_the_watched_power_spends_alpha_on_one_side_and_costs_little():
     assert power_watched(0.0, run, "A", "B", 8, draws=100_000) == pytest.approx(0.05, abs=0.003)
     p = power_watched(1.6449 + 1.2816, run, "A", "B", 8)
     assert 0.85 < p < 0.9
+
+
+def test_the_ui_comparison_panel_says_whether_the_day_is_decided(tmp_path):
+    """The trackside UI replaying a day: its comparison (key c) ends with the decision."""
+    from station.ui.screens import ComparisonScreen
+    from tests.session_helpers import make_session
+    from tests.test_replay_marks import session_replay_app
+    from tests.test_ui import run_async, wait_for, wait_for_replay, wait_for_screen
+
+    session = make_session(tmp_path, order="ABBAABBA", mus={"A": 0.0085, "B": 0.0087})
+
+    @run_async
+    async def check() -> None:
+        app = session_replay_app(session)
+        async with app.run_test(size=(100, 40)) as pilot:
+            await wait_for_replay(pilot, app)
+            await wait_for(pilot, lambda: "after descent 8" in app.comparison_text)
+            assert "decided or not after descent 8" in app.comparison_text
+            assert "pair A / blue vs pair B / blue: decided: pair A / blue faster" in (
+                app.comparison_text
+            )
+            await pilot.press("c")
+            await wait_for_screen(pilot, app, ComparisonScreen)
+
+    check()
