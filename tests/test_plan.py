@@ -188,3 +188,12 @@ def test_the_readme_plan_example_is_what_station_plan_prints(run_station):
     r = run_station("plan", *command.split())
     assert r.returncode == 0, r.stderr
     assert r.stdout == expected + "\n"
+
+
+def test_a_power_out_of_reach_is_said(run_station):
+    r = run_station("plan", "--survey", "surveys/demo_run.yaml", "--mass", "88",
+                    "--posture-scatter", "0.015", "--delta-mu", "0.0001", "--timer-ms", "2",
+                    "--air-density", "1.079")  # fmt: skip
+    assert r.returncode == 0
+    assert "OUT OF REACH" in r.stdout.splitlines()[0]
+    assert "90 % power is out of reach within 60 descents per item" in r.stderr

@@ -139,9 +139,10 @@ def format_plan(plan: Any, posture_source: str, delta_ms: float | None) -> str:
     a = plan.assumptions
     n = plan.descents_per_item
     ms = f" ({delta_ms:g} ms over the run)" if delta_ms is not None else ""
+    reach = "" if plan.reached else " OUT OF REACH; the largest day considered gives"
     lines = [
         f"to resolve Δμ {plan.delta_mu:.5f}{ms} between {len(plan.items)} items with "
-        f"{plan.target_power * 100:.0f} % power (90 % intervals):",
+        f"{plan.target_power * 100:.0f} % power (90 % intervals):{reach}",
         f"  {n} descents per item, {len(plan.order)} in all, in this order: {plan.order}",
         f"  about {plan.minutes:.0f} minutes at {a.minutes_between:g} minutes between descents",
         f"  power {plan.power:.3f}; expected 90 % interval of Δμ ±{plan.halfwidth_mu:.5f}",
