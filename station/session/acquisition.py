@@ -41,6 +41,7 @@ from typing import IO, Any
 
 from station.errors import InputError
 from station.model.compare import collect, format_comparison
+from station.model.sequential import decision_block
 from station.session import store as sessions
 from station.session.analysis import DescentResult, FitCache
 from station.session.comparison import compare_results
@@ -811,7 +812,11 @@ def comparison_text(track: Track, results: Sequence[DescentResult]) -> str:
     if day.result is None:
         return f"no comparison yet: {day.error}"
     res = day.result
-    return format_comparison(res, len(day.compared)) + "".join(f"\n! {w}" for w in res.warnings)
+    text = format_comparison(res, len(day.compared)) + "".join(f"\n! {w}" for w in res.warnings)
+    block = decision_block(
+        res.comparisons, [d.item for d in day.compared], day.compared[-1].number
+    )  # decided or not, after every descent (station/model/sequential.py)
+    return text + "".join(f"\n{line}" for line in ["", *block]) if block else text
 
 
 # ----------------------------------------------------------------------------- commands
@@ -829,7 +834,8 @@ def record(
     from station.session.serialport import ensure_port_free
 
     ensure_port_free(config.serial)  # a second recorder on the port: one line, no session made
-    acq = Acquisition.open(config, listener, session_dir=session_dir)
+    # compare: the console says after every descent whether the day is decided
+    acq = Acquisition.open(config, listener, session_dir=session_dir, compare=True)
     stop = threading.Event()
     previous = {}
     for sig in (signal.SIGINT, signal.SIGTERM):
