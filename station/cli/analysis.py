@@ -119,7 +119,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def _write_compare_csv(res: JointResult, path: str) -> None:
     with open_output(path, "--csv") as fh:
         head = f"station {__version__} comparison; reference {res.reference}; " \
-               f"drift {'on' if res.drift_per_hour else 'off'}"  # fmt: skip
+               f"drift {'on' if res.drift_per_hour else 'off'}; " \
+               f"g {res.gravity_ms2:.5f} m/s²"  # fmt: skip
         fh.write(f"# {head.replace(',', ';')}\n")  # no comma: a spreadsheet keeps the line whole
         w = csv.writer(fh, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
         w.writerow(["rank", "item", "descents", "mu", "mu_lo", "mu_hi", "delta_mu_vs_reference",

@@ -45,6 +45,17 @@ its own posture well, so the scatter's estimate costs little).
 Goodness of fit. The residual standard deviation is compared with the timer's precision
 (χ² test of PRSS/σ_timer² on n − p degrees of freedom): a day whose residuals the timer cannot
 explain is flagged ``poor-fit``, not "ok".
+
+Use. :func:`joint_fit` is the day model: inputs in, an immutable :class:`JointResult` out, no
+I/O. Its inputs are :class:`DescentData` records, which :func:`collect` makes from a day's
+results (a planner may make them from simulated descents instead)::
+
+    day = collect(results)                       # DayInputs(data, excluded, wind_flagged)
+    res = joint_fit(track, day.data, reference="A / blue", excluded=day.excluded,
+                    wind_flagged=day.wind_flagged, wind_limit_ms=1.0)
+    res.comparisons[0].ci90, res.item("A / blue").p_best, res.to_dict()
+
+:mod:`station.session.comparison` is that glue for the recorded sessions.
 """
 
 from __future__ import annotations
@@ -96,6 +107,10 @@ class DescentData:
     start_guess: tuple[float, float, float]  # (cda, mu, v0) from the single fit
     #: the timer's precision its single fit was judged against (station.model.timer)
     timer_sd_s: float = TIMER_PRECISION_S
+    #: the gravity its single fit used (the site's: station.model.physics.gravity_for), so
+    #: that the day model's μ and the descents' own agree (standard gravity here moved every
+    #: item's μ by 1.8e-4 at 47° N, 1700 m)
+    gravity_ms2: float = G_STANDARD
 
 
 class DayInputs(NamedTuple):
@@ -173,6 +188,9 @@ class JointResult:
     #: covariance of the items' μ, in the order of ``items`` (the season store joins the days
     #: by it: station.model.season)
     item_cov: tuple[tuple[float, ...], ...] = ()
+    #: the gravity the day was computed with (m/s²): its descents' (the median, when they
+    #: differ, which a warning then says)
+    gravity_ms2: float = G_STANDARD
 
     def item(self, name: str) -> ItemResult:
         """The result of the item called ``name``."""
@@ -234,6 +252,7 @@ class JointResult:
             "timer_sd_s": self.timer_sd_s,
             "chi2_p": self.chi2_p,
             "typical_v0": self.typical_v0,
+            "gravity_ms2": self.gravity_ms2,
             "descents": [
                 {"descent": d.number, "cda": d.cda, "v0": d.v0, "dt0_s": d.dt0_s}
                 for d in self.descents
@@ -417,6 +436,7 @@ class _DayModel:
         self.dth = np.array([d.start_hours - lay.t_mean for d in data])
         self.kk = np.array([d.air_density / d.mass_kg for d in data])
         self.wind = np.array([d.wind_ms for d in data])
+        self.grav = np.array([d.gravity_ms2 for d in data])
         self.runs: dict[tuple[str, ...], tuple[StraightRun, np.ndarray]] = {}
         for pcs in {d.photocells for d in data}:
             xs = np.array([track.photocell(p).x for p in pcs])
@@ -445,7 +465,7 @@ class _DayModel:
             sol = solve_rows(
                 run,
                 Rows(cda[idx], mu[idx], loc[idx, 1], mu1[idx], self.kk[idx], self.wind[idx],
-                     G_STANDARD),
+                     self.grav[idx]),
                 n_params=3 + (per_item - 1),
             )  # fmt: skip
             m = sol.t.shape[1]
@@ -643,6 +663,12 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
             float(glob[g_i]), inf.interval(g_i), float(inf.sd[g_i])
         )  # fmt: skip
     drift_out, separable, warnings = _drift(data, lay, inf)
+    gravities = sorted({d.gravity_ms2 for d in data})
+    if gravities[-1] - gravities[0] > 1e-6:
+        warnings.append(
+            f"the descents were fitted with different gravity ({gravities[0]:.5f} to "
+            f"{gravities[-1]:.5f} m/s²): each is used with its own; were they on one site?"
+        )
     typical_v0 = float(np.median(sol.loc[:, 1]))
     run_time = _run_time(track, day, data, cda_out, typical_v0)
     mus = {it: float(glob[lay.mu_index(it)]) for it in lay.items}
@@ -693,6 +719,7 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
         status=status,
         message=message,
         item_cov=_item_cov(lay, inf),
+        gravity_ms2=float(np.median([d.gravity_ms2 for d in data])),
     )
 
 
@@ -753,10 +780,13 @@ def _run_time(track: Track, day: _DayModel, data, cda_out: dict[str, Estimate], 
     )
     mass = float(np.median([d.mass_kg for d in data]))
     rho = float(np.median([d.air_density for d in data]))
+    grav = float(np.median([d.gravity_ms2 for d in data]))
     cda_typ = float(np.median([e.value for e in cda_out.values() if e.value is not None]))
 
     def run_time(mu: float) -> float:
-        sol = run_full.solve(Params(cda_typ, mu, v0), Conditions(mass, rho), sensitivities=False)
+        sol = run_full.solve(
+            Params(cda_typ, mu, v0), Conditions(mass, rho, g=grav), sensitivities=False
+        )
         return float(sol.t[-1])
 
     return run_time
@@ -959,6 +989,7 @@ def collect(results: Iterable[Any], wind_limit_ms: float = 1.0) -> DayInputs:
                 wind_ms=wind,
                 start_guess=(float(guess[0]), float(guess[1]), float(guess[2])),
                 timer_sd_s=f.timer_precision_s or TIMER_PRECISION_S,
+                gravity_ms2=float(row.gravity) if row.gravity else G_STANDARD,
             )
         )
     return DayInputs(data, excluded, windy)

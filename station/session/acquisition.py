@@ -36,7 +36,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import IO, Any
 
 from station.errors import InputError
@@ -162,6 +162,10 @@ class Acquisition:
         self.session_dir = session_dir
         self.rawlog = rawlog
         self.compare = compare
+        #: a replay in line keeps every descent's speed curve (the report draws them all); a
+        #: recording or the UI keeps it only in what it hands to the listener: 12 kB a
+        #: descent, half a 2000-descent day's memory (the UI asks again for the one it shows)
+        self.keep_curves = not threaded
         self.ski_rotation = tuple(ski_rotation)
         self.lock = threading.Lock()  # guards the day: processor, results, annotations
         self.finished_descents = 0  # descents the processor ended, aborted ones not counted
@@ -383,6 +387,10 @@ class Acquisition:
                 self._tell(self.listener.impulses, new, proc.line_counts())
             if new or done:
                 self._tell(self.listener.progress, self.day.progress())
+        if not self.keep_curves:
+            # a recording hands each impulse's fate to the listener once and keeps none: a
+            # replay of the raw log lists them all (--events); 1.5 kB a descent otherwise
+            del proc.events[:]
         for d in done:
             times = DescentTimes.of(d)
             if times.status != DescentStatus.ABORTED:
@@ -563,11 +571,14 @@ class Acquisition:
                 effect = _effect_now(day, a) if job.applied else day.annotate(a)
                 fit_jobs = [day.fit_job(day.results[n].descent) for n in effect.refit]
         fitted = [day.analyser.run(j) for j in fit_jobs]  # outside the lock: the reader goes on
+        kept = fitted if self.keep_curves else [_without_curve(r) for r in fitted]
         with self.lock:
-            views = [day.store(r) for r in fitted] + [day.view(n) for n in effect.changed]
+            views = [day.store(r) for r in kept] + [day.view(n) for n in effect.changed]
         if views:
             self._save_csv(views)
-        for v in views:
+        for i, v in enumerate(views):
+            if i < len(fitted) and v.speed_x is None:  # the listener shows the new fit's curve
+                v = replace(v, speed_x=fitted[i].speed_x, speed_v=fitted[i].speed_v)
             self._tell(self.listener.result, v)
         if views and self.compare:
             with self._cmp:
@@ -739,6 +750,11 @@ class Acquisition:
 
     # ------------------------------------------------------------------ views
 
+    def speed_curve(self, res: DescentResult) -> tuple[Any, Any] | None:
+        """The fitted speed along the run of a result kept without it (one model solve, no
+        fit; the UI's plot of the descent it shows)."""
+        return self.day.analyser.speed_curve(res)
+
     def results(self) -> tuple[DescentResult, ...]:
         """Every descent as the results show it."""
         with self.lock:
@@ -761,6 +777,12 @@ class Acquisition:
         from station.session.results import write_result_rows_to
 
         write_result_rows_to(fh, [r.row for r in self.results()], self._results_header())
+
+
+def _without_curve(res: DescentResult) -> DescentResult:
+    if res.speed_x is None and res.speed_v is None:
+        return res
+    return replace(res, speed_x=None, speed_v=None)
 
 
 def _effect_now(day: Day, a: Annotation) -> Effect:

@@ -147,13 +147,35 @@ class Analyser:
         if cov is None and fit.status == FitStatus.OK and fit.survey_time_cov is not None:
             self._survey_cov[ids] = fit.survey_time_cov
         row = result_row(job, fit)
-        speed_x = speed_v = None
-        cda, mu, v0 = fit.cda.value, fit.mu.value, fit.v0.value
-        if cda is not None and mu is not None and v0 is not None:
-            mu1 = fit.mu1.value if fit.mu1 is not None else None
-            sol = run.solve(Params(cda, mu, v0, mu1 or 0.0), cond, sensitivities=False)
-            speed_x, speed_v = _frozen(sol.x), _frozen(sol.speed)
+        curve = _speed_curve(run, fit, cond)
+        speed_x, speed_v = curve if curve is not None else (None, None)
         return DescentResult(d, fit, row, speed_x, speed_v)
+
+    def speed_curve(self, res: DescentResult) -> tuple[np.ndarray, np.ndarray] | None:
+        """The fitted skier's speed along the run of a result kept without it (a recording
+        keeps a descent's ~12 kB curve only where it is shown: the UI asks for the one it
+        shows). The same solve as the fit's own; None where there is no fit to draw."""
+        if res.fit is None:
+            return None
+        ids = res.descent.photocells
+        run = self._runs.get(ids)
+        if run is None:
+            xs = np.array([self.track.photocell(p).x for p in ids])
+            run = self._runs[ids] = StraightRun(self.track.profile, xs)
+        row = res.row
+        cond = Conditions(row.mass_kg, row.air_density, row.wind_ms, g=row.gravity)
+        return _speed_curve(run, res.fit, cond)
+
+
+def _speed_curve(
+    run: StraightRun, fit: FitResult, cond: Conditions
+) -> tuple[np.ndarray, np.ndarray] | None:
+    cda, mu, v0 = fit.cda.value, fit.mu.value, fit.v0.value
+    if cda is None or mu is None or v0 is None:
+        return None
+    mu1 = fit.mu1.value if fit.mu1 is not None else None
+    sol = run.solve(Params(cda, mu, v0, mu1 or 0.0), cond, sensitivities=False)
+    return _frozen(sol.x), _frozen(sol.speed)
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:

@@ -290,7 +290,7 @@ def read_annotations_after(session: str, offset: int) -> tuple[list[AppendedReco
 # ----------------------------------------------------------------------------- being recorded
 
 
-class Recording(enum.Enum):
+class RecordingStatus(enum.Enum):
     """Whether a session is being recorded now, as its lock file says (:class:`RecordingLock`)."""
 
     NOW = "recording"  # a live process holds the lock
@@ -298,6 +298,9 @@ class Recording(enum.Enum):
     INTERRUPTED = "interrupted"  # a lock file nobody holds: the recorder was killed or crashed
     UNKNOWN = "unknown"  # the lock cannot be read or tried (permissions, a file system without)
 
+
+#: the name earlier code used
+Recording = RecordingStatus
 
 _BUSY = (errno.EWOULDBLOCK, errno.EAGAIN)
 
@@ -361,7 +364,7 @@ class RecordingLock:
         os.close(fd)
 
 
-def recording_state(session: str) -> Recording:
+def recording_state(session: str) -> RecordingStatus:
     """Is ``session`` being recorded now? A non-blocking try of its lock, released at once.
 
     Opened read-only, so a read-only folder or medium (a session copied to a stick) is read as

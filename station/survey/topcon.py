@@ -172,6 +172,7 @@ class _Reader:
                 line=lineno,
                 instrument_height=hi * self.metres,
                 known=False,
+                oriented=False,
             )
             self.out.setups.append(self.setup)
             self.last = key
@@ -196,7 +197,7 @@ class _Reader:
         self.backsight = vals[0].strip() if vals else ""
         az = self.angle(vals, 1, "BKB", lineno, "azimuth")
         reading = self.angle(vals, 2, "BKB", lineno, "circle reading")
-        self._replace_setup(replace(self.setup, orientation=az - reading))
+        self._replace_setup(replace(self.setup, orientation=az - reading, oriented=True))
         self.last = "BKB"
 
 

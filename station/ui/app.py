@@ -40,7 +40,7 @@ from station.session.records import (
     ResultRow,
     ValidMark,
 )
-from station.session.store import is_session
+from station.session.store import RESULTS, is_session
 from station.timing.impulses import format_tod
 from station.ui.messages import (
     AcquisitionWarning,
@@ -425,7 +425,8 @@ class StationApp(App):
     def on_descent_fitted(self, msg: DescentFitted) -> None:
         res = msg.result
         n = res.number
-        self.results[n] = res
+        # its speed curve (12 kB) only while it is shown: asked for again when selected
+        self.results[n] = replace(res, speed_x=None, speed_v=None)
         table = self.main.query_one("#table", DataTable)
         key = str(n)
         values = self._cells(res)
@@ -556,6 +557,10 @@ class StationApp(App):
             self.main.query_one("#residuals", Static).update(text)
         box = self.main.query_one("#speed", Static)
         width = max(10, left - resid_width - 1 - 7)  # its padding, the speed labels
+        if res.speed_x is None and res.fit is not None and self.acq is not None:
+            curve = self.acq.speed_curve(res)  # one model solve: kept while it is shown
+            if curve is not None:
+                res = self._plotted = replace(res, speed_x=curve[0], speed_v=curve[1])
         if res.speed_x is not None and res.speed_v is not None:
             x, v = res.speed_x.tolist(), res.speed_v.tolist()
             plot = speed_plot(x, v, width=width, height=rows - 1)
@@ -643,8 +648,6 @@ class StationApp(App):
         if self.acq is None:
             return
         if self.session_dir is not None:
-            from station.session.store import RESULTS
-
             path = os.path.join(self.session_dir, RESULTS)
         else:
             base = os.path.splitext(os.path.basename(os.path.normpath(self.source or "replay")))[0]
