@@ -25,7 +25,12 @@ def cmd_live(args: argparse.Namespace) -> int:
     check_port(cfg.serial.port, args.config)  # a wrong port: say so and list them, at once
     require_terminal("live", "to record without a terminal: station record")
     folder = args.session_dir or sessions.default_dir()
-    return run_ui(StationApp(cfg, mode="live", session_dir=folder))
+    status = run_ui(StationApp(cfg, mode="live", session_dir=folder))
+    if sessions.is_session(folder):
+        from station.cli.season import add_after
+
+        add_after(folder, cfg.store)  # when a season store is configured
+    return status
 
 
 DEMO_SKIS = [("demo pair A", 0.0080), ("demo pair B", 0.0095), ("demo pair C", 0.0110)]

@@ -239,18 +239,33 @@ def compare_season(
     if p == 0:
         raise SeasonError("nothing to compare: only the reference is on the days selected")
 
+    # the days stacked by their number of items: each evaluation is a few batched solves
+    groups: dict[int, list[int]] = {}
+    for i, z in enumerate(z_all):
+        groups.setdefault(len(z), []).append(i)
+    stacks = [
+        (
+            np.stack([z_all[i] for i in idx]),
+            np.stack([x_all[i] for i in idx]),
+            np.stack([s_all[i] for i in idx]),
+            h_all[idx[0]],
+        )
+        for idx in groups.values()
+    ]
+
     def fit(tau2: float) -> tuple[float, np.ndarray, np.ndarray, float]:
         """−2·REML log-likelihood, β̂, (XᵀV⁻¹X)⁻¹, Σ rᵀV⁻¹r at τ²."""
         a = np.zeros((p, p))
         b = np.zeros(p)
         logdet = 0.0
         ws = []
-        for z, x, s, h in zip(z_all, x_all, s_all, h_all, strict=True):
-            v = s + tau2 * h
+        for z, x, s, h in stacks:
+            v = s + tau2 * h[None, :, :]
             w = np.linalg.inv(v)
-            logdet += float(np.linalg.slogdet(v)[1])
-            a += x.T @ w @ x
-            b += x.T @ w @ z
+            logdet += float(np.sum(np.linalg.slogdet(v)[1]))
+            wx = w @ x  # (n, m, p)
+            a += np.einsum("nmp,nmq->pq", x, wx)
+            b += np.einsum("nmp,nm->p", wx, z)
             ws.append(w)
         try:
             a_inv = np.linalg.inv(a)
@@ -258,9 +273,9 @@ def compare_season(
             return math.inf, np.zeros(p), np.full((p, p), math.nan), math.inf
         beta = a_inv @ b
         rss = 0.0
-        for z, x, w in zip(z_all, x_all, ws, strict=True):
+        for (z, x, _s, _h), w in zip(stacks, ws, strict=True):
             r = z - x @ beta
-            rss += float(r @ w @ r)
+            rss += float(np.einsum("nm,nmk,nk->", r, w, r))
         sign, logdet_a = np.linalg.slogdet(a)
         crit = logdet + float(logdet_a) + rss if sign > 0 else math.inf
         return crit, beta, a_inv, rss

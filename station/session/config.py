@@ -112,10 +112,13 @@ class StationConfig:
     #: the site, for local gravity when the survey has no latitude_deg / altitude_m
     latitude_deg: float | None = None
     altitude_m: float | None = None
+    #: the season store the session is added to when its recording ends (``store:``, a path
+    #: or a postgresql:// URL; None: none, unless $STATION_STORE names one)
+    store: str | None = None
 
 
 _TOP = {"serial", "survey", "photocells", "skier", "ski", "wax", "notes", "air", "descent", "fit",
-        "items", "latitude_deg", "altitude_m"}  # fmt: skip
+        "items", "latitude_deg", "altitude_m", "store"}  # fmt: skip
 
 
 def load_config(path: str) -> StationConfig:
@@ -266,6 +269,7 @@ def load_config(path: str) -> StationConfig:
         items=items,
         latitude_deg=_ranged(top, "latitude_deg"),
         altitude_m=_ranged(top, "altitude_m"),
+        store=top.get("store", str) or None,
     )
 
 
