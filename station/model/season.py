@@ -139,8 +139,11 @@ def compare_season(
     days: Sequence[DayEffects],
     reference: str | None = None,
     at: Mapping[str, float] | None = None,
+    *,
+    p_best_draws: int = _P_BEST_DRAWS,
 ) -> SeasonResult:
-    """The items' effects against ``reference`` across ``days``, at the conditions ``at``."""
+    """The items' effects against ``reference`` across ``days``, at the conditions ``at``;
+    P(best) from ``p_best_draws`` draws of the effects (0: not computed)."""
     from scipy.optimize import minimize_scalar
     from scipy.special import chdtrc, stdtr, stdtrit
 
@@ -342,17 +345,17 @@ def compare_season(
                 f"{x.item} was not tested near {', '.join(f'{c}={at[c]:g}' for c in conds)} "
                 f"(its days: {lo_hi or 'none'}): not ranked there"
             )
-    if len(ranked) >= 2:
+    if len(ranked) >= 2 and p_best_draws > 0:
         idx = [col[x.item] for x in ranked if x.item != reference]
         mean = np.array([beta[j] for j in idx])
         cov = a_inv[np.ix_(idx, idx)]
         rng = np.random.default_rng(0)
-        zs = rng.multivariate_normal(np.zeros(len(idx)), cov, size=_P_BEST_DRAWS, method="eigh")
-        w = np.sqrt(rng.chisquare(nu, size=_P_BEST_DRAWS) / nu)
+        zs = rng.multivariate_normal(np.zeros(len(idx)), cov, size=p_best_draws, method="eigh")
+        w = np.sqrt(rng.chisquare(nu, size=p_best_draws) / nu)
         draws = mean[None, :] + zs / w[:, None]
         has_ref = any(x.item == reference for x in ranked)
         if has_ref:
-            draws = np.hstack([np.zeros((_P_BEST_DRAWS, 1)), draws])
+            draws = np.hstack([np.zeros((p_best_draws, 1)), draws])
         best = np.argmin(draws, axis=1)
         names = ([reference] if has_ref else []) + [x.item for x in ranked if x.item != reference]
         for n, name in enumerate(names):
