@@ -102,3 +102,50 @@ def test_the_server_going_away_mid_add(days):
         assert _whole(url) == {d.name: 8 for d in days}  # the next add completes it
     finally:
         server.close()
+
+
+def _readme_sql() -> list[tuple[str, str]]:
+    """The README's SQL for a team's database, as (database, statement) in order."""
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    section = text[text.index("## Season store") :]
+    block = section[section.index("```sql\n") + 7 :]
+    block = block[: block.index("```")]
+    out, db, stmt = [], "postgres", ""
+    for line in block.splitlines():
+        if line.startswith("\\connect "):
+            db = line.split()[1]
+            continue
+        stmt += line + "\n"
+        if line.rstrip().endswith(";"):
+            out.append((db, stmt.strip()))
+            stmt = ""
+    return out
+
+
+def test_the_readme_team_database_with_a_writing_and_a_read_only_role(days):
+    server = PgServer()
+    try:
+        for db, stmt in _readme_sql():
+            server.admin(stmt, db)
+        pw = {"season_owner": "change-me-owner", "station": "change-me-station",
+              "coach": "change-me-coach"}  # fmt: skip
+        url = {role: server.url("season", pw[role], role) for role in pw}
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+
+        def season(*args: str, role: str) -> subprocess.CompletedProcess:
+            return subprocess.run([*station_cmd(), "season", *args, "--store", url[role]],
+                                  capture_output=True, text=True, env=env, timeout=300)  # fmt: skip
+
+        r = season("add", str(days[0]), role="season_owner")  # the owner makes the tables
+        assert r.returncode == 0, r.stderr
+        r = season("add", str(days[1]), str(days[2]), role="station")
+        assert r.returncode == 0, r.stderr
+        r = season("list", "--json", role="coach")
+        assert r.returncode == 0, r.stderr
+        assert '"day2"' in r.stdout
+        r = season("add", str(days[3]), role="coach")
+        assert r.returncode == 2
+        assert len(r.stderr.strip().splitlines()) == 1 and "permission denied" in r.stderr
+        assert "change-me" not in r.stderr
+    finally:
+        server.close()
