@@ -125,7 +125,7 @@ def main() -> int:
               f"{per / 2:.2f}× the target)")  # fmt: skip
         live = Path(folder, sessions.RESULTS).read_bytes()
         out = os.path.join(tmp, "replayed.csv")
-        acq = replay(folder, sessions.load_session_config(folder), out=lambda _m: None)
+        acq = replay(folder, sessions.load_session_config(folder))
         acq.write_csv(out)
         same = Path(out).read_bytes() == live
         print(f"  replay of the session gives the live results.csv byte for byte: {same}")

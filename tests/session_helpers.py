@@ -27,6 +27,7 @@ def make_session(
     noise_ms: float = 0.3,
     seed: int = 1,
     annotate: bool = True,
+    config_extra: str = "",
 ) -> Path:
     """A session of ``len(order)`` descents of items A, B … (with ski annotations)."""
     from station.model.physics import Conditions, Params, StraightRun
@@ -40,7 +41,7 @@ def make_session(
     from station.timing.wireformats import format_alge
 
     mus = mus or {"A": 0.0085, "B": 0.0095}
-    cfg_path = write_config(tmp_path, "/dev/ttyUSB0")
+    cfg_path = write_config(tmp_path, "/dev/ttyUSB0", extra=config_extra)
     session = tmp_path / "session"
     cfg = load_config(str(cfg_path))
     store.create(cfg, str(session))

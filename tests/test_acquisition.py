@@ -260,7 +260,7 @@ def test_the_csv_view_of_a_row_has_the_columns_of_the_results_file(tmp_path, dem
 def test_statuses_keep_the_strings_of_earlier_files():
     assert [s.value for s in Status] == [
         "ok", "ill-conditioned", "lift-off", "stopped", "too-few-photocells", "not-converged",
-        "poor-fit", "aborted", "error",
+        "poor-fit", "aborted", "error", "invalid",
     ]  # fmt: skip
     assert [m.value for m in FitModel] == ["constant", "velocity"]
 

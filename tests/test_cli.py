@@ -218,3 +218,24 @@ def test_the_installed_command_runs_as_a_process(run_station_process, tmp_path):
                             "--mass", "88")  # fmt: skip
     assert r.returncode == 2 and r.stdout == ""
     assert len(r.stderr.strip().splitlines()) == 1 and "cannot read times file" in r.stderr
+
+
+def test_a_mistyped_command_gets_a_did_you_mean(run_station):
+    r = run_station("raport", "s")
+    assert r.returncode == 2
+    assert (
+        r.stderr == "station: error: unknown command 'raport' (did you mean report?) (see --help)\n"
+    )
+    r = run_station("xyzzy")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1
+    assert r.stderr.startswith("station: error: unknown command 'xyzzy'; the commands: survey, ")
+
+
+def test_one_item_is_one_item(tmp_path, run_station):
+    """The comparison's first line said '1 items' for a day of one test item."""
+    from tests.session_helpers import make_session
+
+    session = make_session(tmp_path, order="AA")
+    r = run_station("compare", session)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("joint fit of 2 descents, 1 item, "), r.stdout

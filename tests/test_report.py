@@ -3,15 +3,19 @@
 from __future__ import annotations
 
 import base64
+import html
 import re
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from tests.session_helpers import make_session
 
-FIGURE_SECTIONS = ["track", "descents", "timeline", "comparison"]
+#: the answer first (the verdict, then μ and CdA over the day), then the details
+SECTIONS = ["verdict", "timeline", "comparison", "track", "descents", "provenance"]
+FIGURE_SECTIONS = ["timeline", "comparison", "track", "descents"]
 
 
 def _sections(page: str) -> dict[str, str]:
@@ -50,13 +54,16 @@ def test_the_page_is_self_contained(report):
 
 def test_one_picture_per_section_and_what_they_show(report):
     sections = _sections(report)
-    assert list(sections) == [*FIGURE_SECTIONS, "provenance"]
+    assert list(sections) == SECTIONS
     for name in FIGURE_SECTIONS:
         assert sections[name].count("<img ") == 1, name
     assert "<img " not in sections["provenance"]
     cmp = sections["comparison"]
     assert "pair A / blue" in cmp and "pair B / blue" in cmp
     assert "Δμ vs pair B / blue" in cmp  # the reference, named by its beginning
+    # the reference's own row says so, not a P(faster) of an item against itself
+    ref_row = re.search(r"<tr><td>\d</td><td>pair B / blue</td>.*?</tr>", cmp).group(0)
+    assert ref_row.count("<td>reference</td>") == 3, ref_row
     assert "descent 6: marked invalid: edged after PC6" in cmp
     assert "Drift of μ" in cmp
     prov = sections["provenance"]
@@ -144,3 +151,74 @@ def test_a_day_with_a_cleared_start_gets_its_page(tmp_path, run_station):
     r = run_station("report", session, "--out", tmp_path / "rep")
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "rep" / "s.html").exists()
+
+
+def test_the_verdict_comes_first_in_words_and_numbers(report):
+    """Which is faster, Δμ with its interval, the time over the run, how sure, how many
+    descents, decided or not: before any picture, and the drift's reference time named."""
+    sections = _sections(report)
+    verdict = sections["verdict"]
+    assert report.index('<section id="verdict">') < report.index("<img ")
+    head = re.search(r"<li class='(\w+)'>(.*?)</li>", verdict, flags=re.S)
+    assert head.group(1) == "decided"
+    text = re.sub(r"<[^>]+>", "", head.group(2))
+    assert text.startswith("pair A / blue glides better than pair B / blue by Δμ "), text
+    m = re.search(r"by Δμ (\d\.\d{5}) \[\+(\d\.\d{5}), \+(\d\.\d{5})\] \(90 %\), "
+                  r"(\d+\.\d) ms over the run at v0 \d\.\d m/s; "
+                  r"P\(pair A / blue faster\) (> 0\.999|0\.\d{3}); "
+                  r"4 descents of pair A / blue, 3 of pair B / blue", text)  # fmt: skip
+    assert m, text
+    dmu, lo, hi, ms = (float(m.group(k)) for k in (1, 2, 3, 4))
+    assert 0 < lo < dmu < hi and 0.0008 < dmu < 0.0012 and ms > 10  # simulated 0.0010
+    assert "decided: the 90 % interval excludes 0" in text
+    # the drift's reference: the compared descents' mean start (10:00 … 10:35 but descent 6)
+    assert "μ of each item at 10:16, the compared descents' mean start" in html.unescape(verdict)
+    assert "each item's μ is its value at 10:16" in html.unescape(sections["timeline"])
+
+
+def test_an_item_with_one_valid_descent_is_not_comparable(tmp_path, run_station):
+    """It crashed the report (TypeError on the missing interval); it is a line of the
+    verdict, of the table and of the picture."""
+    session = make_session(tmp_path, order="AAB")
+    r = run_station("report", session, "--out", tmp_path / "o")
+    assert r.returncode == 0, r.stderr
+    sections = _sections((tmp_path / "o" / "session.html").read_text())
+    verdict = re.sub(r"<[^>]+>", "", sections["verdict"])
+    assert "pair B / blue against pair A / blue: not comparable (1 valid descent)" in verdict
+    assert "not comparable (1 valid descent)" in sections["comparison"]
+    assert sections["comparison"].count("<img ") == 1
+
+
+def test_time_of_day_ticks_fall_on_whole_minutes():
+    from station.report.day_report import MAX_TICKS, minute_ticks
+
+    rng = np.random.default_rng(3)
+    for _ in range(500):
+        h0 = rng.uniform(0, 30)
+        h1 = h0 + rng.choice([rng.uniform(2 / 60, 0.2), rng.uniform(0.2, 12)])
+        ticks = minute_ticks(h0, h1)
+        minutes = np.array(ticks) * 60
+        assert 2 <= len(ticks) <= MAX_TICKS, (h0, h1, ticks)
+        assert np.allclose(minutes, np.round(minutes), atol=1e-6)
+        steps = np.diff(np.round(minutes))
+        assert len(set(steps)) == 1 and steps[0] in (1, 2, 5, 10, 15, 20, 30, 60, 120, 180)
+        assert h0 - 1e-9 <= ticks[0] and ticks[-1] <= h1 + 1e-9
+
+
+def test_the_time_axis_labels_every_tick_on_a_whole_minute(tmp_path):
+    """The picture itself: its ticks are the minute ticks, every one labelled hh:mm."""
+    from station.report.day_report import descent_views, item_colours, time_of_day_axes
+    from station.session import store
+    from station.session.acquisition import replay
+
+    session = make_session(tmp_path, order="ABBA", interval_s=437.0)
+    run = replay(str(session), store.load_session_config(str(session)))
+    views = descent_views(run.results())
+    fig = time_of_day_axes(views, item_colours(["pair A / blue", "pair B / blue"]))
+    ax = fig.axes[1]
+    ticks = ax.get_xticks()
+    labels = [ax.xaxis.get_major_formatter()(t) for t in ticks]
+    assert len(ticks) >= 3
+    assert np.allclose(ticks * 60, np.round(ticks * 60))
+    assert all(re.fullmatch(r"\d\d:\d\d", lab) for lab in labels), labels
+    assert len(set(labels)) == len(labels)

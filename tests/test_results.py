@@ -199,3 +199,20 @@ def test_the_trackside_shows_the_start_without_its_utc_offset():
     assert local_time("2026-02-02T10:41:07.234500+01:00") == "2026-02-02 10:41:07.23"
     assert local_time("2026-02-02T10:03:00-05:00") == "2026-02-02 10:03:00"
     assert local_time("10:41:07.2345") == "10:41:07.2345"  # a capture without a date
+
+
+def test_a_descent_marked_invalid_is_not_ok_in_the_csv(tmp_path, run_station):
+    """It kept status "ok": whoever filtered the CSV on the status kept the descent."""
+    from tests.session_helpers import make_session
+
+    session = make_session(tmp_path, order="AB")
+    r = run_station("annotate", session, "--descents", "2", "--invalid", "fell at PC4")
+    assert r.returncode == 0, r.stderr
+    rows = read_results(str(session / "results.csv"))
+    assert [(x["status"], x["invalid_reason"]) for x in rows] == [
+        ("ok", None), ("invalid", "fell at PC4")
+    ]  # fmt: skip
+    assert rows[1]["mu"] is not None  # its fit is still there
+    r = run_station("annotate", session, "--descents", "2", "--valid")
+    assert r.returncode == 0, r.stderr
+    assert [x["status"] for x in read_results(str(session / "results.csv"))] == ["ok", "ok"]

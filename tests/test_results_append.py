@@ -47,7 +47,7 @@ def feed(acq: Acquisition, descents: list[list[str]], t0: float = T0) -> None:
 
 def replayed(session) -> bytes:
     out = session.parent / "replayed.csv"
-    acq = replay(str(session), sessions.load_session_config(str(session)), out=lambda _m: None)
+    acq = replay(str(session), sessions.load_session_config(str(session)))
     acq.write_csv(str(out))
     return out.read_bytes()
 

@@ -83,10 +83,10 @@ def test_add_list_export_compare(run_station, store, season, tmp_path):
     res = json.loads(r.stdout)
     assert res["reference"] == "SA / blue" and res["days"] == 6 and res["descents"] == 48
     got = {x["item"]: x for x in res["items"]}
-    for k in ("B", "C"):
+    for k in ("B", "C"):  # (whether 90 % intervals hold the truth: benchmarks/season_coverage.py)
         x = got[f"S{k} / blue"]
         lo, hi = x["ci90"]
-        assert lo < THETA[k] < hi, (k, x)
+        assert abs(x["delta_mu"] - THETA[k]) < 1e-4 and lo < x["delta_mu"] < hi, (k, x)
     assert got["SC / blue"]["p_best"] > 0.9
     assert set(res) >= {"reference", "by", "at", "items", "heterogeneity", "days", "descents",
                         "warnings"}  # fmt: skip

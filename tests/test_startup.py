@@ -94,7 +94,8 @@ FIT_MODULES = {
     "station.cli", "station.cli.main", "station.cli.common", "station.cli.survey",
     "station.model", "station.model.air", "station.model.estimate", "station.model.fit",
     "station.model.physics", "station.model.timer", "station.model.track_error",
-    "station.survey", "station.survey.gsi", "station.survey.load", "station.survey.polar",
+    "station.survey", "station.survey.formats", "station.survey.gsi", "station.survey.load",
+    "station.survey.network", "station.survey.polar",
     "station.survey.smoothing", "station.survey.track",
     "station.timing", "station.timing.timesfile",
 }  # fmt: skip

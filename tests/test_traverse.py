@@ -40,9 +40,9 @@ def test_fit_recovers_mu_and_cda_from_precise_positions():
     res = fit_traverse(t, s, 25, 30, 88, 1.0)
     assert res.status == "ok"
     for k, v in (("cda", 0.5), ("mu", 0.1), ("v0", 1.0), ("s0", 2.0)):
-        lo, hi = res.ci90[k]
+        lo, hi = getattr(res, k).ci90
         assert lo <= v <= hi
-    assert res.estimates["mu"] == pytest.approx(0.1, abs=0.003)
+    assert res.mu.value == pytest.approx(0.1, abs=0.003)
 
 
 def test_paper_like_traverse_leaves_cda_unidentified():
@@ -52,6 +52,6 @@ def test_paper_like_traverse_leaves_cda_unidentified():
     s = s + np.random.default_rng(0).normal(0, 0.1, len(t))
     res = fit_traverse(t, s, 18, 50, 88, 1.0)
     assert res.status == "ill-conditioned"
-    assert res.estimates["cda"] is None and res.ci90["cda"] is None
-    lo, hi = res.ci90["mu"]
+    assert res.cda.value is None and res.cda.ci90 is None
+    lo, hi = res.mu.ci90
     assert lo <= 0.064 <= hi and hi - lo < 0.05

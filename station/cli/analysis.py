@@ -81,7 +81,7 @@ def cmd_annotate(args: argparse.Namespace) -> int:
         raise InputError("nothing to annotate: give metadata, --invalid, --valid or --model")
     session.check_descents(targets)  # --from N may name descents still to come
     print(annotate_session(session, records), file=sys.stderr)
-    from station.cli.season import add_after
+    from station.cli.console import add_after
 
     try:
         store = session.config.store

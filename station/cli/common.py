@@ -17,6 +17,7 @@ from typing import IO, Any, NoReturn
 
 from station.errors import InputError
 from station.files import check_output, staged_output
+from station.limits import PLAUSIBLE
 from station.model.air import (
     DEFAULT_HUMIDITY_PCT,
     DEFAULT_PRESSURE_HPA,
@@ -54,18 +55,32 @@ class _Parser(argparse.ArgumentParser):
                 message = f"unrecognized arguments: {' '.join(unknown)}"
         if message.startswith("unrecognized arguments"):
             message += self._suggestion(message)
+        typo = re.match(r"argument command: invalid choice: '([^']*)'", message)
+        if typo:  # ``station raport``: the command it was meant to be, not all sixteen
+            message = f"unknown command {typo.group(1)!r}" + self._command_suggestion(typo.group(1))
         if message == "the following arguments are required: command":  # bare ``station``
             for action in self._actions:
                 if isinstance(action, argparse._SubParsersAction):
                     message = f"give a command: {', '.join(action.choices)}"
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see --help)\n")
 
+    def _command_suggestion(self, word: str) -> str:
+        import difflib
+
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                close = difflib.get_close_matches(word, list(action.choices), n=1, cutoff=0.6)
+                if close:
+                    return f" (did you mean {close[0]}?)"
+                return f"; the commands: {', '.join(action.choices)}"
+        return ""
+
     def _unknown_options(self) -> list[str]:
         names = [a.split("=", 1)[0] for a in self._argv or [] if a.startswith("--") and a != "--"]
         return [n for n in names if n not in self._option_string_actions]
 
     def _suggestion(self, message: str) -> str:
-        import difflib
+        import difflib  # only for a mistyped option: not on every command's start-up
 
         options = [o for o in self._option_string_actions if o.startswith("--")]
         for action in self._actions:  # the command's own options, when its typo is seen here
@@ -113,8 +128,6 @@ def _celsius(text: str) -> float:
 def plausible(key: str) -> Callable[[str], float]:
     """The option parser of a number with a plausible range (:data:`station.limits.PLAUSIBLE`):
     ``--mass 880`` is a typo, refused as the config and the UI form refuse it."""
-    from station.limits import PLAUSIBLE
-
     lo, hi, unit = PLAUSIBLE[key]
 
     def check(text: str) -> float:
@@ -216,6 +229,7 @@ def _add_gravity(p: argparse.ArgumentParser) -> None:
 
 
 def _load_track(path: str):
+    # here, not at the top: numpy and scipy, which station --help and a usage error never need
     from station.survey.load import load_survey
     from station.survey.track import build_track
 

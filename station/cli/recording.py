@@ -25,11 +25,11 @@ if TYPE_CHECKING:
 def cmd_record(args: argparse.Namespace) -> int:
     from station.cli.console import PrintListener, day_summary
     from station.session.acquisition import record
-    from station.session.config import load_config
+    from station.session.configcheck import checked_config
     from station.session.ports import check_port
 
-    cfg = load_config(args.config)
-    check_port(cfg.serial.port, args.config)  # a wrong port: say so and list them, at once
+    cfg = checked_config(args.config)  # config, survey and photocells, as station check does
+    check_port(cfg.serial.port, args.config)  # then a wrong port: say so and list them
     folder = args.session_dir or sessions.default_dir()
     print(f"recording to {folder} from {cfg.serial.port} ({cfg.serial.protocol}); Ctrl-C ends",
           file=sys.stderr)  # fmt: skip
@@ -37,7 +37,7 @@ def cmd_record(args: argparse.Namespace) -> int:
                  max_descents=args.max_descents, duration_s=args.duration)  # fmt: skip
     print(day_summary(acq), file=sys.stderr)
     print(f"results: {os.path.join(folder, sessions.RESULTS)}", file=sys.stderr)
-    from station.cli.season import add_after
+    from station.cli.console import add_after
 
     add_after(folder, cfg.store)  # when a season store is configured
     return 0
@@ -53,6 +53,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
     output_path(args.events, "--events")
     output_path(args.times, "--times")
     cfg = replay_config(args.source, args.config)  # a wrong source or config is said first
+    if args.no_fit:
+        return _replay_no_fit(args, cfg)
     speed = None if args.fast else args.speed
     if args.ui:
         return replay_ui(cfg, args.source, speed, _date(args.date))
@@ -69,6 +71,75 @@ def cmd_replay(args: argparse.Namespace) -> int:
         with open_output(args.events, "--events") as fh:
             write_events(acq.day.processor, fh)
     _write_times(acq.results(), args.times)
+    return 0
+
+
+def _replay_no_fit(args: argparse.Namespace, cfg: Any) -> int:
+    """``replay --no-fit``: framing, parsing and the descents, nothing fitted. A quick check of
+    a capture (a line per descent: its photocells and times, its status and flags), its
+    crossing times for another tool (``--times``), its impulses' fates (``--events``); and the
+    measure of the replay's own throughput (benchmarks/replay_speed.py)."""
+    import gc
+
+    from station.report.text import count
+    from station.session.processor import Processor
+    from station.session.replay import replay_chunks, write_events
+    from station.survey.load import load_survey
+    from station.survey.track import build_track
+    from station.timing.impulses import format_tod
+
+    if args.csv or args.ui:
+        option = "--csv" if args.csv else "--ui"
+        raise InputError(f"{option} shows fits: leave out --no-fit", path=args.source)
+    proc = Processor(cfg, build_track(load_survey(cfg.survey_path)))
+    warnings: list[str] = []
+    ended: dict[int, Any] = {}  # a descent an edit changed ends again: the latest is kept
+    gc.freeze()  # the set-up's objects (modules, the track) are not scanned again and again
+    try:
+        for chunk in replay_chunks(args.source, None, None, warnings):
+            for d in proc.feed(chunk):
+                ended[d.number] = d
+        for d in proc.finish():
+            ended[d.number] = d
+    finally:
+        gc.unfreeze()
+    for w in warnings:
+        _warn(w)
+    lines = []
+    for n in sorted(ended):
+        d = ended[n]
+        if d.times_us:
+            start = format_tod(d.times_us[0], 4)
+            went = f"{d.photocells[-1]} +{(d.times_us[-1] - d.times_us[0]) / 1e6:.4f} s"
+            what = f"{count(len(d.photocells), 'photocell')}, {d.photocells[0]} {start}, {went}"
+        else:
+            what = "no time left"
+        flags = f" · {'; '.join(d.flags)}" if d.flags else ""
+        lines.append(f"descent {n} · {d.status} · {what}{flags}")
+    if lines and "-" not in (args.times, args.events):  # standard output is a CSV's
+        print("\n".join(lines))
+    by_status: dict[str, int] = {}
+    for d in ended.values():
+        by_status[d.status] = by_status.get(d.status, 0) + 1
+    c = proc.line_counts()
+    parts = ", ".join(f"{v} {k}" for k, v in sorted(by_status.items()))
+    print(
+        f"{count(c.lines, 'line')}: {count(c.impulses, 'impulse')}, {count(c.edits, 'edit')}, "
+        f"{count(c.skipped, 'other timer line')}, {c.unparsed} unparsed; "
+        f"{count(len(ended), 'descent')}" + (f" ({parts})" if parts else "") + "; not fitted",
+        file=sys.stderr,
+    )
+    if args.events:
+        with open_output(args.events, "--events") as fh:
+            write_events(proc, fh)
+    if args.times:
+        from station.session.crossings import write_descent_times
+        from station.session.records import DescentTimes
+
+        with open_output(args.times, "--times") as fh:
+            n_rows = write_descent_times([DescentTimes.of(d) for d in ended.values()], fh)
+        where = "standard output" if args.times == "-" else args.times
+        print(f"{n_rows} crossing times -> {where}", file=sys.stderr)
     return 0
 
 
@@ -129,6 +200,11 @@ def add_parsers(sub: Any) -> None:
     pace.add_argument("--speed", type=_positive, metavar="X", help="replay at X times real time")
     pace.add_argument("--fast", action="store_true", help="as fast as possible (the default)")
     p.add_argument("--ui", action="store_true", help="show the replay in the terminal UI")
+    p.add_argument(
+        "--no-fit",
+        action="store_true",
+        help="descents, times and events only, nothing fitted (a quick check of a capture)",
+    )
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("export", help="write a session's results CSV")

@@ -26,15 +26,17 @@ from station.cli.common import (
 from station.errors import InputError
 from station.model.timer import TIMER_PRECISION_S
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the survey modules import numpy and scipy: loaded when a command runs
+    import numpy as np
+
     from station.model.estimate import Estimate
+    from station.model.physics import Gravity
+    from station.survey.load import Survey
+    from station.survey.track import Track
 
 
-def cmd_survey_points(args: argparse.Namespace) -> int:
+def cmd_survey_points(args: argparse.Namespace, survey: Survey) -> int:
     """A bare observation file has no photocells: list the reduced points for checking."""
-    from station.survey.load import load_survey
-
-    survey = load_survey(args.survey)
     pts = list(survey.points.values())
     if args.csv:
         with open_output(args.csv, "--csv") as fh:
@@ -58,29 +60,16 @@ def cmd_survey_points(args: argparse.Namespace) -> int:
                     }  # fmt: skip
                     for p in pts
                 ],
-                "setups": [
-                    {
-                        "station": s.station,
-                        "e": s.e,
-                        "n": s.n,
-                        "h": s.h,
-                        "instrument_height": s.instrument_height,
-                        "line": s.line,
-                    }  # fmt: skip
-                    for s in survey.setups
-                ],
+                "setups": [_setup_json(survey, s) for s in survey.setups],
+                "format": survey.format,
                 "warnings": survey.warnings,
             }
         )
         return 0
-    print(f"observations  {args.survey}: {len(pts)} points from {len(survey.setups)} setup(s)")
-    print(f"{'setup':<12}{'E':>12}{'N':>12}{'H':>10}{'hi':>7}  line")
-    for s in survey.setups:
-        line = "" if s.line is None else str(s.line)
-        print(
-            f"{s.station:<12}{s.e:>12.3f}{s.n:>12.3f}{s.h:>10.3f}"
-            f"{s.instrument_height:>7.3f}  {line}"
-        )
+    print(f"observations  {args.survey}: {len(pts)} points from {len(survey.setups)} setup(s)"
+          + (f", {survey.format}" if survey.format else ""))  # fmt: skip
+    if survey.setups:
+        _print_setups(survey)
     print()
     print(f"{'point':<12}{'E':>12}{'N':>12}{'H':>10}{'σH [mm]':>9}  setup")
     for p in pts:
@@ -105,15 +94,58 @@ def cmd_survey_points(args: argparse.Namespace) -> int:
     return 0
 
 
+def _setup_json(survey: Survey, s: Any) -> dict[str, Any]:
+    """One setup for --json; placed by the network: orientation, ties and residual RMS too."""
+    out = {"station": s.station, "e": s.e, "n": s.n, "h": s.h,
+           "instrument_height": s.instrument_height, "line": s.line}  # fmt: skip
+    placed = {p.station: p for p in survey.network.setups} if survey.network else {}
+    p = placed.get(s.station)
+    if p is not None:
+        out["orientation_gon"] = s.orientation * 200 / math.pi
+        out.update(fixed=p.fixed, tie_observations=p.ties, rms_xy_m=p.rms_xy_m, rms_h_m=p.rms_h_m)
+    return out
+
+
+def _print_setups(survey: Survey) -> None:
+    """The setups; placed by the network adjustment: orientation and residuals too."""
+    net = {p.station: p for p in survey.network.setups} if survey.network else {}
+    extra = f"{'ω [gon]':>10}{'ties':>6}{'RMS E,N/H [mm]':>16}" if net else ""
+    print(f"{'setup':<12}{'E':>12}{'N':>12}{'H':>10}{'hi':>7}{extra}  line")
+    for s in survey.setups:
+        line = "" if s.line is None else str(s.line)
+        more = ""
+        p = net.get(s.station)
+        if p is not None:
+            rms = (
+                "fixed"
+                if p.fixed and not p.ties
+                else f"{p.rms_xy_m * 1e3:.1f}/{p.rms_h_m * 1e3:.1f}"
+            )
+            more = f"{s.orientation * 200 / math.pi:>10.4f}{p.ties:>6}{rms:>16}"
+        print(
+            f"{s.station:<12}{s.e:>12.3f}{s.n:>12.3f}{s.h:>10.3f}"
+            f"{s.instrument_height:>7.3f}{more}  {line}"
+        )
+
+
 def cmd_survey(args: argparse.Namespace) -> int:
     import numpy as np  # here, not at the top: `station --help` and other commands need no numpy
 
     output_path(args.csv, "--csv")
     from station.model.physics import gravity_for
+    from station.survey.load import load_survey
+    from station.survey.track import build_track
 
-    if args.survey.lower().endswith(".gsi"):
-        return cmd_survey_points(args)
-    track = _load_track(args.survey)
+    survey = load_survey(args.survey)
+    if survey.bare:
+        if args.plot:
+            raise InputError(
+                "a bare observation file has no photocells and no track to draw; write a "
+                "survey YAML (surveys/README.md)",
+                path=args.survey,
+            )
+        return cmd_survey_points(args, survey)
+    track = build_track(survey)
     grav = gravity_for(track)
     prof = track.profile
     xg = np.arange(math.ceil(prof.x_min), math.floor(prof.x_max) + 1e-9, 1.0)
@@ -124,6 +156,8 @@ def cmd_survey(args: argparse.Namespace) -> int:
         from station.report.track_plot import plot_track
 
         plot_track(track, args.plot)
+        if args.json:
+            _warn(f"track picture written to {args.plot}")
     if args.csv:
         with open_output(args.csv, "--csv") as fh:
             w = csv.writer(fh, lineterminator="\n")
@@ -131,87 +165,107 @@ def cmd_survey(args: argparse.Namespace) -> int:
             for row in zip(xg, yg, sg, kg, strict=True):
                 w.writerow([f"{row[0]:.3f}", f"{row[1]:.4f}", f"{row[2]:.4f}", f"{row[3]:.6f}"])
     if args.json:
-        _print_json(
-            {
-                "name": track.name,
-                "length_m": track.length_m,
-                "drop_m": track.drop_m,
-                "residual_rms_m": track.residual_rms_m,
-                "expected_sigma_m": sig,
-                "scatter_m": track.scatter_m,
-                "declared_sigma_m": track.declared_sigma_m,
-                "spline_edf": track.spline_edf,
-                "points_left_out": [p.id for p in track.points if not p.used],
-                "azimuth_deg": track.azimuth_deg,
-                "gravity_ms2": grav.value,
-                "gravity_source": grav.source,
-                "latitude_deg": track.latitude_deg,
-                "photocells": [
-                    {
-                        "id": pc.id,
-                        "x": pc.x,
-                        "y": pc.y,
-                        "slope_deg": pc.slope_deg,
-                        "lateral_m": pc.lateral_m,
-                    }
-                    for pc in track.photocells
-                ],
-                "profile": {
-                    "x": xg.tolist(),
-                    "y": yg.tolist(),
-                    "slope_deg": sg.tolist(),
-                    "curvature": kg.tolist(),
-                },
-                "points": [
-                    {
-                        "id": p.id,
-                        "x": p.x,
-                        "y": p.y,
-                        "sigma_m": p.sigma,
-                        "lateral_m": p.lateral_m,
-                        "residual_m": p.residual_m,
-                        "used": p.used,
-                    }
-                    for p in track.points
-                ],
-                "warnings": track.warnings,
-            }
-        )
+        _print_json(_track_json(track, grav, sig, xg, yg, sg, kg))
     else:
-        lat = [abs(p.lateral_m) for p in used]
-        print(f"survey   {track.name}  ({args.survey})")
-        if track.photocells:
-            print(
-                f"timed    {track.length_m:.2f} m along the track, {track.drop_m:.2f} m drop, "
-                f"{len(track.photocells)} photocells"
-            )
-        print(
-            f"profile  {len(used)} points over x = {prof.x_min:.1f} .. {prof.x_max:.1f} m, "
-            f"axis azimuth {track.azimuth_deg:.2f}°, largest lateral offset {max(lat):.2f} m"
-        )
-        print(
-            f"spline   points scatter {track.scatter_m * 1000:.1f} mm about the profile "
-            f"(estimated from the points; declared σ {sig * 1000:.1f} mm), "
-            f"residual RMS {track.residual_rms_m * 1000:.1f} mm, "
-            f"{track.spline_edf:.0f} effective parameters"
-        )
-        left_out = [p.id for p in track.points if not p.used]
-        if left_out:
-            print(f"left out {len(left_out)} point(s): {', '.join(left_out)} (see warnings)")
-        print(f"curvature {kg.min():+.5f} .. {kg.max():+.5f} 1/m")
-        print(f"gravity  {grav.describe()}")
-        if track.photocells:
-            print()
-            print(
-                f"{'photocell':<10}{'x [m]':>10}{'y [m]':>11}{'slope [°]':>11}{'lateral [m]':>13}"
-            )
-            for pc in track.photocells:
-                print(
-                    f"{pc.id:<10}{pc.x:>10.2f}{pc.y:>11.2f}{pc.slope_deg:>11.2f}{pc.lateral_m:>+13.2f}"
-                )
-        for w in track.warnings:
-            _warn(w)
+        _print_track(args, track, grav, sig, kg)
     return 0
+
+
+def _track_json(
+    track: Track,
+    grav: Gravity,
+    sig: float,
+    xg: np.ndarray,
+    yg: np.ndarray,
+    sg: np.ndarray,
+    kg: np.ndarray,
+) -> dict[str, Any]:
+    """``station survey --json``: the track, its QA values, the profile every metre."""
+    return {
+        "name": track.name,
+        "length_m": track.length_m,
+        "drop_m": track.drop_m,
+        "residual_rms_m": track.residual_rms_m,
+        "expected_sigma_m": sig,
+        "scatter_m": track.scatter_m,
+        "declared_sigma_m": track.declared_sigma_m,
+        "spline_edf": track.spline_edf,
+        "points_left_out": [p.id for p in track.points if not p.used],
+        "azimuth_deg": track.azimuth_deg,
+        "gravity_ms2": grav.value,
+        "gravity_source": grav.source,
+        "latitude_deg": track.latitude_deg,
+        "photocells": [
+            {
+                "id": pc.id,
+                "x": pc.x,
+                "y": pc.y,
+                "slope_deg": pc.slope_deg,
+                "lateral_m": pc.lateral_m,
+            }
+            for pc in track.photocells
+        ],
+        "profile": {
+            "x": xg.tolist(),
+            "y": yg.tolist(),
+            "slope_deg": sg.tolist(),
+            "curvature": kg.tolist(),
+        },
+        "points": [
+            {
+                "id": p.id,
+                "x": p.x,
+                "y": p.y,
+                "sigma_m": p.sigma,
+                "lateral_m": p.lateral_m,
+                "residual_m": p.residual_m,
+                "used": p.used,
+            }
+            for p in track.points
+        ],
+        "warnings": track.warnings,
+    }
+
+
+def _print_track(
+    args: argparse.Namespace, track: Track, grav: Gravity, sig: float, kg: np.ndarray
+) -> None:
+    """``station survey``'s text: the track, its QA values, the photocells, the warnings."""
+    prof = track.profile
+    used = [p for p in track.points if p.used]
+    lat = [abs(p.lateral_m) for p in used]
+    print(f"survey   {track.name}  ({args.survey})")
+    if track.photocells:
+        print(
+            f"timed    {track.length_m:.2f} m along the track, {track.drop_m:.2f} m drop, "
+            f"{len(track.photocells)} photocells"
+        )
+    print(
+        f"profile  {len(used)} points over x = {prof.x_min:.1f} .. {prof.x_max:.1f} m, "
+        f"axis azimuth {track.azimuth_deg:.2f}°, largest lateral offset {max(lat):.2f} m"
+    )
+    print(
+        f"spline   points scatter {track.scatter_m * 1000:.1f} mm about the profile "
+        f"(estimated from the points; declared σ {sig * 1000:.1f} mm), "
+        f"residual RMS {track.residual_rms_m * 1000:.1f} mm, "
+        f"{track.spline_edf:.0f} effective parameters"
+    )
+    left_out = [p.id for p in track.points if not p.used]
+    if left_out:
+        print(f"left out {len(left_out)} point(s): {', '.join(left_out)} (see warnings)")
+    print(f"curvature {kg.min():+.5f} .. {kg.max():+.5f} 1/m")
+    print(f"gravity  {grav.describe()}")
+    if track.photocells:
+        print()
+        print(f"{'photocell':<10}{'x [m]':>10}{'y [m]':>11}{'slope [°]':>11}{'lateral [m]':>13}")
+        for pc in track.photocells:
+            print(
+                f"{pc.id:<10}{pc.x:>10.2f}{pc.y:>11.2f}{pc.slope_deg:>11.2f}{pc.lateral_m:>+13.2f}"
+            )
+    if args.plot:
+        print(f"picture  {args.plot}")
+    for w in track.warnings:
+        _warn(w)
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
@@ -409,21 +463,20 @@ def cmd_fit_traverse(args: argparse.Namespace) -> int:
         )
         _print_json(out)
         return 0
-    e, ci = res.estimates, res.ci90
     print(
         f"traverse  {args.data}: {len(t)} positions, plane {args.slope_deg:g}°, "
         f"{given}, m {args.mass:g} kg, ρ {rho:.3f} kg/m³"
     )
     print(f"status  {res.status}" + (f": {res.message}" if res.message else ""))
-    for label, key, unit, spec in (
-        ("μ", "mu", "", ".4f"),
-        ("CdA", "cda", "m²", ".3f"),
-        ("v0", "v0", "m/s", ".2f"),
-        ("s0", "s0", "m", ".3f"),
+    for label, est, unit, spec in (
+        ("μ", res.mu, "", ".4f"),
+        ("CdA", res.cda, "m²", ".3f"),
+        ("v0", res.v0, "m/s", ".2f"),
+        ("s0", res.s0, "m", ".3f"),
     ):
-        c = ci.get(key)
+        c = est.ci90
         rng = f"[{format(c[0], spec)}, {format(c[1], spec)}]" if c else "—"
-        print(f"  {label:<5}{_fmt(e[key], spec):>9} {unit:<4} 90 % CI {rng}")
+        print(f"  {label:<5}{_fmt(est.value, spec):>9} {unit:<4} 90 % CI {rng}")
     rms = math.sqrt(res.sigma_m2 / len(t))
     print(f"  final speed {res.v_final:.2f} m/s   residual RMS {rms * 100:.1f} cm   dof {res.dof}")
     return 0
@@ -445,7 +498,11 @@ def _angle_above_0(text: str) -> float:
 
 def add_parsers(sub: Any) -> None:
     p = sub.add_parser("survey", help="reduce a survey to the track profile and photocells")
-    p.add_argument("survey", help="survey YAML (or a bare .gsi file)")
+    p.add_argument(
+        "survey",
+        help="survey YAML, or a bare observation file (Leica GSI, Sokkia SDR, Topcon GTS-7, "
+        "LandXML, Carlson RW5) or points CSV",
+    )
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--csv", metavar="OUT", help="write the profile (every metre) as CSV")
     p.add_argument(

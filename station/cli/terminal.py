@@ -19,15 +19,16 @@ from station.session.ports import check_port
 def cmd_live(args: argparse.Namespace) -> int:
     # here, not at the top: the UI, numpy and scipy (see station/cli/tui.py and recording.py)
     from station.cli.tui import require_terminal, run_ui
+    from station.session.configcheck import checked_config
     from station.ui.app import StationApp
 
-    cfg = load_config(args.config)
-    check_port(cfg.serial.port, args.config)  # a wrong port: say so and list them, at once
+    cfg = checked_config(args.config)  # config, survey and photocells, as station check does
+    check_port(cfg.serial.port, args.config)  # then a wrong port: say so and list them
     require_terminal("live", "to record without a terminal: station record")
     folder = args.session_dir or sessions.default_dir()
     status = run_ui(StationApp(cfg, mode="live", session_dir=folder))
     if sessions.is_session(folder):
-        from station.cli.season import add_after
+        from station.cli.console import add_after
 
         add_after(folder, cfg.store)  # when a season store is configured
     return status

@@ -837,6 +837,11 @@ def _status(data, sol: _Solution, inf: _Inference, timer_sd_s: float):
     return ComparisonStatus.OK, "", chi2_p
 
 
+def _count(n: int, word: str) -> str:
+    """``1 item``, ``2 items`` (as station.report.text.count, which the model does not import)."""
+    return f"{n} {word}{'s' * (n != 1)}"
+
+
 def format_comparison(res: JointResult, n_desc: int) -> str:
     """The comparison as the terminal shows it (CLI and UI)."""
     verdict = {
@@ -845,7 +850,8 @@ def format_comparison(res: JointResult, n_desc: int) -> str:
         ComparisonStatus.NOT_CONVERGED: "NOT CONVERGED",
     }
     lines = [
-        f"joint fit of {n_desc} descents, {len(res.items)} items, {res.dof} dof, timing "
+        f"joint fit of {_count(n_desc, 'descent')}, {_count(len(res.items), 'item')}, "
+        f"{res.dof} dof, timing "
         f"residual {res.sigma_s * 1000:.2f} ms against a timer of {res.timer_sd_s * 1000:.2f} ms"
         + (f" (χ² p = {res.chi2_p:.2g})" if res.chi2_p is not None else "")
         + f": {verdict[res.status]}"

@@ -14,8 +14,9 @@ status ``ill-conditioned`` instead of printing a number.
 from __future__ import annotations
 
 import csv
+import io
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -23,6 +24,8 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import least_squares
 
 from station.errors import InputError
+from station.files import MAX_TIMES, read_text
+from station.model.estimate import Estimate, FitStatus
 from station.model.fit import CI_METHOD, TOLERANCES, uncertainty
 from station.model.physics import G_STANDARD
 
@@ -32,32 +35,43 @@ LOWER = np.array([0.0, 0.0, 0.0, -np.inf])
 UPPER = np.array([5.0, 1.0, 60.0, np.inf])
 
 
-@dataclass
+@dataclass(frozen=True)
 class TraverseResult:
-    status: str
-    estimates: dict[str, float | None]
-    ci90: dict[str, tuple[float, float] | None]
-    stderr: dict[str, float | None]
+    """The fit of a traverse: each parameter with its interval, the residuals and a status."""
+
+    status: FitStatus
+    cda: Estimate
+    mu: Estimate
+    v0: Estimate
+    s0: Estimate  # the position at t = 0 (m)
     corr_mu_cda: float | None
     sigma_m2: float
     dof: int
     residuals_m: list[float]
     v_final: float
     message: str = ""
-    not_identifiable: list[str] = field(default_factory=list)
+
+    def parameters(self) -> list[tuple[str, Estimate]]:
+        """The parameters in the order of the JSON (:data:`NAMES`)."""
+        return [("cda", self.cda), ("mu", self.mu), ("v0", self.v0), ("s0", self.s0)]
+
+    @property
+    def not_identifiable(self) -> list[str]:
+        return [k for k, e in self.parameters() if e.not_identifiable]
 
     def to_dict(self) -> dict[str, Any]:
+        params = self.parameters()
         return {
-            **self.estimates,
-            "ci90": {k: (list(v) if v is not None else None) for k, v in self.ci90.items()},
+            **{k: e.value for k, e in params},
+            "ci90": {k: (list(e.ci90) if e.ci90 is not None else None) for k, e in params},
             "ci_method": CI_METHOD,
-            "stderr": self.stderr,
+            "stderr": {k: e.stderr for k, e in params},
             "corr_mu_cda": self.corr_mu_cda,
             "sigma_m2": self.sigma_m2,
             "dof": self.dof,
             "v_final": self.v_final,
             "residuals_m": self.residuals_m,
-            "status": self.status,
+            "status": self.status.value,
             "message": self.message,
             "not_identifiable": self.not_identifiable,
         }
@@ -114,9 +128,6 @@ def simulate_traverse(
 
 def read_traverse_data(path: str) -> tuple[np.ndarray, np.ndarray]:
     """(t, s) columns from a CSV with a header ``t,s`` (or ``time,position``)."""
-    import io
-
-    from station.files import MAX_TIMES, read_text
 
     text = read_text(path, MAX_TIMES, "data file")
     try:
@@ -209,13 +220,14 @@ def fit_traverse(
     r = s_fit - s
     unc = uncertainty(jac, r, p, NAMES, dof, SCALE)
     estimates: dict[str, float | None] = {k: float(v) for k, v in zip(NAMES, p, strict=True)}
-    status, message = "ok", ""
+    status, message = FitStatus.OK, ""
     if dof < 1:
-        status, message = "too-few-photocells", "fewer data points than unknowns + 1"
+        status, message = FitStatus.TOO_FEW_PHOTOCELLS, "fewer data points than unknowns + 1"
     elif res.status <= 0:
-        status, message = "not-converged", f"the search ended without a minimum: {res.message}"
+        status = FitStatus.NOT_CONVERGED
+        message = f"the search ended without a minimum: {res.message}"
     elif unc.not_identifiable:
-        status = "ill-conditioned"
+        status = FitStatus.ILL_CONDITIONED
         which = ", ".join(unc.not_identifiable)
         message = (
             f"{which} not identifiable from these positions: the 90 % interval is wider than "
@@ -225,16 +237,22 @@ def fit_traverse(
         for k in unc.not_identifiable:
             estimates[k] = None
             unc.ci90[k] = None
+
+    def estimate(k: str) -> Estimate:
+        return Estimate(
+            estimates[k], unc.ci90[k], unc.stderr[k], not_identifiable=k in unc.not_identifiable
+        )
+
     return TraverseResult(
         status=status,
-        estimates=estimates,
-        ci90=unc.ci90,
-        stderr=unc.stderr,
+        cda=estimate("cda"),
+        mu=estimate("mu"),
+        v0=estimate("v0"),
+        s0=estimate("s0"),
         corr_mu_cda=unc.corr_mu_cda,
         sigma_m2=float(r @ r),
         dof=max(dof, 0),
         residuals_m=[float(x) for x in r],
         v_final=float(v_fit[-1]),
         message=message,
-        not_identifiable=unc.not_identifiable,
     )

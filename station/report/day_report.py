@@ -52,6 +52,7 @@ class Section:
     figure: str | None = None  # data: URI of a PNG
     alt: str = ""
     after: str = ""  # HTML
+    folded: str = ""  # when set, the picture is folded under this summary (<details>)
 
 
 @dataclass(frozen=True)
@@ -143,9 +144,9 @@ def descent_views(results: Sequence[Any]) -> list[DescentView]:
 # ----------------------------------------------------------------------------- pictures
 
 
-def _png(fig, tight: bool = True) -> str:
+def _png(fig, tight: bool = True, dpi: int = DPI) -> str:
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI, bbox_inches="tight" if tight else None,
+    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight" if tight else None,
                 metadata={"Software": None})  # fmt: skip
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
@@ -163,71 +164,130 @@ def _style(ax) -> None:
         ax.spines[side].set_visible(False)
 
 
+def _plain(text: Any) -> str:
+    """A name as matplotlib should draw it: as typed (``$…$`` would be read as math, and a
+    name like ``wax $5 $10`` would end the report in a parse error)."""
+    return str(text).replace("$", r"\$")
+
+
 def item_colours(items: Sequence[str]) -> dict[str, str]:
     return {it: PALETTE[k % len(PALETTE)] for k, it in enumerate(items)}
 
 
 def profile_figure(track) -> str:
-    """The survey's own picture of the track (:func:`station.report.track_plot.plot_track`:
+    """The survey's own picture of the track (:func:`station.report.track_plot.track_figure`:
     heights with the points used and left out and the photocells, the points' residuals,
-    slope and curvature), drawn once for ``station survey --plot`` and for this page."""
-    import tempfile
+    slope and curvature), drawn once for ``station survey --plot`` and for this page, here in
+    memory (no temporary file)."""
+    from station.report.track_plot import track_figure
 
-    from station.report.track_plot import plot_track
+    return _png(track_figure(track), tight=False, dpi=120)  # laid out by the track's picture
 
-    with tempfile.TemporaryDirectory(prefix="station-report-") as tmp:
-        path = plot_track(track, os.path.join(tmp, "track.png"))
-        with open(path, "rb") as fh:
-            data = fh.read()
-    return "data:image/png;base64," + base64.b64encode(data).decode("ascii")
+
+#: the residual picture: its height (inches, the same for 8 descents and for 2000) and how
+#: many of its rows are labelled at most
+ROWS_IN = 3.0
+MAX_ROW_LABELS = 16
+
+
+def residual_matrix(descents: Sequence[DescentView], photocells: Sequence[str]) -> np.ndarray:
+    """Residuals (ms) of each descent (rows) at each photocell (columns), NaN where it has
+    none (a photocell it missed, a descent not fitted)."""
+    col = {p: k for k, p in enumerate(photocells)}
+    m = np.full((len(descents), len(photocells)), np.nan)
+    for i, d in enumerate(descents):
+        for p, r in d.residuals_ms.items():
+            if p in col:
+                m[i, col[p]] = r
+    return m
 
 
 def descents_figure(
     descents: Sequence[DescentView], colours: dict[str, str], pc_x: dict[str, float]
 ) -> str:
-    """Small multiples, one per descent: residual bars at the photocells (ms, left axis) and
-    the fitted skier's speed along the run (m/s, right axis)."""
-    n = len(descents)
-    cols = 4
-    rows = max(1, math.ceil(n / cols))
-    # a fixed grid, not the constrained layout: that takes seconds for 50 panels with twins
-    height = 2.3 * rows + 0.6
+    """Every descent in one picture whose cost does not grow with the day. Top: the residual
+    of each descent (rows, first at the top) at each photocell (columns) as a colour (blue:
+    the model is early, red: late; grey: none), a strip in the item's colour (grey: invalid
+    or not ok) and each descent's RMS. Bottom: the fitted speed of every descent along the
+    run, in its item's colour. A column of one colour is a photocell or survey error; a row,
+    a descent the model does not describe (wind, posture).
+
+    One image and a few collections, not an Axes per descent: 50 small panels with their own
+    ticks and twin axes took ~55 ms per descent, most of the report's time."""
+    from matplotlib.collections import LineCollection
+    from matplotlib.colors import to_rgb
+
+    pcs = sorted(pc_x, key=lambda p: pc_x[p])
+    m = residual_matrix(descents, pcs)
+    finite = np.abs(m[np.isfinite(m)])
+    lim = max(float(finite.max()) if finite.size else 0.0, 0.1)
+    rows_in = ROWS_IN
+    speed_in = 2.4
+    height = rows_in + speed_in + 1.5
     fig = _figure(height, layout=None)
-    fig.subplots_adjust(left=0.07, right=0.95, top=1 - 0.3 / height, bottom=0.5 / height,
-                        wspace=0.45, hspace=0.45)  # fmt: skip
-    axes = np.atleast_1d(fig.subplots(rows, cols, sharex=True, squeeze=False)).ravel()
-    lim = 0.0
+    h = 1.0 / height  # one inch, in figure coordinates
+    y_rows = 1 - 0.45 * h - rows_in * h
+    strip = fig.add_axes((0.06, y_rows, 0.015, rows_in * h))
+    heat = fig.add_axes((0.085, y_rows, 0.7, rows_in * h), sharey=strip)
+    rms_ax = fig.add_axes((0.8, y_rows, 0.13, rows_in * h), sharey=strip)
+    cbar = fig.add_axes((0.945, y_rows, 0.012, rows_in * h))
+    sp = fig.add_axes((0.085, 0.5 * h, 0.7, speed_in * h))
+
+    cmap = _residual_cmap()
+    im = heat.imshow(m if len(descents) else np.full((1, len(pcs)), np.nan), cmap=cmap,
+                     vmin=-lim, vmax=lim, aspect="auto", interpolation="nearest")  # fmt: skip
+    heat.set_xticks(range(len(pcs)), pcs, fontsize=8)
+    heat.xaxis.set_ticks_position("top")
+    heat.tick_params(axis="y", labelleft=False, length=0)
+    fig.colorbar(im, cax=cbar)
+    cbar.tick_params(labelsize=7)
+    cbar.set_ylabel("computed − measured [ms]", fontsize=8)
+
+    rgb = np.array([[to_rgb(colours.get(d.item, GREY) if d.good else GREY)]
+                    for d in descents] or [[to_rgb(GREY)]])  # fmt: skip
+    strip.imshow(rgb, aspect="auto", interpolation="nearest")
+    step = max(1, math.ceil(len(descents) / MAX_ROW_LABELS))
+    rows = list(range(0, len(descents), step))
+    strip.set_yticks(rows, [str(descents[i].number) for i in rows], fontsize=8)
+    strip.set_xticks([])
+    strip.set_ylabel("descent", fontsize=8)
+
+    y = np.arange(len(descents))
+    r = np.array([np.nan if d.rms_ms is None else d.rms_ms for d in descents], dtype=float)
+    rms_ax.plot(r, y, "o-", color="#555555", ms=3, linewidth=0.8)
+    rms_ax.set_xlim(0, max(float(np.nanmax(r)) if np.isfinite(r).any() else 0.0, 0.1) * 1.15)
+    rms_ax.tick_params(axis="y", labelleft=False, length=0)
+    rms_ax.tick_params(axis="x", labelsize=7)
+    rms_ax.xaxis.set_ticks_position("top")
+    rms_ax.set_title("RMS [ms]", fontsize=8, loc="left")
+    _style(rms_ax)
+    strip.set_ylim(len(descents) - 0.5 if descents else 0.5, -0.5)
+
+    lines, lcols = [], []
+    vmax = 1.0
     for d in descents:
-        lim = max(lim, *(abs(v) for v in d.residuals_ms.values()), 0.0)
-    lim = max(lim * 1.15, 0.5)
-    vmax = max((float(np.max(d.speed_v)) for d in descents if d.speed_v is not None), default=1.0)
-    for ax, d in zip(axes, descents, strict=False):
-        colour = colours.get(d.item, GREY)
-        status = "invalid" if d.invalid_reason else d.status
-        ax.set_title(f"{d.number}  {d.item}  ({status})", loc="left", fontsize=9,
-                     color="#b00020" if status not in ("ok",) else "#222222")  # fmt: skip
-        _style(ax)
-        ax.set_ylim(-lim, lim)
-        ax.axhline(0, color="#555555", linewidth=0.8)
-        if not d.fitted:
-            ax.text(0.5, 0.5, d.status, transform=ax.transAxes, ha="center", va="center",
-                    color=GREY)  # fmt: skip
+        if d.speed_x is None or d.speed_v is None:
             continue
-        bars_x = [pc_x[p] for p in d.residuals_ms]
-        bars_ms = list(d.residuals_ms.values())
-        ax.bar(bars_x, bars_ms, width=8.0, color=colour if d.good else GREY, alpha=0.85)
-        if d.speed_x is not None:
-            sp = ax.twinx()
-            sp.plot(d.speed_x, d.speed_v, color="#333333", linewidth=1.0)
-            sp.set_ylim(0, vmax * 1.1)
-            sp.tick_params(labelsize=7)
-            sp.spines["top"].set_visible(False)
-        ax.tick_params(labelsize=7)
-    for ax in axes[n:]:
-        ax.set_visible(False)
-    fig.supylabel("residual, computed − measured [ms] (bars)", fontsize=9)
-    fig.supxlabel("x along the run [m];  line: fitted speed [m/s] (right axis)", fontsize=9)
-    return _png(fig, tight=False)  # laid out by hand above; a tight box would draw it twice
+        lines.append(np.column_stack([d.speed_x, d.speed_v]))
+        lcols.append(colours.get(d.item, GREY) if d.good else GREY)
+        vmax = max(vmax, float(np.max(d.speed_v)))
+    sp.add_collection(LineCollection(lines, colors=lcols, linewidths=1.0, alpha=0.8))
+    xs = [pc_x[p] for p in pcs]
+    if xs:
+        span = max(xs[-1] - xs[0], 1.0)
+        sp.set_xlim(xs[0] - 0.02 * span, xs[-1] + 0.02 * span)
+    sp.set_ylim(0, vmax * 1.1)
+    sp.set_xlabel("x along the run [m]", fontsize=9)
+    sp.set_ylabel("fitted speed [m/s]", fontsize=9)
+    sp.tick_params(labelsize=8)
+    _style(sp)
+    return _png(fig, tight=False)  # laid out by hand above: a tight box would draw it twice
+
+
+def _residual_cmap():
+    from matplotlib import colormaps
+
+    return colormaps["RdBu_r"].with_extremes(bad="#e6e6e6")
 
 
 def _hhmm(h: float, _pos: Any = None) -> str:
@@ -235,65 +295,123 @@ def _hhmm(h: float, _pos: Any = None) -> str:
     return f"{m // 60:02d}:{m % 60:02d}"
 
 
+#: steps of the time-of-day axis, minutes: the first that gives at most MAX_TICKS ticks
+MINUTE_STEPS = (1, 2, 5, 10, 15, 20, 30, 60, 120, 180, 240, 360)
+MAX_TICKS = 9
+
+
+def minute_ticks(h0: float, h1: float) -> list[float]:
+    """Ticks of a time-of-day axis from ``h0`` to ``h1`` (hours): on whole minutes, evenly
+    spaced by a step people count in (5, 10, 15, 30 min …), every one labelled."""
+    lo, hi = min(h0, h1) * 60, max(h0, h1) * 60
+    for step in MINUTE_STEPS:
+        first = math.ceil(lo / step - 1e-9) * step
+        count = int(math.floor((hi - first) / step + 1e-9)) + 1
+        if count <= MAX_TICKS:
+            break
+    return [(first + k * step) / 60 for k in range(max(count, 0))]
+
+
+def drift_reference_hours(compared: Sequence[Any]) -> float | None:
+    """The time of day the joint fit's μ per item refers to when it fits a drift: the mean
+    start time of the descents compared (μ = μ_item + drift·(t − t̄))."""
+    return float(np.mean([d.start_hours for d in compared])) if compared else None
+
+
 def time_of_day_figure(descents: Sequence[DescentView], colours: dict[str, str],
                        comparison=None, compared: Sequence[Any] = ()) -> str:  # fmt: skip
     """μ and CdA of each descent against its start time with 90 % intervals; the joint fit's
     μ per item (with the drift, when fitted) and CdA drawn over them."""
-    from matplotlib.ticker import FuncFormatter
+    return _png(time_of_day_axes(descents, colours, comparison, compared), tight=False)
 
-    fig = _figure(5.6)
+
+def time_of_day_axes(descents: Sequence[DescentView], colours: dict[str, str],
+                     comparison=None, compared: Sequence[Any] = ()):  # fmt: skip
+    """The figure of :func:`time_of_day_figure` (a matplotlib ``Figure``). One errorbar per
+    item and kind of point, not per descent: the cost does not grow with the day."""
+    # laid out by hand: the constrained layout (and a tight box) measure every descent's label
+    fig = _figure(5.6, layout=None)
+    fig.subplots_adjust(left=0.085, right=0.985, top=0.93, bottom=0.1, hspace=0.22)
     am, ac = fig.subplots(2, 1, sharex=True)
-    hours_all = []
+    hours_all: list[float] = []
+    groups: dict[tuple[str, bool], list[DescentView]] = {}
     for d in descents:
         if d.mu.value is None:
             continue
-        h = d.start_hours
-        hours_all.append(h)
-        colour = colours.get(d.item, GREY) if not d.invalid_reason else GREY
-        face = colour if d.good else "white"
-        for ax, est in ((am, d.mu), (ac, d.cda)):
-            v = est.value
-            if v is None:
+        hours_all.append(d.start_hours)
+        groups.setdefault((d.item, d.good), []).append(d)
+    for (item, good), ds in groups.items():
+        colour = colours.get(item, GREY) if good else GREY
+        for ax, key in ((am, "mu"), (ac, "cda")):
+            pts = [d for d in ds if getattr(d, key).value is not None]
+            if not pts:
                 continue
-            c = est.ci90
-            yerr = None if c is None else [[v - c[0]], [c[1] - v]]
-            ax.errorbar([h], [v], yerr=yerr, fmt="o", color=colour, mfc=face, ms=6,
-                        capsize=3, linewidth=1.2)  # fmt: skip
-            ax.annotate(str(d.number), (h, v), textcoords="offset points",
-                        xytext=(5, 3), fontsize=7, color="#555555")  # fmt: skip
+            h = np.array([d.start_hours for d in pts])
+            v = np.array([getattr(d, key).value for d in pts], dtype=float)
+            ci = [getattr(d, key).ci90 for d in pts]
+            lo = np.array([v[k] - c[0] if c else 0.0 for k, c in enumerate(ci)])
+            hi = np.array([c[1] - v[k] if c else 0.0 for k, c in enumerate(ci)])
+            ax.errorbar(h, v, yerr=[lo, hi], fmt="o", color=colour,
+                        mfc=colour if good else "white", ms=6, capsize=3,
+                        linewidth=1.2)  # fmt: skip
+        for d in ds:
+            am.annotate(str(d.number), (d.start_hours, d.mu.value),
+                        textcoords="offset points", xytext=(5, 3), fontsize=7,
+                        color="#555555")  # fmt: skip
+    t_ref = drift_reference_hours(compared)
     if comparison is not None and hours_all:
         t0, t1 = min(hours_all), max(hours_all)
         pad = max((t1 - t0) * 0.03, 1 / 60)
         hx = np.array([t0 - pad, t1 + pad])
-        t_mean = float(np.mean([d.start_hours for d in compared])) if compared else 0.0
         drift = comparison.drift_per_hour[0] if comparison.drift_per_hour else 0.0
+        ref = t_ref if t_ref is not None else 0.0
         for it in comparison.items:
-            am.plot(hx, it.mu + drift * (hx - t_mean), "--", color=colours.get(it.item, GREY),
+            am.plot(hx, it.mu + drift * (hx - ref), "--", color=colours.get(it.item, GREY),
                     linewidth=1.0)  # fmt: skip
+        if comparison.drift_per_hour and t_ref is not None:
+            am.axvline(t_ref, color="#999999", linestyle=":", linewidth=1.0)
+            am.annotate(f"t̄ {_hhmm(t_ref)}", (t_ref, 1.0), xycoords=("data", "axes fraction"),
+                        xytext=(3, -10), textcoords="offset points", fontsize=7,
+                        color="#555555")  # fmt: skip
         for cda in comparison.cda.values():
             ac.axhline(cda.value, color="#333333", linestyle="--", linewidth=1.0)
             if cda.ci90 is not None:
                 ac.axhspan(cda.ci90[0], cda.ci90[1], color="#333333", alpha=0.08)
     for it, colour in colours.items():
-        am.plot([], [], "o", color=colour, label=it)
+        am.plot([], [], "o", color=colour, label=_plain(it))
     am.plot([], [], "o", color=GREY, mfc="white", label="invalid or not ok")
     if comparison is not None:
-        am.plot([], [], "--", color="#555555", label="joint fit μ per item (with drift)")
+        label = "joint fit μ per item"
+        if comparison.drift_per_hour and t_ref is not None:
+            label += f" with the drift (μ at t̄ = {_hhmm(t_ref)})"
+        am.plot([], [], "--", color="#555555", label=label)
         ac.plot([], [], "--", color="#333333", label="joint fit CdA (band: 90 % interval)")
         ac.legend(loc="lower left", bbox_to_anchor=(0, 1.0), frameon=False, fontsize=8)
     am.legend(loc="lower left", bbox_to_anchor=(0, 1.0), frameon=False, fontsize=8, ncol=4)
     am.set_ylabel("μ (90 % interval)")
     ac.set_ylabel("CdA [m²] (90 % interval)")
-    ac.set_xlabel("start time (timer's time of day)")
-    ac.xaxis.set_major_formatter(FuncFormatter(_hhmm))
+    ac.set_xlabel("start time (timer's time of day, hh:mm)")
+    if hours_all:
+        t0, t1 = min(hours_all), max(hours_all)
+        pad = max((t1 - t0) * 0.04, 1 / 60)
+        ac.set_xlim(t0 - pad, t1 + pad)
+        ac.set_xticks(minute_ticks(t0 - pad, t1 + pad))
+        ac.xaxis.set_major_formatter(_hhmm_formatter())
     for a in (am, ac):
         _style(a)
-    return _png(fig)
+    return fig
+
+
+def _hhmm_formatter():
+    from matplotlib.ticker import FuncFormatter
+
+    return FuncFormatter(_hhmm)
 
 
 def comparison_figure(res, colours: dict[str, str]) -> str:
     """Left: μ of each item with its 90 % interval, best on top. Right: Δμ = item − reference
-    with its interval, P(faster) and the time it makes over the run."""
+    with its interval, P(faster) and the time it makes over the run; an item that cannot be
+    compared (one valid descent) says so instead."""
     fig = _figure(0.45 * len(res.ranking) + 1.0)
     left, right = fig.subplots(1, 2, sharey=True)
     names = list(reversed(res.ranking))  # best at the top
@@ -309,8 +427,11 @@ def comparison_figure(res, colours: dict[str, str]) -> str:
             right.annotate("reference", (0, k), textcoords="offset points", xytext=(8, -3),
                            fontsize=8)  # fmt: skip
             continue
-        cmp = next((x for x in res.comparisons if x.a == res.reference and x.b == name), None)
-        if cmp is None or cmp.ci90 is None or cmp.p_a_faster is None:  # none possible
+        cmp = reference_comparison(res, name)
+        if cmp is None or cmp.ci90 is None or cmp.p_a_faster is None:
+            right.annotate(f"not comparable ({count_valid(it)})", (0, k),
+                           textcoords="offset points", xytext=(8, -3), fontsize=8,
+                           color="#b00020")  # fmt: skip
             continue
         dm, lo, hi = -cmp.delta_mu, -cmp.ci90[1], -cmp.ci90[0]
         right.errorbar([dm], [k], xerr=[[dm - lo], [hi - dm]], fmt="o", color=c, capsize=4,
@@ -318,15 +439,27 @@ def comparison_figure(res, colours: dict[str, str]) -> str:
         right.annotate(f"P(faster) {1 - cmp.p_a_faster:.2f}, {-cmp.delta_t_s * 1000:+.0f} ms",
                        (hi, k), textcoords="offset points", xytext=(6, -3), fontsize=8)  # fmt: skip
     right.axvline(0, color="#555555", linewidth=0.8)
-    left.set_yticks(y, [f"{len(names) - k}. {n}" for k, n in enumerate(names)])
+    left.set_yticks(y, [f"{len(names) - k}. {_plain(n)}" for k, n in enumerate(names)])
     left.set_ylim(-0.6, len(names) - 0.4)
     left.set_xlabel("μ of the item (joint fit), 90 % interval")
-    right.set_xlabel(f"Δμ = item − {res.reference}  (< 0: glides better)")
+    right.set_xlabel(f"Δμ = item − {_plain(res.reference)}  (< 0: glides better)")
     lo_x, hi_x = right.get_xlim()
     right.set_xlim(lo_x, hi_x + 0.45 * (hi_x - lo_x))  # room for the labels
     for a in (left, right):
         _style(a)
     return _png(fig)
+
+
+def reference_comparison(res, name: str):
+    """The comparison of item ``name`` with the reference (``a`` the reference), or None."""
+    if name == res.reference:
+        return None
+    return next((c for c in res.comparisons if c.a == res.reference and c.b == name), None)
+
+
+def count_valid(it) -> str:
+    n = len(it.descents)
+    return f"{n} valid descent{'s' * (n != 1)}"
 
 
 # ----------------------------------------------------------------------------- page
@@ -372,11 +505,11 @@ def _descent_rows(descents: Sequence[DescentView]) -> list[list[str]]:
 
 
 CSS = """
-body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 2em auto;
+body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 1.2em auto;
        max-width: 1150px; padding: 0 1em; color: #222; line-height: 1.45; }
-h1 { font-size: 1.6em; margin-bottom: 0.2em; }
-h2 { font-size: 1.25em; border-bottom: 2px solid #ddd; padding-bottom: 0.2em; margin-top: 2em; }
-.sub { color: #666; margin-top: 0; }
+h1 { font-size: 1.5em; margin: 0 0 0.1em 0; }
+h2 { font-size: 1.25em; border-bottom: 2px solid #ddd; padding-bottom: 0.2em; margin-top: 1.6em; }
+.sub { color: #666; margin-top: 0; font-size: 0.9em; }
 img { max-width: 100%; height: auto; display: block; margin: 0.8em 0; }
 table { border-collapse: collapse; font-size: 0.88em; margin: 0.8em 0; }
 th, td { border-bottom: 1px solid #e2e2e2; padding: 0.25em 0.7em; text-align: left;
@@ -388,7 +521,17 @@ td:last-child { white-space: normal; }
 .err { background: #fdecea; border-left: 4px solid #d62728; padding: 0.4em 0.8em; }
 pre { background: #f6f6f6; padding: 0.8em; overflow-x: auto; font-size: 0.85em; }
 nav a { margin-right: 1em; }
-@media print { h2 { page-break-before: auto; } img { page-break-inside: avoid; } }
+#verdict h2 { margin-top: 0.8em; }
+ul.verdicts { list-style: none; padding: 0; margin: 0.5em 0; }
+ul.verdicts li { padding: 0.45em 0.8em; margin: 0.35em 0; border-left: 5px solid #9a9a9a;
+                 background: #f7f7f7; font-size: 1.05em; }
+ul.verdicts li.decided { border-left-color: #2ca02c; background: #eef7ee; }
+ul.verdicts li.open { border-left-color: #f0a020; background: #fff7ea; }
+ul.verdicts li.none { border-left-color: #9a9a9a; }
+.numbers { font-variant-numeric: tabular-nums; }
+details > summary { cursor: pointer; font-weight: 600; margin: 0.6em 0; }
+@media print { h2 { page-break-before: auto; } img { page-break-inside: avoid; }
+               details { display: block; } }
 """
 
 
@@ -404,7 +547,10 @@ def render_html(title: str, subtitle: str, sections: Sequence[Section]) -> str:
     for s in sections:
         parts.append(f'<section id="{s.id}"><h2>{_e(s.title)}</h2>{s.intro}')
         if s.figure:
-            parts.append(f'<figure><img src="{s.figure}" alt="{_e(s.alt)}"></figure>')
+            img = f'<figure><img src="{s.figure}" alt="{_e(s.alt)}"></figure>'
+            if s.folded:
+                img = f"<details><summary>{_e(s.folded)}</summary>{img}</details>"
+            parts.append(img)
         parts.append(f"{s.after}</section>")
     parts.append(f"<footer><p class='sub'>station {_e(__version__)}</p></footer>")
     parts.append("</body></html>")
@@ -412,7 +558,9 @@ def render_html(title: str, subtitle: str, sections: Sequence[Section]) -> str:
 
 
 def build_day_report(day: DayData) -> str:
-    """The page of one test day."""
+    """The page of one test day: the answer first (a verdict per comparison, then μ and CdA
+    over the day), then the comparison's detail, the track, every descent's residuals (folded)
+    and the provenance."""
     from station.model.compare import format_comparison
 
     track = day.track
@@ -422,6 +570,18 @@ def build_day_report(day: DayData) -> str:
     ok = [d for d in real if d.good]
 
     sections = [
+        _verdict_section(day),
+        Section(
+            "timeline",
+            "μ and CdA over the day",
+            "<p>Each descent's own fit with its 90 % interval, against its start time. "
+            "Hollow grey points are invalid or not ok. Dashed: the joint fit of the day"
+            + _drift_words(day)
+            + ".</p>",
+            time_of_day_figure(descents, colours, day.comparison, day.compared) if real else None,
+            "friction and drag area of each descent over the time of day",
+        ),
+        _comparison_section(day, colours, format_comparison),
         Section(
             "track",
             "Track profile and photocells",
@@ -434,24 +594,17 @@ def build_day_report(day: DayData) -> str:
         Section(
             "descents",
             "Descents: residuals and speed",
-            f"<p>{len(real)} descents ({len(ok)} ok and valid). Each panel: the fit's residual at "
-            "each photocell (computed − measured time, bars) and the fitted speed along the run "
-            "(line). Residuals larger than a few tenths of a millisecond, or a pattern along the "
-            "run, point at a photocell, a gust or a skier who did not hold the tuck.</p>",
+            f"<p>{len(real)} descents ({len(ok)} ok and valid). One row per descent: the fit's "
+            "residual at each photocell (computed − measured time, bars) and its RMS; below, "
+            "the fitted speed along the run. Residuals larger than a few tenths of a "
+            "millisecond, or a pattern along the run, point at a photocell, a gust or a skier "
+            "who did not hold the tuck.</p>",
             descents_figure(descents, colours, {pc.id: pc.x for pc in track.photocells})
             if descents
             else None,
             "residuals and speed of each descent",
+            folded=f"the residuals of {len(descents)} descent{'s' * (len(descents) != 1)}",
         ),
-        Section(
-            "timeline",
-            "μ and CdA over the day",
-            "<p>Each descent's own fit with its 90 % interval, against its start time. "
-            "Hollow grey points are invalid or not ok. Dashed: the joint fit of the day.</p>",
-            time_of_day_figure(descents, colours, day.comparison, day.compared) if real else None,
-            "friction and drag area of each descent over the time of day",
-        ),
-        _comparison_section(day, colours, format_comparison),
         _provenance_section(day),
     ]
     recorded = day.recorded or (descents[0].start_time[:10] if descents else "")
@@ -460,6 +613,116 @@ def build_day_report(day: DayData) -> str:
                 f"report made {dt.datetime.now().astimezone().isoformat(timespec='seconds')} "
                 f"by station {__version__}")  # fmt: skip
     return render_html(title, subtitle, sections)
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The answer to one comparison, in words: what the page says first."""
+
+    kind: str  # decided | open | none (not comparable)
+    html: str
+
+
+def verdicts(res) -> list[Verdict]:
+    """One headline per item against the reference: which is faster, Δμ with its 90 %
+    interval, the time it makes over the run, how sure, how many descents, decided or not.
+    Decided: the 90 % interval of Δμ excludes 0 and the joint fit is ok (a poor fit's or a
+    not separable drift's intervals are not to be trusted)."""
+    out: list[Verdict] = []
+    by = {i.item: i for i in res.items}
+    ref = res.reference
+    trusted = res.status == "ok" and (not res.drift_per_hour or res.drift_separable)
+    for name in res.ranking:
+        if name == ref:
+            continue
+        it = by[name]
+        cmp = reference_comparison(res, name)
+        if cmp is None or cmp.ci90 is None or cmp.p_a_faster is None:
+            why = count_valid(it) if len(it.descents) < 2 else "no interval"
+            if ref in by and len(by[ref].descents) < 2:
+                why = ("" if why == "no interval" else why + "; ") + (
+                    f"the reference {_e(ref)}: {count_valid(by[ref])}"
+                )
+            out.append(Verdict("none", f"<b>{_e(name)}</b> against <b>{_e(ref)}</b>: "
+                                       f"not comparable ({why})"))  # fmt: skip
+            continue
+        dm, lo, hi = -cmp.delta_mu, -cmp.ci90[1], -cmp.ci90[0]  # item − reference
+        item_better = dm < 0
+        better, worse = (name, ref) if item_better else (ref, name)
+        # in words, the better item first: Δμ = worse − better > 0 and the time it gains
+        by_mu, by_lo, by_hi = (-dm, -hi, -lo) if item_better else (dm, lo, hi)
+        p_better = 1.0 - cmp.p_a_faster if item_better else cmp.p_a_faster
+        gain_ms = abs(cmp.delta_t_s) * 1000
+        n_ref = len(by[ref].descents) if ref in by else 0
+        sure = "> 0.999" if p_better > 0.999 else f"{p_better:.3f}"
+        numbers = (
+            f"by Δμ {by_mu:.5f} [{by_lo:+.5f}, {by_hi:+.5f}] (90 %), {gain_ms:.1f} ms over the "
+            f"run at v0 {res.typical_v0:.1f} m/s; P({_e(better)} faster) {sure}; "
+            f"{len(it.descents)} descents of {_e(name)}, {n_ref} of {_e(ref)}"
+        )
+        if (lo > 0 or hi < 0) and trusted:
+            head = f"<b>{_e(better)}</b> glides better than <b>{_e(worse)}</b>"
+            tail = "<b>decided</b>: the 90 % interval excludes 0"
+            kind = "decided"
+        else:
+            head = f"<b>{_e(better)}</b> ahead of <b>{_e(worse)}</b>"
+            if not trusted:
+                why = [f"the joint fit is {_e(res.status)}"] if res.status != "ok" else []
+                if res.drift_per_hour and not res.drift_separable:
+                    why.append("the drift is not separable from the items")
+                tail = f"<b>not decided</b>: {'; '.join(why)}"
+            else:
+                tail = "<b>not decided</b>: the 90 % interval includes 0; more descents needed"
+            kind = "open"
+        out.append(Verdict(kind, f"{head} <span class='numbers'>{numbers}</span>. {tail}."))
+    if len(res.items) == 1:
+        it = res.items[0]
+        out.append(Verdict("none", f"one item only (<b>{_e(it.item)}</b>, "
+                                   f"{count_valid(it)}): nothing to compare"))  # fmt: skip
+    return out
+
+
+def _drift_words(day: DayData) -> str:
+    res = day.comparison
+    if res is None or not res.drift_per_hour:
+        return ""
+    t_ref = drift_reference_hours(day.compared)
+    if t_ref is None:
+        return ""
+    return (f", with the drift of μ over the day; each item's μ is its value at "
+            f"{_hhmm(t_ref)} (timer's time of day), the mean start time of the "
+            f"{len(day.compared)} compared descents")  # fmt: skip
+
+
+def _verdict_section(day: DayData) -> Section:
+    """The answer, first on the page."""
+    res = day.comparison
+    if res is None:
+        return Section("verdict", "Verdict",
+                       f"<p class='err'>No comparison: {_e(day.comparison_error or 'no data')}"
+                       ".</p>")  # fmt: skip
+    lines = verdicts(res)
+    items = "".join(f"<li class='{v.kind}'>{v.html}</li>" for v in lines)
+    intro = f"<ul class='verdicts'>{items}</ul>"
+    notes = []
+    if res.status != "ok":
+        notes.append(f"<p class='err'>Joint fit {_e(res.status)}: {_e(res.message)}</p>")
+    if res.drift_per_hour:
+        d, (lo, hi) = res.drift_per_hour
+        t_ref = drift_reference_hours(day.compared)
+        when = ""
+        if t_ref is not None:
+            when = f" (μ of each item at {_hhmm(t_ref)}, the compared descents' mean start)"
+        apart = "" if res.drift_separable else " — <b>not separable from the items</b>"
+        notes.append(
+            f"<p>Drift of μ over the day {d:+.5f} per hour [{lo:+.5f}, {hi:+.5f}]"
+            f"{_e(when)}{apart}.</p>"
+        )
+    left_out = len(res.excluded)
+    notes.append(f"<p class='sub'>Joint fit of {len(day.compared)} valid descents"
+                 + (f"; {left_out} left out (see the comparison)" if left_out else "")
+                 + f"; reference {_e(res.reference)}.</p>")  # fmt: skip
+    return Section("verdict", "Verdict", intro + "".join(notes))
 
 
 def _comparison_section(day: DayData, colours: dict[str, str], format_comparison) -> Section:
@@ -474,11 +737,11 @@ def _comparison_section(day: DayData, colours: dict[str, str], format_comparison
     by = {i.item: i for i in res.items}
     for k, name in enumerate(res.ranking, start=1):
         it = by[name]
-        cmp = next((c for c in res.comparisons if c.a == res.reference and c.b == name), None)
-        if cmp is None:
-            delta = p = dtime = "reference" if name == res.reference else "—"
-        elif cmp.ci90 is None or cmp.p_a_faster is None:  # an item of one descent
-            delta, p, dtime = "no comparison possible", "—", "—"
+        cmp = reference_comparison(res, name)
+        if name == res.reference:
+            delta = p = dtime = "reference"
+        elif cmp is None or cmp.ci90 is None or cmp.p_a_faster is None:
+            delta, p, dtime = f"not comparable ({count_valid(it)})", "—", "—"
         else:
             delta = f"{-cmp.delta_mu:+.5f} [{-cmp.ci90[1]:+.5f}, {-cmp.ci90[0]:+.5f}]"
             p = f"{1 - cmp.p_a_faster:.3f}"
@@ -486,10 +749,13 @@ def _comparison_section(day: DayData, colours: dict[str, str], format_comparison
         rows.append([k, name, len(it.descents), f"{it.mu:.5f}",
                      f"[{it.ci90[0]:.5f}, {it.ci90[1]:.5f}]", delta, p, dtime])  # fmt: skip
     drift = "not fitted"
+    t_ref = drift_reference_hours(day.compared)
     if res.drift_per_hour:
         d, (lo, hi) = res.drift_per_hour
-        drift = f"{d:+.5f} per hour [{lo:+.5f}, {hi:+.5f}]" + (
-            "" if res.drift_separable else " — NOT separable from the items"
+        drift = (
+            f"{d:+.5f} per hour [{lo:+.5f}, {hi:+.5f}]"
+            + (f", μ of each item at {_hhmm(t_ref)}" if t_ref is not None else "")
+            + ("" if res.drift_separable else " — NOT separable from the items")
         )
     cda = "; ".join(f"{_e(g)} {e.value:.4f} m²" + (f" [{e.lo:.4f}, {e.hi:.4f}]" if e.ci90 else
                     " (fixed)") for g, e in res.cda.items())  # fmt: skip
@@ -501,8 +767,10 @@ def _comparison_section(day: DayData, colours: dict[str, str], format_comparison
         f"{res.dof} degrees of freedom, timing residual {res.sigma_s * 1000:.2f} ms, "
         f"status {_e(res.status)}.</p><p>Drift of μ: {_e(drift)}. CdA: {cda}.</p>{notes}"
     )
-    after = _table(["rank", "item", "descents", "μ", "90 % interval", f"Δμ vs {res.reference}",
-                    "P(faster than reference)", "Δt over the run [ms]"], rows)  # fmt: skip
+    mu_head = f"μ at {_hhmm(t_ref)}" if res.drift_per_hour and t_ref is not None else "μ"
+    after = _table(["rank", "item", "descents", mu_head, "90 % interval",
+                    f"Δμ vs {res.reference}", "P(faster than reference)",
+                    "Δt over the run [ms]"], rows)  # fmt: skip
     if left_out:
         after += f"<p>Left out of the comparison:</p><ul>{left_out}</ul>"
     after += f"<details><summary>as the terminal shows it</summary><pre>" \

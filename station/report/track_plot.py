@@ -3,8 +3,9 @@ the photocells, as PNG or SVG.
 
 A profile that is only text hides the things a surveyor sees at a glance: a point left out in
 the wrong place, a curvature spike, a photocell near the end of the survey. matplotlib (the
-field's standard) is imported here only, and only when a picture is asked for, with the
-non-interactive Agg backend (no display at the trackside laptop's console).
+field's standard) is imported here only, and only when a picture is asked for, through its
+object API (``Figure``): no display backend at the trackside laptop's console, and the day
+report gets the picture in memory, without a temporary file.
 """
 
 from __future__ import annotations
@@ -21,12 +22,7 @@ FORMATS = (".png", ".svg")
 
 
 def plot_track(track: Track, path: str, title: str | None = None) -> str:
-    """Draw ``track`` into ``path`` (.png or .svg); returns the path written.
-
-    Four panels sharing x: heights (points used, points left out, the profile and the
-    photocells), the residuals of the points about the profile with the estimated scatter,
-    the slope, and the curvature.
-    """
+    """Draw ``track`` into ``path`` (.png or .svg); returns the path written."""
     ext = os.path.splitext(path)[1].lower()
     if ext not in FORMATS:
         raise InputError(
@@ -39,19 +35,33 @@ def plot_track(track: Track, path: str, title: str | None = None) -> str:
         raise InputError("folder does not exist", path=path, field="--plot")
     if os.path.isdir(path):
         raise InputError("is a folder", path=path, field="--plot")
+    fig = track_figure(track, title)
+    try:
+        fig.savefig(path, dpi=120)
+    except OSError as exc:
+        raise InputError(
+            f"cannot write the picture: {exc.strerror}", path=path, field="--plot"
+        ) from None
+    return path
 
-    import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+def track_figure(track: Track, title: str | None = None):
+    """The picture of ``track`` as a matplotlib ``Figure``, drawn in memory (the day report
+    embeds it without a file on disk; ``plot_track`` saves it).
+
+    Four panels sharing x: heights (points used, points left out, the profile and the
+    photocells), the residuals of the points about the profile with the estimated scatter,
+    the slope, and the curvature. Made through the object API (``Figure``, no pyplot): no GUI
+    backend is chosen and no global figure is left open.
+    """
+    from matplotlib.figure import Figure
 
     prof = track.profile
     x = np.linspace(prof.x_min, prof.x_max, max(200, int(math.ceil(prof.x_max - prof.x_min)) * 4))
     used = [p for p in track.points if p.used]
     out = [p for p in track.points if not p.used]
-    fig, axes = plt.subplots(
-        4, 1, sharex=True, figsize=(10, 9), gridspec_kw={"height_ratios": [3, 1.4, 1.4, 1.4]}
-    )
+    fig = Figure(figsize=(10, 9))
+    axes = fig.subplots(4, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1.4, 1.4, 1.4]})
     ax_h, ax_r, ax_s, ax_k = axes
     ax_h.plot(x, prof.h(x), color="C0", lw=1.2, label="profile h(x)")
     ax_h.plot(
@@ -132,12 +142,4 @@ def plot_track(track: Track, path: str, title: str | None = None) -> str:
     for ax in axes:
         ax.grid(True, lw=0.3)
     fig.tight_layout()
-    try:
-        fig.savefig(path, dpi=120)
-    except OSError as exc:
-        raise InputError(
-            f"cannot write the picture: {exc.strerror}", path=path, field="--plot"
-        ) from None
-    finally:
-        plt.close(fig)
-    return path
+    return fig

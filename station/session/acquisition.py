@@ -134,6 +134,9 @@ _STOP = object()
 #: how often an idle fit worker looks for annotations another process (``station annotate``)
 #: appended to the session being recorded
 ANNOTATIONS_POLL_S = 0.5
+#: the comparison waits until the results have not changed for this long (a refit of many
+#: descents, a replay: one comparison at the end, not one per descent)
+COMPARE_QUIET_S = 0.3
 #: how long the recorder waits for another writer of the annotations file (it appends one
 #: record) before it appends its own without the lock
 ANNOTATIONS_WAIT_S = 2.0
@@ -183,9 +186,22 @@ class Acquisition:
         self._own_lines: list[str] = []  # own records appended, not yet read back
         self._last_poll = 0.0
         self._worker: threading.Thread | None = None
+        # the comparison (the UI's): a thread of its own, never the fit worker's (at 2000
+        # descents a joint fit takes seconds, and the next descent's fit would wait for it)
+        self._cmp = threading.Condition()
+        self._cmp_dirty = False  # results changed since the comparison last shown
+        self._cmp_changed_at = 0.0  # when (monotonic): the comparison waits for quiet
+        self._cmp_shown = False  # the UI shows it: only then is it computed
+        self._cmp_ended = False  # the source ended: computed once more, shown or not
+        self._comparer: threading.Thread | None = None
         if threaded:
             self._worker = threading.Thread(target=self._work, name="fit-worker", daemon=True)
             self._worker.start()
+            if compare:
+                self._comparer = threading.Thread(
+                    target=self._compare_loop, name="comparison", daemon=True
+                )
+                self._comparer.start()
 
     @classmethod
     def open(
@@ -503,8 +519,6 @@ class Acquisition:
             if job is _STOP:
                 return
             self._run(job)  # type: ignore[arg-type]
-            if self.compare and self._jobs.empty() and not self._closing:
-                self._compare()
             if time.monotonic() - self._last_poll > 2 * ANNOTATIONS_POLL_S:
                 self._run_poll()  # a busy worker looks too
 
@@ -534,6 +548,11 @@ class Acquisition:
             with self.lock:
                 counts, snapshot = day.processor.line_counts(), day.snapshot()
             self._tell(self.listener.ended, counts, snapshot)
+            with self._cmp:  # the whole day's comparison, once, shown or not
+                self._cmp_ended = True
+                self._cmp.notify_all()
+            if self.compare and self._comparer is None:
+                self._compare()
             return
         with self.lock:
             if isinstance(job, _Fit):
@@ -550,6 +569,43 @@ class Acquisition:
             self._save_csv(views)
         for v in views:
             self._tell(self.listener.result, v)
+        if views and self.compare:
+            with self._cmp:
+                self._cmp_dirty = True
+                self._cmp_changed_at = time.monotonic()
+                self._cmp.notify_all()
+
+    # -- the comparison of the day's items (the UI's): off the fit path
+    #
+    # Computed by a thread of its own, only while the UI shows it (and once when the source
+    # ended), after the results have been quiet for COMPARE_QUIET_S, and not while fits wait:
+    # the fit worker never runs it, so a descent's fit never waits for the day's joint fit.
+
+    def show_comparison(self, shown: bool) -> None:
+        """The UI opened (True) or closed (False) the comparison: computed only while shown."""
+        with self._cmp:
+            self._cmp_shown = shown
+            self._cmp.notify_all()
+
+    def _compare_loop(self) -> None:
+        while True:
+            with self._cmp:
+                while not (
+                    self._closed or (self._cmp_dirty and (self._cmp_shown or self._cmp_ended))
+                ):
+                    self._cmp.wait()
+                if self._closed:
+                    return
+                quiet = self._cmp_changed_at + COMPARE_QUIET_S - time.monotonic()
+                if quiet > 0 or not self._jobs.empty():  # debounced; fits first
+                    self._cmp.wait(max(quiet, COMPARE_QUIET_S / 4))
+                    continue
+                self._cmp_dirty = False
+            try:
+                self._compare()
+            except Exception as exc:  # noqa: BLE001 - the comparison is a view: the day goes on
+                self._tell(self.listener.warning, f"comparison failed: {type(exc).__name__}: "
+                           f"{exc}")  # fmt: skip
 
     def _compare(self) -> None:
         with self.lock:
@@ -649,6 +705,8 @@ class Acquisition:
         if self._closed:
             return
         self._closed = True
+        with self._cmp:  # the comparison thread ends (one under way is not waited for)
+            self._cmp.notify_all()
         try:
             self.stop()
             self.end_of_input()
@@ -781,9 +839,17 @@ def replay(
     """Feed a session (with its annotations) or a plain capture through the loop, in line.
     Without a listener the replay says nothing as it goes: the caller reports its results
     (and ``warnings`` collects what the raw log's reader passed over)."""
+    import gc
+
     acq = Acquisition.open(
         config, listener or QuietListener(), date=source_date(source, date), threaded=False
     )
-    acq.replay(source, speed, warnings)
-    acq.close()
+    # a replay makes objects by the hundred thousand and keeps most: the garbage collector
+    # need not scan the set-up's (modules, the track, the grids) at every full collection
+    gc.freeze()
+    try:
+        acq.replay(source, speed, warnings)
+        acq.close()
+    finally:
+        gc.unfreeze()
     return acq

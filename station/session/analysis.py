@@ -16,6 +16,7 @@ import numpy as np
 from station.model.estimate import MISSING, FitStatus
 from station.model.fit import FitResult, fit_descent
 from station.model.physics import G_STANDARD, Conditions, Params, StraightRun, gravity_for
+from station.model.timer import TIMER_PRECISION_S
 from station.model.track_error import survey_error
 from station.session.config import StationConfig, site_track
 from station.session.records import (
@@ -44,6 +45,7 @@ class FitJob:
     air_density: float
     wind_ms: float = 0.0
     gravity: float | None = None  # m/s²; None: the analyser's (the survey's site, else standard)
+    timer_precision_s: float = TIMER_PRECISION_S  # SD of one crossing time (station.model.timer)
     problem: str = ""  # what makes the fit impossible (e.g. wind without a direction)
 
 
@@ -140,7 +142,7 @@ class Analyser:
         fit = fit_descent(
             self.track.profile, xs, t, cond, list(ids), model=job.model.value, run=run,
             survey=survey_error(self.track, list(ids)) if cov is None else None,
-            survey_time_cov=cov,
+            survey_time_cov=cov, timer_precision_s=job.timer_precision_s,
         )  # fmt: skip
         if cov is None and fit.status == FitStatus.OK and fit.survey_time_cov is not None:
             self._survey_cov[ids] = fit.survey_time_cov

@@ -23,6 +23,8 @@
     fit: {model: constant}        # constant | velocity
     latitude_deg: 46.9            # optional: the site, for local gravity, when the survey
     altitude_m: 1650              #   has none (the survey's, measured on the run, comes first)
+    timer: {precision_ms: 0.5}    # optional: SD of one crossing time; default from the
+                                  #   resolution the timer states (0.5 for 1 ms and finer)
 
 Unknown keys, wrong types and numbers that are not finite or outside a physical range (the
 ``RANGES`` below) are one clear line naming the file, line and key. A range is wide enough for
@@ -63,6 +65,8 @@ RANGES: dict[str, tuple[float, float, str]] = {
     "descent.min_speed_ms": (0.1, 20, "m/s"),  # above it every descent would time out
     "latitude_deg": (-90, 90, "°"),  # geodetic, + north: local gravity
     "altitude_m": (-500, 9000, "m"),  # of the run above sea level
+    # one crossing time's SD: a photocell's jitter is some 0.4 ms, a hand on a keypad 50 ms
+    "timer.precision_ms": (0.01, 100, "ms"),
 }
 
 #: a station config's latitude this far from the survey's is worth a line (0.1° moves g by
@@ -95,6 +99,29 @@ class DescentConfig:
     pairing: str = "auto"  # auto | bib | order (station.timing.assembly)
 
 
+@dataclass(frozen=True)
+class AirConfig:
+    """The air of the day as the config gives it: measured pressure, temperature and humidity
+    (the density computed from them), or a density alone. The metadata of a descent may give
+    its own pressure and temperature later (:meth:`station.session.day.Day.density_for`)."""
+
+    density: float  # kg/m³, given or computed
+    pressure_hpa: float | None = None  # None: the density was given
+    temperature_c: float | None = None
+    humidity_pct: float | None = None
+
+    @property
+    def measured(self) -> bool:
+        """Given as pressure, temperature (and humidity) rather than as a density."""
+        return self.pressure_hpa is not None
+
+    def given(self) -> list[tuple[str, float]]:
+        """The measured values as the config names them, in its order (none for a density)."""
+        values = [("pressure_hpa", self.pressure_hpa), ("temperature_c", self.temperature_c),
+                  ("humidity_pct", self.humidity_pct)]  # fmt: skip
+        return [(k, v) for k, v in values if v is not None]
+
+
 @dataclass
 class StationConfig:
     path: str
@@ -102,8 +129,7 @@ class StationConfig:
     survey_path: str
     channels: dict[str, str]
     mass_kg: float
-    air_density: float
-    air: dict[str, float]
+    air: AirConfig
     descent: DescentConfig = field(default_factory=DescentConfig)
     model: str = "constant"
     metadata: dict[str, str] = field(default_factory=dict)
@@ -112,19 +138,52 @@ class StationConfig:
     #: the site, for local gravity when the survey has no latitude_deg / altitude_m
     latitude_deg: float | None = None
     altitude_m: float | None = None
+    #: the timer's precision (s) as the config states it (``timer: {precision_ms: …}``); None:
+    #: from the resolution the timer states (:func:`station.model.timer.precision_from_resolution`)
+    timer_precision_s: float | None = None
     #: the season store the session is added to when its recording ends (``store:``, a path
     #: or a postgresql:// URL; None: none, unless $STATION_STORE names one)
     store: str | None = None
 
+    @property
+    def air_density(self) -> float:
+        """ρ (kg/m³) of the config's air, given or computed."""
+        return self.air.density
+
 
 _TOP = {"serial", "survey", "photocells", "skier", "ski", "wax", "notes", "air", "descent", "fit",
-        "items", "latitude_deg", "altitude_m", "store"}  # fmt: skip
+        "items", "latitude_deg", "altitude_m", "timer", "store"}  # fmt: skip
 
 
 def load_config(path: str) -> StationConfig:
+    """The station config at ``path``, checked section by section (one clear line naming the
+    file, line and key for anything wrong)."""
     text = read_yaml_text(path, "station config")
     data = parse_yaml(text, path)
     top = Section(data, path, "", _TOP)
+    # in the order of the file's documentation: with several mistakes, the first is said
+    return StationConfig(
+        path=path,
+        serial=_serial(top),
+        survey_path=_survey_path(top),
+        channels=_channels(top),
+        mass_kg=_ranged(_skier(top), "mass_kg", required=True),
+        air=_air(top),
+        descent=_descent(top),
+        model=_fit_model(top),
+        metadata=_metadata(top),
+        text=text,
+        items=_items(top),
+        latitude_deg=_ranged(top, "latitude_deg"),
+        altitude_m=_ranged(top, "altitude_m"),
+        timer_precision_s=_timer(top),
+        store=top.get("store", str) or None,
+    )
+
+
+def _serial(top: Section) -> SerialConfig:
+    """``serial:``: the port and how the timer talks on it."""
+    path = top.path
     ser = Section(
         top.data.get("serial"),
         path,
@@ -149,7 +208,7 @@ def load_config(path: str) -> StationConfig:
     port = ser.get("port", str, required=True)
     if not port.strip() or "\0" in port or len(port) > 4096:
         raise ser.error("port", f"not a port name: {port[:40]!r}")
-    serial = SerialConfig(
+    return SerialConfig(
         port=port,
         protocol=protocol,
         baudrate=baud,
@@ -160,6 +219,10 @@ def load_config(path: str) -> StationConfig:
         xonxoff=ser.get("xonxoff", bool, False),
     )
 
+
+def _survey_path(top: Section) -> str:
+    """``survey:``, relative to the config file; a regular file of sane size."""
+    path = top.path
     survey = top.get("survey", str, required=True)
     survey_path = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(path)), survey))
     if not os.path.exists(survey_path):
@@ -168,7 +231,12 @@ def load_config(path: str) -> StationConfig:
         check_regular(survey_path, MAX_YAML, "survey file")
     except InputError as exc:
         raise top.error("survey", f"survey file {survey!r}: {exc.message}") from None
+    return survey_path
 
+
+def _channels(top: Section) -> dict[str, str]:
+    """``photocells:``: timer channel -> photocell id, one photocell per channel."""
+    path = top.path
     pcs = top.data.get("photocells")
     if not isinstance(pcs, dict) or not pcs:
         raise top.error("photocells", "expected a mapping of timer channel to photocell id")
@@ -190,15 +258,14 @@ def load_config(path: str) -> StationConfig:
                 field=f"photocells.{ch}",
             )
         channels[str(ch)] = str(pc)
+    return channels
 
-    sk = Section(top.data.get("skier"), path, "skier", {"mass_kg", "name"})
-    if "skier" not in top.data:
-        raise InputError("missing required key (skier: {mass_kg: …})", path=path, field="skier")
-    mass = _ranged(sk, "mass_kg", required=True)
 
+def _air(top: Section) -> AirConfig:
+    """``air:``: a density, or pressure, temperature and humidity (not both)."""
     air_sec = Section(
         top.data.get("air"),
-        path,
+        top.path,
         "air",
         {"pressure_hpa", "temperature_c", "humidity_pct", "density"},
     )
@@ -207,70 +274,77 @@ def load_config(path: str) -> StationConfig:
             raise air_sec.error(
                 "density", "give density or pressure/temperature/humidity, not both"
             )
-        rho = _ranged(air_sec, "density")
-        air = {"density": rho}
-    else:
-        if "air" not in top.data:
-            raise InputError(
-                "missing required key (air: {pressure_hpa, temperature_c, humidity_pct}); "
-                "ρ enters CdA one to one",
-                path=path,
-                field="air",
-            )
-        air = {
-            "pressure_hpa": _ranged(air_sec, "pressure_hpa", required=True),
-            "temperature_c": _ranged(air_sec, "temperature_c", required=True),
-            "humidity_pct": _ranged(air_sec, "humidity_pct", 80.0),
-        }
-        try:
-            rho = air_density(air["pressure_hpa"], air["temperature_c"], air["humidity_pct"])
-        except ValueError as exc:
-            raise air_sec.error("humidity_pct", str(exc)) from None
+        return AirConfig(density=_ranged(air_sec, "density"))
+    if "air" not in top.data:
+        raise InputError(
+            "missing required key (air: {pressure_hpa, temperature_c, humidity_pct}); "
+            "ρ enters CdA one to one",
+            path=top.path,
+            field="air",
+        )
+    pressure = _ranged(air_sec, "pressure_hpa", required=True)
+    temperature = _ranged(air_sec, "temperature_c", required=True)
+    humidity = _ranged(air_sec, "humidity_pct", 80.0)
+    try:
+        rho = air_density(pressure, temperature, humidity)
+    except ValueError as exc:
+        raise air_sec.error("humidity_pct", str(exc)) from None
+    return AirConfig(rho, pressure, temperature, humidity)
 
+
+def _descent(top: Section) -> DescentConfig:
+    """``descent:``: how impulses become descents."""
     dsec = Section(
         top.data.get("descent"),
-        path,
+        top.path,
         "descent",
         {"debounce_s", "timeout_s", "min_speed_ms", "pairing"},
     )
     pairing = dsec.get("pairing", str, "auto")
     if pairing not in PAIRINGS:
         raise dsec.error("pairing", f"unknown pairing {pairing!r} ({', '.join(PAIRINGS)})")
-    descent = DescentConfig(
+    return DescentConfig(
         debounce_s=_ranged(dsec, "debounce_s", 0.3),
         timeout_s=_ranged(dsec, "timeout_s"),
         min_speed_ms=_ranged(dsec, "min_speed_ms", 1.0),
         pairing=pairing,
     )
-    fsec = Section(top.data.get("fit"), path, "fit", {"model"})
+
+
+def _fit_model(top: Section) -> str:
+    """``fit: {model: …}``: constant or velocity-dependent friction."""
+    fsec = Section(top.data.get("fit"), top.path, "fit", {"model"})
     model = fsec.get("model", str, "constant")
     if model not in ("constant", "velocity"):
         raise fsec.error("model", f"unknown model {model!r} (constant, velocity)")
+    return model
 
+
+def _timer(top: Section) -> float | None:
+    """``timer: {precision_ms: …}``: the SD of one crossing time (s); None when not given."""
+    tsec = Section(top.data.get("timer"), top.path, "timer", {"precision_ms"})
+    precision_ms = _ranged(tsec, "precision_ms")
+    return None if precision_ms is None else precision_ms * 1e-3
+
+
+def _skier(top: Section) -> Section:
+    """``skier: {mass_kg: …, name: …}`` (required: the mass enters every fit)."""
+    sk = Section(top.data.get("skier"), top.path, "skier", {"mass_kg", "name"})
+    if "skier" not in top.data:
+        raise InputError("missing required key (skier: {mass_kg: …})", path=top.path, field="skier")
+    return sk
+
+
+def _metadata(top: Section) -> dict[str, str]:
+    """The skier's name, ski, wax and notes: the results' metadata until the UI says else."""
+    sk = _skier(top)
     metadata = {}
     if sk.has("name"):
         metadata["skier"] = sk.get("name", str)
     for key in ("ski", "wax", "notes"):
         if top.has(key):
             metadata[key] = top.get(key, str)
-    items = _items(top)
-    return StationConfig(
-        path=path,
-        serial=serial,
-        survey_path=survey_path,
-        channels=channels,
-        mass_kg=mass,
-        air_density=rho,
-        air=air,
-        descent=descent,
-        model=model,
-        metadata=metadata,
-        text=text,
-        items=items,
-        latitude_deg=_ranged(top, "latitude_deg"),
-        altitude_m=_ranged(top, "altitude_m"),
-        store=top.get("store", str) or None,
-    )
+    return metadata
 
 
 def site_track(track: Track, config: StationConfig | None) -> tuple[Track, str]:

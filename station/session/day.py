@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 from station.errors import InputError
 from station.model.air import air_density
+from station.model.timer import precision_from_resolution
 from station.session.analysis import Analyser, DescentResult, FitJob, start_time
 from station.session.config import StationConfig
 from station.session.processor import Processor
@@ -89,10 +90,11 @@ class Day:
     def _config_metadata(self) -> Metadata:
         cfg = self.config
         values: dict[str, object] = {"mass_kg": cfg.mass_kg, **cfg.metadata}
-        if "pressure_hpa" in cfg.air:
-            values["pressure_hpa"] = cfg.air["pressure_hpa"]
-            values["air_temperature_c"] = cfg.air["temperature_c"]
-            values["humidity_pct"] = cfg.air["humidity_pct"]
+        air = cfg.air
+        if air.measured:
+            values["pressure_hpa"] = air.pressure_hpa
+            values["air_temperature_c"] = air.temperature_c
+            values["humidity_pct"] = air.humidity_pct
         return Metadata.from_values(values)
 
     def metadata_for(self, number: int) -> Metadata:
@@ -127,18 +129,23 @@ class Day:
     def density_for(self, meta: Metadata) -> float:
         """Air density from the descent's metadata where it has P, T, RH; else the config's."""
         air = self.config.air
-        if "density" in air and meta.pressure_hpa is None and meta.air_temperature_c is None:
-            return self.config.air_density
-        p = meta.pressure_hpa if meta.pressure_hpa is not None else air.get("pressure_hpa")
-        t = (
-            meta.air_temperature_c
-            if meta.air_temperature_c is not None
-            else air.get("temperature_c")
-        )
-        h = meta.humidity_pct if meta.humidity_pct is not None else air.get("humidity_pct", 80.0)
+        if not air.measured and meta.pressure_hpa is None and meta.air_temperature_c is None:
+            return air.density
+        p = meta.pressure_hpa if meta.pressure_hpa is not None else air.pressure_hpa
+        t = meta.air_temperature_c if meta.air_temperature_c is not None else air.temperature_c
+        h = meta.humidity_pct if meta.humidity_pct is not None else air.humidity_pct
+        if h is None:
+            h = 80.0
         if p is None or t is None:
             return self.config.air_density
         return air_density(float(p), float(t), float(h))
+
+    def timer_precision_s(self) -> float:
+        """The SD (s) of one crossing time the fits are judged against: the config's
+        ``timer.precision_ms``, else from the resolution the timer states in its impulses."""
+        if self.config.timer_precision_s is not None:
+            return self.config.timer_precision_s
+        return precision_from_resolution(self.processor.resolution_us)
 
     def progress(self) -> Progress:
         cur = self.processor.assembler.current
@@ -170,6 +177,7 @@ class Day:
             mass_kg=float(meta.mass_kg if meta.mass_kg is not None else self.config.mass_kg),
             air_density=self.density_for(meta),
             wind_ms=wind,
+            timer_precision_s=self.timer_precision_s(),
             problem=problem,
         )
 

@@ -54,11 +54,17 @@ class Processor:
             pairing=config.descent.pairing,
         )
         self.lines = 0
-        self.counts: Counter[str] = Counter()
+        self.counts: Counter[str] = Counter()  # edits, skipped and unparsed lines
+        self.impulses = 0  # counted apart: one per impulse line, the common case
         self.unparsed: list[tuple[int, str, str]] = []  # line number, reason, text (first 100)
         self.connection: list[tuple[float, str, str]] = []
         self.offset_us: int | None = None  # device clock − host clock
         self.start_host: dict[int, float | None] = {}
+        #: the resolution (µs) the timer states in its first impulse from a photocell (not a
+        #: keypad's 1/100 s): the default of the timer's precision (station.model.timer); fixed
+        #: from then on, so a live day and its replay judge every descent alike
+        self.resolution_us: int | None = None
+        self._photocell_channels = frozenset(config.channels)
 
     @property
     def events(self) -> list[ImpulseEvent]:
@@ -67,7 +73,7 @@ class Processor:
     def line_counts(self) -> LineCounts:
         """A snapshot of the counts, for the summary and the UI."""
         c = self.counts
-        return LineCounts(self.lines, c["impulse"], c["edit"], c["skipped"], c["unparsed"])
+        return LineCounts(self.lines, self.impulses, c["edit"], c["skipped"], c["unparsed"])
 
     def feed(self, chunk: Chunk) -> list[TimedDescent]:
         if chunk.event:
@@ -79,24 +85,32 @@ class Processor:
                 self.assembler.disconnected(chunk.detail)
             return []
         done: list[TimedDescent] = []
+        t = chunk.t
         for line in self.framer.feed(chunk.data):
-            done += self._line(line, chunk.t)
+            ended = self._line(line, t)
+            if ended:
+                done += ended
         return done
 
     def _line(self, line: str, t: float | None) -> list[TimedDescent]:
         self.lines += 1
         parsed = self.parser.parse(line)
-        if isinstance(parsed, Impulse):
-            self.counts["impulse"] += 1
-            before = self.assembler.count
+        if type(parsed) is Impulse:
+            self.impulses += 1
+            asm = self.assembler
+            if self.resolution_us is None and parsed.channel in self._photocell_channels:
+                self.resolution_us = parsed.resolution_us
+            before = asm.count
             now = None
-            if t is not None and t == t and self.offset_us is not None:
+            if t is not None and self.offset_us is not None and t == t:
                 now = round(t * 1e6) + self.offset_us  # the device time now, by the host clock
-            done = self.assembler.feed(parsed, self.lines, now)
-            if t is not None and self.assembler.clock is not None:
-                self.offset_us = self.assembler.clock - round(t * 1e6)
-            if self.assembler.count > before:
-                self.start_host[self.assembler.count] = t
+            done = asm.feed(parsed, self.lines, now)
+            if t is not None:
+                clock = asm.clock
+                if clock is not None:
+                    self.offset_us = clock - round(t * 1e6)
+            if asm.count > before:
+                self.start_host[asm.count] = t
             return done
         if isinstance(parsed, Edit):
             self.counts["edit"] += 1

@@ -38,6 +38,7 @@ class ResultStatus(StrEnum):
     POOR_FIT = "poor-fit"  # residuals far above the timer's precision (χ² test)
     ABORTED = "aborted"  # a lone start impulse: nothing to fit
     ERROR = "error"  # the fit raised: the reason is in the flags
+    INVALID = "invalid"  # the results CSV's word for a descent marked invalid (invalid_reason)
 
 
 class DescentStatus(StrEnum):
@@ -452,6 +453,10 @@ def csv_record(row: ResultRow) -> dict[str, Any]:
             v = (" " if key == "missing" else "; ").join(v)
         elif isinstance(v, StrEnum):
             v = v.value
+        if key == "status" and row.invalid_reason:
+            # a descent marked invalid does not read "ok" to whoever filters on the status;
+            # its fit stays in the other columns, the reason in invalid_reason
+            v = ResultStatus.INVALID.value
         out[key] = v
     for f in METADATA_FIELDS:
         if f.column:

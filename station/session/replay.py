@@ -15,6 +15,7 @@ import time
 from collections.abc import Iterator
 from typing import IO
 
+from station.files import MAX_CAPTURE, open_regular
 from station.session import store as sessions
 from station.session.processor import Processor
 from station.session.rawlog import Chunk, read_rawlog
@@ -25,8 +26,6 @@ CAPTURE_CHUNK = 4096
 
 def capture_chunks(path: str) -> Iterator[Chunk]:
     """A plain capture of a timer's output: bytes without host times."""
-    from station.files import MAX_CAPTURE, open_regular
-
     with open_regular(path, MAX_CAPTURE, "capture") as fh:
         while data := fh.read(CAPTURE_CHUNK):
             yield Chunk(float("nan"), data)

@@ -32,12 +32,23 @@ import socket
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from types import ModuleType
 
 from station.errors import InputError
 from station.files import MAX_OBSERVATIONS, MAX_YAML, read_bytes, read_text
 from station.session.config import StationConfig, load_config
 from station.session.records import Annotation, annotation_from_json, annotation_to_json
 from station.yamlfile import load_yaml
+
+#: flock, where the system has it (not on Windows: whether a session is recorded is then
+#: "cannot tell", and the annotations file is written without a lock)
+fcntl: ModuleType | None
+try:
+    import fcntl as _fcntl
+
+    fcntl = _fcntl
+except ImportError:
+    fcntl = None
 
 #: an annotations file is the engineer's typing: kilobytes
 MAX_ANNOTATIONS = 64 * 1024 * 1024
@@ -174,7 +185,7 @@ def _digest(path: str) -> str:
 def results_header(cfg: StationConfig, survey_name: str) -> dict[str, str]:
     """What the results were computed from, the same live and in replay."""
     # the config's air data, then the density it gives (a given density is not said twice)
-    air = "".join(f"{k} {v:g} | " for k, v in cfg.air.items() if k != "density")
+    air = "".join(f"{k} {v:g} | " for k, v in cfg.air.given())
     return {
         "survey": f"{survey_name} ({os.path.basename(cfg.survey_path)} | "
         f"sha256 {_digest(cfg.survey_path)})",
@@ -320,11 +331,11 @@ class RecordingLock:
             ) from None
         problem = ""
         try:
-            import fcntl
-
+            if fcntl is None:
+                raise OSError(0, "this system has no flock")
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except (ImportError, OSError) as exc:
-            why = getattr(exc, "strerror", None) or str(exc)
+        except OSError as exc:
+            why = exc.strerror or str(exc)
             problem = (f"cannot lock {path} ({why}): station sessions cannot tell whether this "
                        "session is being recorded")  # fmt: skip
         info = {"pid": os.getpid(), "host": socket.gethostname(), "t": time.time()}
@@ -356,8 +367,8 @@ def recording_state(session: str) -> Recording:
     except OSError:
         return Recording.UNKNOWN
     try:
-        import fcntl
-
+        if fcntl is None:
+            return Recording.UNKNOWN
         try:
             fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
         except OSError as exc:
@@ -368,8 +379,6 @@ def recording_state(session: str) -> Recording:
         except FileNotFoundError:
             same = False
         return Recording.INTERRUPTED if same else Recording.ENDED
-    except ImportError:
-        return Recording.UNKNOWN
     finally:
         os.close(fd)
 
@@ -402,9 +411,7 @@ def annotations_locked(session: str, timeout_s: float | None = None) -> Iterator
 
 
 def _flock_within(fd: int, timeout_s: float | None) -> bool | None:
-    try:
-        import fcntl
-    except ImportError:
+    if fcntl is None:
         return None
     deadline = None if timeout_s is None else time.monotonic() + timeout_s
     while True:

@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass, field
 
 from station.errors import InputError
+from station.survey.polar import ObservationSet, Setup, interpret_gsi
 
 FOOT_M = 0.3048
 
@@ -167,6 +168,13 @@ def parse_gsi(text: str, path: str = "<gsi>") -> list[GsiBlock]:
             block.words[word.wi] = word
         blocks.append(block)
     return blocks
+
+
+def read_gsi_text(
+    text: str, path: str = "<gsi>", default_setup: Setup | None = None
+) -> ObservationSet:
+    """A GSI file's text → setups, observations and known points (see ``interpret_gsi``)."""
+    return interpret_gsi(parse_gsi(text, path), path, default_setup)
 
 
 def read_gsi(path: str) -> list[GsiBlock]:

@@ -3,7 +3,7 @@
 A survey YAML (documented in ``surveys/README.md``)::
 
     name: Demo run
-    observations: demo_run.gsi        # a Leica GSI-8/16 file, relative to this YAML ...
+    observations: demo_run.gsi        # any observation file (formats.py), relative to this ...
     # setups: [...]                    # ... or the polar observations inline (see README)
     refraction_k: 0.13                 # null: no curvature and refraction correction
     angle_unit: gon                    # of inline observations and orientations
@@ -25,6 +25,14 @@ import re
 from dataclasses import dataclass, field, replace
 
 from station.errors import InputError
+from station.survey.formats import (
+    FORMAT_NAMES,
+    is_points_csv,
+    read_observations,
+    read_text,
+    sniff,
+)
+from station.survey.network import NetworkResult, place_setups
 from station.survey.polar import (
     KnownPoint,
     Observation,
@@ -32,7 +40,6 @@ from station.survey.polar import (
     Precision,
     ReducedPoint,
     Setup,
-    interpret_gsi,
     reduce_all,
 )
 from station.yamlfile import LineList, Section, load_yaml
@@ -72,6 +79,12 @@ class Survey:
     #: altitude of the run above sea level (m) when the survey's heights are local; None: the
     #: survey's own heights are above sea level
     altitude_m: float | None = None
+    #: the setups placed by a free-network adjustment (setups without coordinates), else None
+    network: NetworkResult | None = None
+    #: the observation file's format as found from its content ("" for inline observations)
+    format: str = ""
+    #: a bare observation or coordinate file (no survey YAML, so no photocells)
+    bare: bool = False
 
 
 def parse_angle(value: object, unit: str, where: Section, key: str) -> float:
@@ -236,31 +249,77 @@ _TOP_KEYS = {
 }
 
 
+def _yaml_like(path: str, text: str) -> bool:
+    """A survey YAML by name or by its look (a ``key:`` line): its errors are YAML errors."""
+    if path.lower().endswith((".yaml", ".yml")):
+        return True
+    return any(_YAML_KEY.match(line) for line in text.splitlines()[:50])
+
+
+_YAML_KEY = re.compile(r"^[A-Za-z_][\w-]*\s*:(\s|$)")
+
+
 def load_survey(path: str) -> Survey:
-    """Load a survey YAML (or a bare .gsi file, which has no photocells) and reduce it."""
-    if path.lower().endswith(".gsi"):
-        from station.survey.gsi import read_gsi  # here: a survey of coordinates needs no GSI
+    """Load a survey: a YAML, or bare any observation file the station reads (no photocells),
+    or a bare points CSV. The format is found from the content; an unknown file gets one line
+    naming the formats read."""
+    text = read_text(path)
+    fmt = sniff(text)
+    if fmt is not None:
+        return _bare(path, fmt.read(text, path, None), [])
+    if is_points_csv(text):
+        from station.survey.coords import read_points_csv  # only a list of points needs it
 
-        blocks = read_gsi(path)
-        obs = interpret_gsi(blocks, path)
-        reduced = reduce_all(obs)
-        return _assemble(path, os.path.basename(path), obs, reduced, [], [], None, 0.13)
-
+        return _bare(path, ObservationSet(format="points CSV"), read_points_csv(path, 0.005))
+    if not _yaml_like(path, text):
+        raise InputError(f"not a survey file: the station reads {FORMAT_NAMES}", path=path)
     data = load_yaml(path)
-    top = Section(data, path, "", _TOP_KEYS)
-    unit = top.get("angle_unit", str, "gon")
-    if unit not in ANGLE_UNITS and unit != "dms":
-        raise top.error("angle_unit", f"unknown angle unit {unit!r} (gon, deg, dms, mil, rad)")
-    k = top.get("refraction_k", float, 0.13) if "refraction_k" in top.data else 0.13
-    if "refraction_k" in top.data and top.data["refraction_k"] is None:
-        k = None
+    if not isinstance(data, dict):
+        raise InputError(f"not a survey file: the station reads {FORMAT_NAMES}", path=path)
+    return _load_yaml_survey(path, data)
+
+
+def _bare(path: str, obs: ObservationSet, coords: list[ReducedPoint]) -> Survey:
+    obs, network = place_setups(obs, path)
+    reduced = reduce_all(obs) + coords + _known_points(obs, Precision())
+    survey = _assemble(path, os.path.basename(path), obs, reduced, [], [], None, 0.13)
+    survey.network = network
+    survey.format = obs.format
+    survey.bare = True
+    return survey
+
+
+def _known_points(obs: ObservationSet, precision: Precision) -> list[ReducedPoint]:
+    """Points the file gives by coordinates and no setup observes (an SDR ``08`` record, a
+    LandXML ``CgPoint``), as points; the coordinates of an observed point or a station are the
+    instrument's own result and stay in ``Survey.known`` for checking."""
+    observed = {o.point for o in obs.observations} | {s.station for s in obs.setups}
+    sigma = precision.target_mm * 1e-3
+    return [
+        ReducedPoint(
+            point=k.point,
+            e=k.e,
+            n=k.n,
+            h=k.h,
+            sigma_h=sigma,
+            sigma_xy=sigma,
+            horizontal_distance=math.inf,
+            setup="coordinates",
+            line=k.line,
+        )
+        for k in obs.known
+        if k.point not in observed
+    ]
+
+
+def _precision(top: Section, path: str) -> Precision:
     psec = Section(
         top.data.get("precision"),
         path,
         "precision",
         {"angle_arcsec", "distance_mm", "distance_ppm", "target_mm"},
     )
-    precision = Precision(
+    return Precision(
         # ranges wide enough for any instrument and pole on snow, narrow enough to catch a
         # wrong unit (an angle in degrees, a distance in metres) before it overflows a weight
         angle_arcsec=psec.number("angle_arcsec", 0.01, 600.0, 3.0, unit="″"),
@@ -268,46 +327,32 @@ def load_survey(path: str) -> Survey:
         distance_ppm=psec.number("distance_ppm", 0.0, 1000.0, 2.0, unit="ppm"),
         target_mm=psec.number("target_mm", 0.01, 1000.0, 5.0, unit="mm"),
     )
-    default_setup = None
-    if top.has("default_setup"):
-        dsec = Section(top.data["default_setup"], path, "default_setup", _SETUP_KEYS)
-        default_setup = _setup_from(dsec, unit, "default")
 
+
+def _observations(
+    top: Section, path: str, unit: str, default_setup: Setup | None
+) -> ObservationSet:
+    """The survey's observations: a file in any format read, or inline ``setups:``."""
     has_file, has_inline = top.has("observations"), top.has("setups")
-    has_points = top.has("points")
-    if has_file and has_inline or not (has_file or has_inline or has_points):
+    if has_file and has_inline or not (has_file or has_inline or top.has("points")):
         raise InputError(
             "give 'observations: FILE' or inline 'setups:' (not both), and/or 'points: FILE.csv'",
             path=path,
-            line=getattr(data, "line", None),
+            line=getattr(top.data, "line", None),
             field="observations",
         )
-    if has_file:
-        obs_path = top.get("observations", str)
-        full = os.path.join(os.path.dirname(os.path.abspath(path)), obs_path)
-        if not full.lower().endswith(".gsi"):
-            raise top.error(
-                "observations", f"unknown observation file type {obs_path!r} (expected .gsi)"
-            )
-        if not os.path.exists(full):
-            raise top.error("observations", f"observation file {obs_path!r} not found")
-        from station.survey.gsi import read_gsi
+    if has_inline:
+        return _inline_observations(top, path, unit)
+    if not has_file:
+        return ObservationSet()
+    obs_path = top.get("observations", str)
+    full = os.path.join(os.path.dirname(os.path.abspath(path)), obs_path)
+    if not os.path.exists(full):
+        raise top.error("observations", f"observation file {obs_path!r} not found")
+    return read_observations(full, default_setup)
 
-        obs = interpret_gsi(read_gsi(full), full, default_setup)
-    elif has_inline:
-        obs = _inline_observations(top, path, unit)
-    else:
-        obs = ObservationSet()
-    reduced = reduce_all(obs, k, precision)
-    if has_points:
-        csv_path = top.get("points", str)
-        full = os.path.join(os.path.dirname(os.path.abspath(path)), csv_path)
-        if not os.path.exists(full):
-            raise top.error("points", f"coordinate file {csv_path!r} not found")
-        from station.survey.coords import read_points_csv  # only a survey with points needs it
 
-        reduced += read_points_csv(full, precision.target_mm * 1e-3)
-
+def _photocells(top: Section, path: str) -> list[PhotocellDef]:
     photocells: list[PhotocellDef] = []
     raw_pcs = top.data.get("photocells") or []
     if not isinstance(raw_pcs, list):
@@ -336,7 +381,11 @@ def load_survey(path: str) -> Survey:
                 "photocell listed twice", path=path, line=pc.line, field=f"photocells {pc.id}"
             )
         seen.add(pc.id)
+    return photocells
 
+
+def _selection(top: Section) -> tuple[list[str], re.Pattern[str] | None]:
+    """``exclude:`` and ``profile_pattern:``: which observed points are not the profile."""
     exclude = top.data.get("exclude") or []
     if not isinstance(exclude, list):
         raise top.error("exclude", "expected a list of point ids")
@@ -346,34 +395,74 @@ def load_survey(path: str) -> Survey:
             pattern = re.compile(top.get("profile_pattern", str))
         except re.error as exc:
             raise top.error("profile_pattern", f"not a regular expression: {exc}") from None
+    return [str(e) for e in exclude], pattern
+
+
+def _site(top: Section) -> tuple[float | None, float | None]:
+    """``latitude_deg`` and ``altitude_m``, for local gravity."""
     latitude = top.get("latitude_deg", float)
     if latitude is not None and not (math.isfinite(latitude) and -90.0 <= latitude <= 90.0):
         raise top.error("latitude_deg", f"must lie between -90 and 90 degrees, got {latitude!r}")
     altitude = top.get("altitude_m", float)
     if altitude is not None and not (math.isfinite(altitude) and -500.0 <= altitude <= 9000.0):
         raise top.error("altitude_m", f"must lie between -500 and 9000 m, got {altitude!r}")
-    survey = _assemble(
-        path,
-        top.get("name", str, os.path.basename(path)),
-        obs,
-        reduced,
-        photocells,
-        [str(e) for e in exclude],
-        pattern,
-        k,
-    )
-    observed = set(survey.points)
-    for pc in photocells:
+    return latitude, altitude
+
+
+def _check_observed(survey: Survey, obs: ObservationSet, path: str) -> None:
+    """Every photocell post must be a point of the survey; say why one is not."""
+    for pc in survey.photocells:
         for p in pc.points:
-            if p not in observed:
-                raise InputError(
-                    f"photocell point {p!r} was never observed in the survey",
-                    path=path,
-                    line=pc.line,
-                    field=f"photocells {pc.id}",
+            if p in survey.points:
+                continue
+            why = ""
+            if p in obs.unreduced:
+                why = (
+                    f" (line {obs.unreduced[p]} of the observations has its angles but no distance)"
                 )
+            raise InputError(
+                f"photocell point {p!r} was never observed in the survey{why}",
+                path=path,
+                line=pc.line,
+                field=f"photocells {pc.id}",
+            )
+
+
+def _load_yaml_survey(path: str, data: object) -> Survey:
+    """A survey YAML: observations (any format or inline), points, photocells, site."""
+    top = Section(data, path, "", _TOP_KEYS)
+    unit = top.get("angle_unit", str, "gon")
+    if unit not in ANGLE_UNITS and unit != "dms":
+        raise top.error("angle_unit", f"unknown angle unit {unit!r} (gon, deg, dms, mil, rad)")
+    k = top.get("refraction_k", float, 0.13) if "refraction_k" in top.data else 0.13
+    if "refraction_k" in top.data and top.data["refraction_k"] is None:
+        k = None
+    precision = _precision(top, path)
+    default_setup = None
+    if top.has("default_setup"):
+        dsec = Section(top.data["default_setup"], path, "default_setup", _SETUP_KEYS)
+        default_setup = _setup_from(dsec, unit, "default")
+    obs = _observations(top, path, unit, default_setup)
+    obs, network = place_setups(obs, path, k, precision, default_setup)
+    reduced = reduce_all(obs, k, precision) + _known_points(obs, precision)
+    if top.has("points"):
+        csv_path = top.get("points", str)
+        full = os.path.join(os.path.dirname(os.path.abspath(path)), csv_path)
+        if not os.path.exists(full):
+            raise top.error("points", f"coordinate file {csv_path!r} not found")
+        from station.survey.coords import read_points_csv  # only a survey with points needs it
+
+        reduced += read_points_csv(full, precision.target_mm * 1e-3)
+    photocells = _photocells(top, path)
+    exclude, pattern = _selection(top)
+    latitude, altitude = _site(top)
+    name = top.get("name", str, os.path.basename(path))
+    survey = _assemble(path, name, obs, reduced, photocells, exclude, pattern, k)
+    _check_observed(survey, obs, path)
     survey.latitude_deg = latitude
     survey.altitude_m = altitude
+    survey.network = network
+    survey.format = obs.format
     return survey
 
 
@@ -387,7 +476,7 @@ def _assemble(
     pattern: re.Pattern[str] | None,
     k: float | None,
 ) -> Survey:
-    warnings: list[str] = []
+    warnings: list[str] = list(obs.warnings)
     points = _group_points(reduced, warnings)
     ambiguous = {pid.split("@")[0] for pid in points if "@" in pid}
     for pc in photocells:

@@ -50,6 +50,9 @@ class Setup:
     instrument_height: float = 0.0
     orientation: float = 0.0  # radians, added to Hz to give the azimuth
     line: int | None = None
+    #: False: the file gives no coordinates for this setup (a GSI code block ``41``/``42``);
+    #: it is placed from the points it shares with other setups (:mod:`station.survey.network`)
+    known: bool = True
 
 
 @dataclass(frozen=True)
@@ -102,6 +105,12 @@ class ObservationSet:
     setups: list[Setup] = field(default_factory=list)
     observations: list[Observation] = field(default_factory=list)
     known: list[KnownPoint] = field(default_factory=list)
+    #: what the reader passed over and the user should know (one line each)
+    warnings: list[str] = field(default_factory=list)
+    #: observations that could not be reduced (angles without a distance): point id -> line
+    unreduced: dict[str, int] = field(default_factory=dict)
+    #: the format's name as shown to the user (e.g. "Leica GSI-16")
+    format: str = ""
 
 
 def curvature_refraction(hd: float, k: float | None) -> float:
@@ -149,61 +158,104 @@ def reduce_observation(
     )
 
 
+def _gsi_observation(b: GsiBlock, pid: str, setup: Setup, path: str) -> Observation:
+    zenith = b.value("22")
+    assert zenith is not None
+    if not (0.0 < zenith < math.pi * 2):
+        raise InputError(
+            "zenith angle must lie between 0 and 400 gon",
+            path=path,
+            line=b.line,
+            field="WI 22 (zenith angle)",
+        )
+    enh = None
+    if b.has("81", "82", "83"):
+        enh = (b.value("81"), b.value("82"), b.value("83"))
+    return Observation(
+        point=pid,
+        hz=float(b.value("21")),  # type: ignore[arg-type]
+        zenith=float(zenith),
+        slope_distance=b.value("31"),
+        horizontal_distance=b.value("32"),
+        reflector_height=float(b.value("87") or 0.0),
+        instrument_height=b.value("88"),
+        setup=setup,
+        line=b.line,
+        instrument_enh=enh,  # type: ignore[arg-type]
+    )
+
+
+def _code_block_setup(b: GsiBlock, path: str) -> Setup:
+    """A code block ``41`` with ``42`` (station name) and ``43`` (instrument height, mm)."""
+    name = b.words["42"].text.lstrip("0") or "0"
+    hi = 0.0
+    if "43" in b.words:
+        text = b.words["43"].text
+        if not text.isdigit():
+            raise InputError(
+                f"instrument height {text!r} is not a number of millimetres",
+                path=path,
+                line=b.line,
+                field="WI 43 (instrument height)",
+            )
+        hi = int(text) / 1000.0
+    return Setup(station=name, instrument_height=hi, line=b.line, known=False)
+
+
+def _unreduced_warning(unreduced: dict[str, int]) -> str:
+    shown = ", ".join(f"{pid} (line {line})" for pid, line in list(unreduced.items())[:8])
+    more = f" and {len(unreduced) - 8} more" if len(unreduced) > 8 else ""
+    n = len(unreduced)
+    return (
+        f"{n} block{'s' * (n != 1)} with angles but no distance (WI 31 or 32) not reduced: "
+        f"{shown}{more}"
+    )
+
+
 def interpret_gsi(
     blocks: list[GsiBlock], path: str, default_setup: Setup | None = None
 ) -> ObservationSet:
     """Sort GSI blocks into station setups, polar observations and known points.
 
     - a block with any of WI 84/85/86 starts a new setup (88 instrument height, 25 recorded);
+      right after a code-block setup (below) it gives that setup its coordinates instead;
+    - a code block ``41`` with ``42`` (station name) and ``43`` (instrument height, mm) starts
+      a new setup without coordinates, placed later from the points several setups observe;
     - a block with 21, 22 and 31 or 32 is an observation (87 reflector height, 88 if present
       overrides the setup's instrument height, 81–83 kept as the instrument's own result);
+      with 21 and 22 but no distance it cannot be reduced: a warning names its line;
     - a block with 81/82/83 but no angles is a known point;
-    - anything else (code blocks 41–49, remarks) is passed over.
+    - anything else (other code blocks, remarks) is passed over.
     Observations before the first station block belong to ``default_setup`` (the survey YAML's
     ``default_setup``, else a station at 0, 0, 0 with instrument height 0).
     """
-    out = ObservationSet()
+    out = ObservationSet(format="Leica GSI")
     setup = default_setup or Setup(station="default")
     out.setups.append(setup)
     for b in blocks:
         pid = b.point_id or f"block{b.line}"
         if b.has("21", "22") and (b.has("31") or b.has("32")):
-            zenith = b.value("22")
-            assert zenith is not None
-            if not (0.0 < zenith < math.pi * 2):
-                raise InputError(
-                    "zenith angle must lie between 0 and 400 gon",
-                    path=path,
-                    line=b.line,
-                    field="WI 22 (zenith angle)",
-                )
-            enh = None
-            if b.has("81", "82", "83"):
-                enh = (b.value("81"), b.value("82"), b.value("83"))
-            out.observations.append(
-                Observation(
-                    point=pid,
-                    hz=float(b.value("21")),  # type: ignore[arg-type]
-                    zenith=float(zenith),
-                    slope_distance=b.value("31"),
-                    horizontal_distance=b.value("32"),
-                    reflector_height=float(b.value("87") or 0.0),
-                    instrument_height=b.value("88"),
-                    setup=setup,
-                    line=b.line,
-                    instrument_enh=enh,  # type: ignore[arg-type]
-                )
-            )
+            out.observations.append(_gsi_observation(b, pid, setup, path))
+        elif b.has("21", "22"):
+            out.unreduced.setdefault(pid, b.line)
         elif b.has("84") or b.has("85") or b.has("86"):
-            setup = Setup(
-                station=pid,
+            fresh = not setup.known and not any(o.setup is setup for o in out.observations)
+            new = Setup(
+                station=setup.station if fresh else pid,
                 e=float(b.value("84") or 0.0),
                 n=float(b.value("85") or 0.0),
                 h=float(b.value("86") or 0.0),
-                instrument_height=float(b.value("88") or 0.0),
+                instrument_height=float(b.value("88") or (setup.instrument_height if fresh else 0)),
                 orientation=default_setup.orientation if default_setup else 0.0,
-                line=b.line,
+                line=setup.line if fresh else b.line,
             )
+            if fresh:
+                out.setups[-1] = new
+            else:
+                out.setups.append(new)
+            setup = new
+        elif b.has("41", "42"):
+            setup = _code_block_setup(b, path)
             out.setups.append(setup)
         elif b.has("81") or b.has("82") or b.has("83"):
             out.known.append(
@@ -218,6 +270,12 @@ def interpret_gsi(
     first = out.setups[0]
     if not any(o.setup is first for o in out.observations):
         out.setups.remove(first)  # a file that starts with its station block: no such setup
+    if out.unreduced:
+        out.warnings.append(_unreduced_warning(out.unreduced))
+    if any(b.gsi16 for b in blocks):
+        out.format = "Leica GSI-16"
+    elif blocks:
+        out.format = "Leica GSI-8"
     return out
 
 

@@ -255,18 +255,24 @@ def screen_and_fit(xg: Array, yg: Array, sg: Array, max_removed: int) -> Screene
         removed.append((int(idx[worst]), loo, float(z[worst])))
 
 
-def build_track(survey: Survey) -> Track:
-    """Project the survey onto the fall line, fit the profile spline, place the photocells."""
-    pts = [survey.points[p] for p in survey.profile_ids]
-    if len(pts) < 6:
-        raise InputError(
-            f"only {len(pts)} profile points; at least 6 are needed to fit the track profile",
-            path=survey.path,
-            field="profile points",
-        )
-    en = np.array([[p.e, p.n] for p in pts])
-    hh = np.array([p.h for p in pts])
-    sig = np.array([p.sigma_h for p in pts])
+@dataclass(frozen=True)
+class _Frame:
+    """The fall-line frame: origin (E, N) at the uppermost point, downhill axis u, left normal."""
+
+    origin: Array
+    u: Array
+    left: Array
+
+    def x(self, en: Array) -> Array:
+        return (en - self.origin) @ self.u
+
+    def lateral(self, en: Array) -> Array:
+        return (en - self.origin) @ self.left
+
+
+def _fall_line(en: Array, hh: Array) -> _Frame:
+    """Step 1: the principal direction of the points' (E, N), oriented downhill, its origin at
+    the uppermost point."""
     centre = en.mean(axis=0)
     _, _, vt = np.linalg.svd(en - centre, full_matrices=False)
     u = vt[0]
@@ -278,15 +284,39 @@ def build_track(survey: Survey) -> Track:
     origin = centre + u * proj.min()
     x_all = (en - origin) @ u
     origin = origin + u * x_all.min()
-    x_all = (en - origin) @ u
+    return _Frame(origin, u, left)
+
+
+@dataclass(frozen=True)
+class _Sorted:
+    """The profile points along x, and the groups closer than MERGE_M merged."""
+
+    ids: list[str]
+    x: Array
+    y: Array
+    s: Array
+    lat: Array
+    groups: list[list[int]]
+    xg: Array
+    yg: Array
+    sg: Array
+
+    def named(self, gis: list[int]) -> str:
+        names = [f"{self.ids[i]} ({self.lat[i]:+.1f} m lateral)" for gi in gis
+                 for i in self.groups[gi]]  # fmt: skip
+        more = f" and {len(names) - 8} more" if len(names) > 8 else ""
+        return ", ".join(names[:8]) + more
+
+
+def _sorted_points(survey: Survey, frame: _Frame, pts: list) -> _Sorted:
+    """Step 2: the points in track coordinates, sorted by x, near-duplicates merged."""
+    en = np.array([[p.e, p.n] for p in pts])
+    x_all = frame.x(en)
     x_all -= x_all.min()  # exactly 0 at the uppermost point (rounding left ±1e-14)
-    lat_all = (en - origin) @ left
-
     order = np.argsort(x_all, kind="stable")
-    ids = [pts[i].point for i in order]
-    x, y, s_, lat = x_all[order], hh[order], sig[order], lat_all[order]
-    warnings = list(survey.warnings)
-
+    x = x_all[order]
+    y = np.array([p.h for p in pts])[order]
+    s_ = np.array([p.sigma_h for p in pts])[order]
     groups = _merge_groups(x)
     if len(groups) < 6:
         raise InputError(
@@ -295,68 +325,71 @@ def build_track(survey: Survey) -> Track:
             field="profile points",
         )
     wgt = [1.0 / s_[g] ** 2 for g in groups]
-    xg = np.array([np.average(x[g], weights=w) for g, w in zip(groups, wgt, strict=True)])
-    yg = np.array([np.average(y[g], weights=w) for g, w in zip(groups, wgt, strict=True)])
-    sg = np.array([1.0 / math.sqrt(w.sum()) for w in wgt])
+    return _Sorted(
+        ids=[pts[i].point for i in order],
+        x=x,
+        y=y,
+        s=s_,
+        lat=frame.lateral(en)[order],
+        groups=groups,
+        xg=np.array([np.average(x[g], weights=w) for g, w in zip(groups, wgt, strict=True)]),
+        yg=np.array([np.average(y[g], weights=w) for g, w in zip(groups, wgt, strict=True)]),
+        sg=np.array([1.0 / math.sqrt(w.sum()) for w in wgt]),
+    )
 
-    max_removed = max(MIN_REFUSE, int(MAX_OUTLIER_FRACTION * len(groups)))
-    sf = screen_and_fit(xg, yg, sg, max_removed)
+
+def _screen(survey: Survey, sp: _Sorted, warnings: list[str]) -> tuple[ScreenedFit, Array]:
+    """Step 3: fit with gross errors screened; refuse what is not one profile; name each
+    point left out. Returns the fit and which points it used."""
+    max_removed = max(MIN_REFUSE, int(MAX_OUTLIER_FRACTION * len(sp.groups)))
+    sf = screen_and_fit(sp.xg, sp.yg, sp.sg, max_removed)
     fit = sf.fit
-
-    def named(gis: list[int]) -> str:
-        names = [f"{ids[i]} ({lat[i]:+.1f} m lateral)" for gi in gis for i in groups[gi]]
-        more = f" and {len(names) - 8} more" if len(names) > 8 else ""
-        return ", ".join(names[:8]) + more
-
     if len(sf.removed) > max_removed:
         worst = [g for g, _, _ in sf.removed]
         raise InputError(
-            f"more than {max_removed} of {len(groups)} profile points do not lie on one smooth "
-            f"line along the fall line: {named(worst)} lie far off the profile of the others "
-            f"(largest lateral offset {np.abs(lat).max():.1f} m); this is not a profile of the "
-            "run. Name the centre-line points with profile_pattern or exclude the others",
+            f"more than {max_removed} of {len(sp.groups)} profile points do not lie on one "
+            f"smooth line along the fall line: {sp.named(worst)} lie far off the profile of the "
+            f"others (largest lateral offset {np.abs(sp.lat).max():.1f} m); this is not a "
+            "profile of the run. Name the centre-line points with profile_pattern or exclude "
+            "the others",
             path=survey.path,
             field="profile points",
         )
     if fit.sigma_hat > MAX_SCATTER_M:
-        resid = yg[sf.keep] - fit.fitted
+        resid = sp.yg[sf.keep] - fit.fitted
         far = list(np.flatnonzero(sf.keep)[np.argsort(-np.abs(resid))[:5]])
         raise InputError(
             f"the profile points scatter {fit.sigma_hat:.2f} m about any smooth line along the "
-            f"fall line (snow roughness is centimetres); furthest off: {named(far)}. They do "
+            f"fall line (snow roughness is centimetres); furthest off: {sp.named(far)}. They do "
             "not lie on one smooth line along the fall line: this is not a profile of the run. "
             "Name the centre-line points with profile_pattern or exclude the others",
             path=survey.path,
             field="profile points",
         )
-    used = np.ones(len(x), dtype=bool)
+    used = np.ones(len(sp.x), dtype=bool)
     for gi, loo, z in sf.removed:
-        for i in groups[gi]:
+        for i in sp.groups[gi]:
             used[i] = False
             warnings.append(
-                f"profile point {ids[i]} lies {loo * 1000:+.0f} mm from the profile of the "
+                f"profile point {sp.ids[i]} lies {loo * 1000:+.0f} mm from the profile of the "
                 f"other points ({abs(z):.1f}× their scatter {sf.scale_m * 1000:.0f} mm): a "
                 "gross error (reflector height?); left out"
             )
-    spl = fit.spline()
-    x_min, x_max = float(x[used].min()), float(x[used].max())
-    profile = spline_profile(spl, x_min, x_max)
-    resid = y - spl(x)
-    sigma_unc = max(fit.sigma_hat, fit.sigma_ref)
-    uncertainty = ProfileUncertainty(
-        knots=fit.knots, coef=fit.coef, factor=fit.coef_covariance_factor(sigma_unc),
-        sigma_m=sigma_unc,
-    )  # fmt: skip
+    return sf, used
 
+
+def _coverage_warnings(sp: _Sorted, used: Array, warnings: list[str]) -> None:
+    """Step 4: points far off the axis, and gaps too wide for the curvature."""
+    lat = sp.lat
     off = used & (np.abs(lat) > MAX_LATERAL_M)
     if off.any():
         worst_i = int(np.argmax(np.where(off, np.abs(lat), 0.0)))
         warnings.append(
             f"{int(off.sum())} profile points lie more than {MAX_LATERAL_M:.0f} m off the "
-            f"fall-line axis (largest {lat[worst_i]:+.1f} m at {ids[worst_i]}): does the run curve "
-            "in plan, or are these not centre-line points?"
+            f"fall-line axis (largest {lat[worst_i]:+.1f} m at {sp.ids[worst_i]}): does the run "
+            "curve in plan, or are these not centre-line points?"
         )
-    xu = x[used]
+    xu = sp.x[used]
     gaps = np.diff(xu)
     for i in np.flatnonzero(gaps > MAX_GAP_M):
         warnings.append(
@@ -364,13 +397,17 @@ def build_track(survey: Survey) -> Track:
             f"{xu[i + 1]:.1f} m: too sparse to resolve the curvature there"
         )
 
+
+def _place_photocells(
+    survey: Survey, frame: _Frame, profile: Profile, warnings: list[str]
+) -> list[TrackPhotocell]:
+    """Step 5: each photocell's posts projected onto x; inside the profile, in order."""
     photocells: list[TrackPhotocell] = []
     for pc in survey.photocells:
         post = [survey.points[p] for p in pc.points]
         pe = np.mean([[q.e, q.n] for q in post], axis=0)
         sigma_x = math.sqrt(sum(q.sigma_xy**2 for q in post)) / len(post)
-        px = float((pe - origin) @ u)
-        plat = float((pe - origin) @ left)
+        px, plat = float(frame.x(pe)), float(frame.lateral(pe))
         if not profile.x_min <= px <= profile.x_max:
             raise InputError(
                 f"photocell {pc.id} at x = {px:.2f} m lies outside the surveyed profile "
@@ -390,7 +427,7 @@ def build_track(survey: Survey) -> Track:
             TrackPhotocell(
                 id=pc.id,
                 x=px,
-                y=float(spl(xa)[0]),
+                y=float(profile.h(xa)[0]),
                 slope_deg=float(profile.slope_deg(xa)[0]),
                 lateral_m=plat,
                 sigma_x_m=sigma_x,
@@ -406,28 +443,46 @@ def build_track(survey: Survey) -> Track:
                 line=line,
                 field=f"photocells {b.id}",
             )
+    return photocells
 
-    points = [
-        ProfilePoint(
-            id=ids[i],
-            x=float(x[i]),
-            y=float(y[i]),
-            sigma=float(s_[i]),
-            lateral_m=float(lat[i]),
-            residual_m=float(resid[i]),
-            used=bool(used[i]),
+
+def build_track(survey: Survey) -> Track:
+    """Project the survey onto the fall line, fit the profile spline, place the photocells."""
+    pts = [survey.points[p] for p in survey.profile_ids]
+    if len(pts) < 6:
+        raise InputError(
+            f"only {len(pts)} profile points; at least 6 are needed to fit the track profile",
+            path=survey.path,
+            field="profile points",
         )
-        for i in range(len(x))
-    ]
-    rms = float(np.sqrt(np.mean(resid[used] ** 2)))
+    frame = _fall_line(np.array([[p.e, p.n] for p in pts]), np.array([p.h for p in pts]))
+    sp = _sorted_points(survey, frame, pts)
+    warnings = list(survey.warnings)
+    sf, used = _screen(survey, sp, warnings)
+    fit = sf.fit
+    spl = fit.spline()
+    profile = spline_profile(spl, float(sp.x[used].min()), float(sp.x[used].max()))
+    resid = sp.y - spl(sp.x)
+    sigma_unc = max(fit.sigma_hat, fit.sigma_ref)
+    uncertainty = ProfileUncertainty(
+        knots=fit.knots, coef=fit.coef, factor=fit.coef_covariance_factor(sigma_unc),
+        sigma_m=sigma_unc,
+    )  # fmt: skip
+    _coverage_warnings(sp, used, warnings)
+    photocells = _place_photocells(survey, frame, profile, warnings)
+    points = [
+        ProfilePoint(id=sp.ids[i], x=float(sp.x[i]), y=float(sp.y[i]), sigma=float(sp.s[i]),
+                     lateral_m=float(sp.lat[i]), residual_m=float(resid[i]), used=bool(used[i]))
+        for i in range(len(sp.x))
+    ]  # fmt: skip
     return Track(
         name=survey.name,
         profile=profile,
         photocells=photocells,
         points=points,
-        origin_en=(float(origin[0]), float(origin[1])),
-        axis_en=(float(u[0]), float(u[1])),
-        residual_rms_m=rms,
+        origin_en=(float(frame.origin[0]), float(frame.origin[1])),
+        axis_en=(float(frame.u[0]), float(frame.u[1])),
+        residual_rms_m=float(np.sqrt(np.mean(resid[used] ** 2))),
         warnings=warnings,
         source=survey.path,
         scatter_m=fit.sigma_hat,

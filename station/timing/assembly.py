@@ -43,7 +43,6 @@ Every impulse and edit comes out once in ``events`` with whether it was kept and
 
 from __future__ import annotations
 
-import statistics
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -110,6 +109,19 @@ class ImpulseEvent(NamedTuple):
     kept: bool
     reason: str = ""
     descent: int | None = None
+
+
+#: an event made without the NamedTuple's Python-level ``__new__`` (a plain tuple's cost, the
+#: same record: a day's replay makes one per impulse)
+_new_event = tuple.__new__
+
+
+def _median(values: list[int]) -> float:
+    """``statistics.median`` of a few ints, without its generality (one per photocell of every
+    complete descent in a replay)."""
+    s = sorted(values)
+    m = len(s) // 2
+    return s[m] if len(s) % 2 else (s[m - 1] + s[m]) / 2
 
 
 def _bib(imp: Impulse | Edit) -> str:
@@ -180,7 +192,7 @@ class DescentAssembler:
         self._last_done: TimedDescent | None = None
         # kept impulses by channel and device time (unwrapped): a repeat of one (the timer's
         # memory sent again) is not doubled, while the same time of day a day later is new
-        self._seen: set[tuple[str, int]] = set()
+        self._seen: dict[str, set[int]] = {}  # channel -> its kept times
         self._damaged: list[_Damage] = []  # unread lines that may have been a start
 
     @property
@@ -279,24 +291,32 @@ class DescentAssembler:
 
     def _event(self, imp, line: int, pc, kept: bool, reason: str = "", descent=None) -> None:
         self.events.append(
-            ImpulseEvent(line, imp.channel, pc, imp.tod_us, imp.flag, kept, reason, descent)
+            _new_event(
+                ImpulseEvent, (line, imp.channel, pc, imp.tod_us, imp.flag, kept, reason, descent)
+            )
         )
 
     def feed(self, imp: Impulse, line: int = 0, now_us: int | None = None) -> list[TimedDescent]:
         """One impulse in; the descents it finished out. ``now_us``: the device time now as the
         host clock estimates it, where known (it confirms a jump of the device clock)."""
-        done: list[TimedDescent] = []
-        pc = self.channels.get(imp.channel)
+        ch = imp.channel
+        pc = self.channels.get(ch)
+        # the common case first: the one open descent reaching its next photocell
+        if pc is not None and self._pending is None and len(self.open) == 1:
+            done = self._next_photocell(imp, line, ch, pc)
+            if done is not None:
+                return done
+        done = []
         number = int(imp.bib) if imp.bib.isascii() and imp.bib.isdigit() else None
         prev_number, self._prev_number = self._prev_number, number
         if pc is None:
-            self._event(imp, line, None, False, f"channel {imp.channel} is not a photocell")
+            self._event(imp, line, None, False, f"channel {ch} is not a photocell")
             return done
-        if (imp.channel, self.unwrap(imp)) in self._seen:
+        t = self.unwrap(imp)
+        if t in self._seen.get(ch, ()):
             self._event(imp, line, pc, False, "repeats an impulse already kept (from the "
                         "timer's memory?); not doubled")  # fmt: skip
             return done
-        t = self.unwrap(imp)
         if self._pending is not None:
             p_imp, p_line, p_t = self._pending
             self._pending = None
@@ -315,6 +335,89 @@ class DescentAssembler:
             self._pending = (imp, line, t)
             return done
         return done + self._accept(imp, line, t, prev_number)
+
+    def _next_photocell(
+        self, imp: Impulse, line: int, ch: str, pc: str
+    ) -> list[TimedDescent] | None:
+        """The fast path of :meth:`feed` (a replay's every impulse but the starts): the one open
+        descent takes the impulse at its next photocell. It decides as the general path would
+        (:meth:`_accept` and :meth:`_choose` with one candidate) and returns None, having
+        changed nothing, wherever that needs more than this: the pairing still undecided, a
+        bib of another descent, a photocell skipped, a time far from the clock, a repeat, a
+        double trigger of the descent that just ended, or a reason to reject it."""
+        mode = self.mode
+        d = self.open[0]
+        if mode == "bib":
+            if imp.flag == "?" or imp.bib.strip().lstrip("0") != d.bib or not d.bib:
+                return None
+        elif mode != "order":
+            return None
+        clock = self._clock
+        if clock is None or imp.day is not None:
+            return None
+        t = self._day_offset * DAY_US + imp.tod_us  # the one unwrap (see _time)
+        if t < clock - HALF_DAY_US:
+            t += DAY_US
+        if abs(t - clock) > self.jump_us:
+            return None
+        order = self.order
+        k = order[pc]
+        photocells = d.photocells
+        j = order[photocells[-1]]
+        seen = self._seen.get(ch)
+        if k != j + 1 or (seen is not None and t in seen):
+            return None
+        last_done = self._last_done
+        if (
+            last_done is not None
+            and last_done.photocells
+            and last_done.photocells[-1] == pc
+            and 0 <= t - last_done.times_us[-1] <= self.debounce_us
+        ):
+            return None  # a double trigger of the descent that just ended
+        # what _why_not checks for the next photocell, in its words (no call: every impulse)
+        times = d.times_us
+        last = times[-1]
+        if t <= last or t - last > self.timeout_us[j]:
+            return None
+        pos = self.positions
+        if pos is not None:
+            v = (pos[k] - pos[j]) / ((t - last) / 1e6)
+            if v > self.max_speed:
+                return None
+            if mode == "order" and len(photocells) >= 2:
+                i = order[photocells[-2]]
+                dt = (last - times[-2]) / 1e6
+                if dt > 0:
+                    v_before = (pos[j] - pos[i]) / dt
+                    if not v_before / SPEED_RATIO <= v <= v_before * SPEED_RATIO:
+                        return None
+        photocells.append(pc)
+        times.append(t)
+        d.channels.append(ch)
+        self._clock = t
+        self._day_offset = t // DAY_US
+        if self._damaged:
+            self._move_clock(t)
+        if seen is None:
+            seen = self._seen[ch] = set()
+        seen.add(t)
+        self.events.append(
+            _new_event(ImpulseEvent, (line, ch, pc, imp.tod_us, imp.flag, True, "", d.number))
+        )
+        if k != len(self.photocells) - 1:
+            return []  # the descent goes on; it was updated now, so nothing times out
+        self.open.clear()
+        d.status = "complete" if d.photocells[0] == self.photocells[0] else "incomplete"
+        self._done(d)
+        return [d]
+
+    def _keep(self, channel: str, t: int) -> None:
+        """A kept impulse: a repeat of it (the timer's memory sent again) is not doubled."""
+        seen = self._seen.get(channel)
+        if seen is None:
+            seen = self._seen[channel] = set()
+        seen.add(t)
 
     def _far(self, t: int) -> str:
         assert self._clock is not None
@@ -361,7 +464,7 @@ class DescentAssembler:
                              bib=bib if self.mode != "order" else "", day=imp.day)  # fmt: skip
             self.open.append(d)
             self._move_clock(t)
-            self._seen.add((imp.channel, t))
+            self._keep(imp.channel, t)
             self._event(imp, line, pc, True, "", d.number)
             return done
         chosen, reason = self._choose(pc, k, t, bib)
@@ -370,7 +473,7 @@ class DescentAssembler:
             if rec is not None:
                 self.open.append(rec)
                 self._move_clock(t)
-                self._seen.add((imp.channel, t))
+                self._keep(imp.channel, t)
                 self._event(imp, line, pc, True, rec.flags[0], rec.number)
                 return done + self._expire(t)
             if not self.open:
@@ -392,7 +495,7 @@ class DescentAssembler:
         d.times_us.append(t)
         d.channels.append(imp.channel)
         self._move_clock(t)
-        self._seen.add((imp.channel, t))
+        self._keep(imp.channel, t)
         self._event(imp, line, pc, True, "", d.number)
         if k == len(self.photocells) - 1:
             self.open.remove(d)
@@ -534,7 +637,7 @@ class DescentAssembler:
                 hist = self._typical.setdefault(self.order[pc], [])
                 hist.append(ti - d.times_us[0])
                 del hist[:-10]
-                self._typical_mid[self.order[pc]] = statistics.median(hist)
+                self._typical_mid[self.order[pc]] = _median(hist)
 
     def _finish(self, d: TimedDescent, why: str) -> list[TimedDescent]:
         self.open.remove(d)

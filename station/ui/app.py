@@ -461,7 +461,16 @@ class StationApp(App):
         self.notify(msg.text, title="the recording goes on", severity="error", timeout=10)
 
     def action_compare(self) -> None:
-        self.push_screen(ComparisonScreen(self.comparison_text))
+        """The comparison is computed only while it is shown (at 2000 descents a joint fit
+        takes seconds of a 2-core laptop): shown, it is brought up to date, and kept so."""
+
+        def closed(_result: None) -> None:
+            if self.acq is not None:
+                self.acq.show_comparison(False)
+
+        self.push_screen(ComparisonScreen(self.comparison_text), closed)
+        if self.acq is not None:
+            self.acq.show_comparison(True)
 
     def on_source_ended(self, msg: SourceEnded) -> None:
         self.connection = "replay finished"
