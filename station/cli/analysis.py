@@ -81,6 +81,13 @@ def cmd_annotate(args: argparse.Namespace) -> int:
         raise InputError("nothing to annotate: give metadata, --invalid, --valid or --model")
     session.check_descents(targets)  # --from N may name descents still to come
     print(annotate_session(session, records), file=sys.stderr)
+    from station.cli.console import add_after
+
+    try:
+        store = session.config.store
+    except InputError:
+        store = None
+    add_after(session.path, store)  # the season store's rows follow the annotation
     return 0
 
 
