@@ -46,6 +46,9 @@ def cmd_record(args: argparse.Namespace) -> int:
               "writes them from the raw log", file=sys.stderr)  # fmt: skip
     else:
         print(f"results: {results}", file=sys.stderr)
+    from station.cli.console import add_after
+
+    add_after(folder, cfg.store)  # when a season store is configured
     log = acq.rawlog
     if log is not None and log.lost_records:  # the disk stayed full to the end
         raise InputError(
