@@ -2,8 +2,8 @@
 how much memory each descent keeps.
 
 The demo station's 9 photocells; each descent's ALGE lines go through the acquisition loop as
-a recording runs them (raw log first, the processor, the fit, the session's results CSV), in
-line (``threaded=False``) so the cost of each step is timed where it happens. Two figures:
+a recording runs them (raw log first, the processor; the fit and the session's results CSV
+on the fit worker), the next descent once the last one is fitted. Two figures:
 
 1. **results CSV**: the time spent writing the session's ``results.csv`` after descent 1, 400
    and 2000 (median of the 5 descents around each). Flat means the day's last descent costs
@@ -25,6 +25,7 @@ import shutil
 import statistics
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -67,7 +68,13 @@ def run_day(descents: int, folder: str) -> tuple[dict[int, float], tuple[int, in
         .t
     )
     rng = np.random.default_rng(3)
-    acq = Acquisition.open(cfg, Listener(), session_dir=folder, threaded=False)
+    fitted = threading.Semaphore(0)
+
+    class Fitted(Listener):
+        def result(self, result) -> None:  # type: ignore[no-untyped-def]
+            fitted.release()
+
+    acq = Acquisition.open(cfg, Fitted(), session_dir=folder)
     csv_ms: dict[int, float] = {}
     timed = acq._write_csv_timed = []  # type: ignore[attr-defined]
     original = acq._save_csv
@@ -85,6 +92,8 @@ def run_day(descents: int, folder: str) -> tuple[dict[int, float], tuple[int, in
         for line in descent_lines(times, n, rng):
             host += 4.0
             acq.receive(Chunk(host, line))
+        if not fitted.acquire(timeout=60):
+            raise SystemExit(f"descent {n} not fitted within 60 s")
         csv_ms[n] = sum(timed[before:]) * 1e3
         if n == 200:
             gc.collect()
@@ -96,42 +105,55 @@ def run_day(descents: int, folder: str) -> tuple[dict[int, float], tuple[int, in
     return csv_ms, (mem[0], mem[1])
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--descents", type=int, default=2000)
-    args = ap.parse_args()
+def measure(descents: int = 2000) -> dict:
+    """The figures: results CSV ms after descents 1, 400, 2000 (those the day has), memory kB
+    per descent, the whole day's wall time and CSV time, and whether replay gives the CSV."""
     tmp = tempfile.mkdtemp(prefix="station-day-")
     folder = os.path.join(tmp, "session")
     try:
         start = time.perf_counter()
-        csv_ms, (m200, mend) = run_day(args.descents, folder)
+        csv_ms, (m200, mend) = run_day(descents, folder)
         wall = time.perf_counter() - start
 
         def at(n: int) -> float:
-            near = [csv_ms[k] for k in range(max(1, n - 2), min(args.descents, n + 2) + 1)]
+            near = [csv_ms[k] for k in range(max(1, n - 2), min(descents, n + 2) + 1)]
             return statistics.median(near)
 
-        first = at(1)
-        print(f"{args.descents} descents recorded in {wall:.1f} s")
-        marks = [m for m in (1, 400, 2000) if m <= args.descents]
-        for m in marks:
-            print(f"  results CSV after descent {m:>4}: {at(m):7.3f} ms  ({at(m) / first:.2f}× "
-                  "descent 1)")  # fmt: skip
-        total = sum(csv_ms.values()) / 1e3
-        print(f"  results CSV, the whole day: {total:.2f} s ({total / wall * 100:.0f} % of it)")
-        per = (mend - m200) / max(1, args.descents - 200)
-        print(f"  memory: {m200 / 1024:.0f} MiB after descent 200, {mend / 1024:.0f} MiB after "
-              f"{args.descents}: {per:.2f} kB per descent (target 2 kB: "
-              f"{per / 2:.2f}× the target)")  # fmt: skip
         live = Path(folder, sessions.RESULTS).read_bytes()
         out = os.path.join(tmp, "replayed.csv")
         acq = replay(folder, sessions.load_session_config(folder))
         acq.write_csv(out)
-        same = Path(out).read_bytes() == live
-        print(f"  replay of the session gives the live results.csv byte for byte: {same}")
-        return 0 if same else 1
+        return {
+            "descents": descents,
+            "wall_s": wall,
+            "csv_ms": {m: at(m) for m in (1, 400, 2000) if m <= descents},
+            "csv_total_s": sum(csv_ms.values()) / 1e3,
+            "mem_mib": (m200 / 1024, mend / 1024),
+            "kb_per_descent": (mend - m200) / max(1, descents - 200),
+            "replay_same": Path(out).read_bytes() == live,
+        }
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--descents", type=int, default=2000)
+    args = ap.parse_args()
+    f = measure(args.descents)
+    first = f["csv_ms"][1]
+    print(f"{f['descents']} descents recorded in {f['wall_s']:.1f} s")
+    for m, ms in f["csv_ms"].items():
+        print(f"  results CSV after descent {m:>4}: {ms:7.3f} ms  ({ms / first:.2f}× descent 1)")
+    print(f"  results CSV, the whole day: {f['csv_total_s']:.2f} s "
+          f"({f['csv_total_s'] / f['wall_s'] * 100:.0f} % of it)")  # fmt: skip
+    m200, mend = f["mem_mib"]
+    print(f"  memory: {m200:.0f} MiB after descent 200, {mend:.0f} MiB after {f['descents']}: "
+          f"{f['kb_per_descent']:.2f} kB per descent (target 2 kB: "
+          f"{f['kb_per_descent'] / 2:.2f}× the target)")  # fmt: skip
+    print(f"  replay of the session gives the live results.csv byte for byte: "
+          f"{f['replay_same']}")  # fmt: skip
+    return 0 if f["replay_same"] else 1
 
 
 if __name__ == "__main__":

@@ -92,13 +92,15 @@ def parse_only(data: bytes) -> None:
             parser.parse(line)
 
 
-def main() -> int:
+def measure_replay(runs: int = 5) -> dict[str, float]:
+    """lines/s of ``replay --no-fit``, the parser alone and the bare loop (medians, CPU)."""
     cfg, track = demo_station()
     xs = np.array([pc.x for pc in track.photocells])
-    run = StraightRun(track.profile, xs)
-    times = run.solve(Params(0.22, 0.0085, 3.4), Conditions(88, 1.079), sensitivities=False).t
-
-    # 1. parse + assemble: station replay --no-fit against a bare loop
+    times = (
+        StraightRun(track.profile, xs)
+        .solve(Params(0.22, 0.0085, 3.4), Conditions(88, 1.079), sensitivities=False)
+        .t
+    )
     lines = []
     t0 = 8 * 3600 * 10**6
     n = 0
@@ -108,18 +110,26 @@ def main() -> int:
             lines.append(format_alge(f"C{i}", (t0 + int(ti * 1e6)) % 86_400_000_000, n) + "\r")
         t0 += 25_000_000
     data = "".join(lines).encode("ascii")
-    tmp = os.path.dirname(cfg.path)  # the benchmark's temporary folder
-    big = os.path.join(tmp, "four-days.txt")
+    big = os.path.join(os.path.dirname(cfg.path), "four-days.txt")
     with open(big, "wb") as fh:
         fh.write(data)
     rates: dict[str, list[float]] = {"replay --no-fit": [], "parser alone": [], "bare loop": []}
-    for _ in range(5):
+    for _ in range(runs):
         rates["bare loop"].append(len(lines) / cpu(lambda: bare_loop(big)))
         rates["replay --no-fit"].append(len(lines) / cpu(lambda: no_fit(big, cfg.path)))
         rates["parser alone"].append(len(lines) / cpu(lambda: parse_only(data)))
-    med = {k: statistics.median(v) for k, v in rates.items()}
-    print(f"replay of {len(lines):,} impulse lines ({len(data) / 1e6:.1f} MB, 11 200 descents), "
-          f"median of 5, CPU time, load {os.getloadavg()[0]:.1f}")  # fmt: skip
+    return {k: statistics.median(v) for k, v in rates.items()}
+
+
+def main() -> int:
+    cfg, track = demo_station()
+    xs = np.array([pc.x for pc in track.photocells])
+    run = StraightRun(track.profile, xs)
+
+    # 1. parse + assemble: station replay --no-fit against a bare loop
+    med = measure_replay()
+    print(f"replay of 100,800 impulse lines (2.7 MB, 11 200 descents), median of 5, CPU time, "
+          f"load {os.getloadavg()[0]:.1f}")  # fmt: skip
     for k, v in med.items():
         print(f"  {k:<16} {v:>12,.0f} lines/s   1/{med['bare loop'] / v:.1f} of the bare loop")
     ratio = med["replay --no-fit"] / med["bare loop"]
@@ -144,6 +154,7 @@ def main() -> int:
                 n += 1
                 out.append(format_alge(f"C{i}", tod + 50_000, n) + "\r")
         t0 += 40_000_000
+    tmp = os.path.dirname(cfg.path)  # the benchmark's temporary folder
     cap = os.path.join(tmp, "day.txt")
     with open(cap, "w", newline="") as fh:
         fh.write("".join(out))

@@ -70,20 +70,55 @@ def heavy_modules(script: list[str]) -> list[str]:
     return [h for h in HEAVY if h in names]
 
 
+#: the floor issue 19 measures against: what a fit's numerics import
+BARE_FIT = [sys.executable, "-c", "import scipy.integrate, scipy.optimize"]
+
+
+def measure(repeats: int = 15) -> dict[str, list[float]]:
+    """Wall times (s) of the README's ``station fit``, the bare imports, alternating; and the
+    CPU time of ``station fit`` and of the bare import (``*_cpu``), less moved by the load.
+
+    Every command runs with its modules' bytecode cached, as an installed package has it (pip
+    compiles it): ``PYTHONDONTWRITEBYTECODE`` (set in the test machine's environment) is left
+    out, and the first runs write the caches. ``fit_nocache`` is ``station fit`` with it set:
+    its modules compiled again on every run, as this environment otherwise does."""
+    script = station_script()
+    fit = [*script, *FIT_ARGS]
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    one = {**env, "OPENBLAS_NUM_THREADS": "1"}
+    nocache = {**env, "PYTHONDONTWRITEBYTECODE": "1"}
+    wall(fit, env), wall(BARE, env), wall(BARE_FIT, env)  # caches warm; not counted
+    names = ("fit", "bare", "one", "bare_fit", "fit_nocache", "fit_cpu", "bare_fit_cpu")
+    times: dict[str, list[float]] = {k: [] for k in names}
+    for _ in range(repeats):
+        c0 = _children_cpu()
+        times["fit"].append(wall(fit, env))
+        c1 = _children_cpu()
+        times["bare_fit"].append(wall(BARE_FIT, env))
+        c2 = _children_cpu()
+        times["fit_cpu"].append(c1 - c0)
+        times["bare_fit_cpu"].append(c2 - c1)
+        times["bare"].append(wall(BARE, env))
+        times["one"].append(wall(BARE, one))
+        times["fit_nocache"].append(wall(fit, nocache))
+    return times
+
+
+def _children_cpu() -> float:
+    import resource
+
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeats", type=int, default=15, help="runs of each command (≥ 10)")
     args = ap.parse_args()
     script = station_script()
-    fit = [*script, *FIT_ARGS]
-    one = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
-    wall(fit), wall(BARE)  # warm the file cache; not counted
-    t_fit, t_bare, t_one = [], [], []
-    for _ in range(args.repeats):
-        t_fit.append(wall(fit))
-        t_bare.append(wall(BARE))
-        t_one.append(wall(BARE, one))
-    m_fit, m_bare, m_one = (statistics.median(t) for t in (t_fit, t_bare, t_one))
+    times = measure(args.repeats)
+    t_fit, t_bare, t_one, t_sci = times["fit"], times["bare"], times["one"], times["bare_fit"]
+    m_fit, m_bare, m_one, m_sci = (statistics.median(t) for t in (t_fit, t_bare, t_one, t_sci))
     print(f"python {sys.version.split()[0]}, {os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}")
     print(f"runs of each, alternating: {args.repeats}")
     print(f"station {' '.join(FIT_ARGS)}")
@@ -94,6 +129,15 @@ def main() -> None:
     print("the same import with OPENBLAS_NUM_THREADS=1 (as station loads the libraries)")
     print(f"  median {m_one * 1e3:7.0f} ms   min {min(t_one) * 1e3:7.0f} ms")
     print(f"ratio of medians  {m_fit / m_one:.2f}x   (min/min {min(t_fit) / min(t_one):.2f}x)")
+    print(f"python -c {BARE_FIT[2]!r} (issue 19's floor; target 1.1x)")
+    print(f"  median {m_sci * 1e3:7.0f} ms   min {min(t_sci) * 1e3:7.0f} ms")
+    print(f"ratio of medians  {m_fit / m_sci:.2f}x   (min/min {min(t_fit) / min(t_sci):.2f}x)")
+    c_fit, c_sci = statistics.median(times["fit_cpu"]), statistics.median(times["bare_fit_cpu"])
+    print(f"  CPU time: station fit {c_fit * 1e3:.0f} ms, the bare import {c_sci * 1e3:.0f} ms: "
+          f"{c_fit / c_sci:.2f}x")  # fmt: skip
+    m_nc = statistics.median(times["fit_nocache"])
+    print(f"station fit compiling its modules on every run (PYTHONDONTWRITEBYTECODE=1): median "
+          f"{m_nc * 1e3:.0f} ms, {m_nc / m_sci:.2f}x the bare import")  # fmt: skip
     loaded = heavy_modules(script)
     print(f"heavy modules the fit loads: {', '.join(loaded) if loaded else 'none'}")
 

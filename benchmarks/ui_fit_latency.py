@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import os
 import statistics
 import sys
 import threading
@@ -124,25 +125,39 @@ async def run(n: int, shown: bool = True) -> tuple[dict[int, float], TimedApp]:
     return latency, app
 
 
+def measure(descents: int = 2000, shown: bool = True) -> dict:
+    """Latency (ms) of each descent's fit on screen, and the comparisons computed."""
+    start = time.perf_counter()
+    latency, app = asyncio.run(run(descents, shown))
+    tail = [latency[k] for k in range(max(1, descents - 19), descents + 1)]
+    return {
+        "descents": descents,
+        "wall_s": time.perf_counter() - start,
+        "latency_ms": latency,
+        "comparisons": len(app.comparisons),
+        "median_end_ms": statistics.median(tail),
+        "max_end_ms": max(tail),
+    }
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--descents", type=int, default=2000)
     ap.add_argument("--closed", action="store_true", help="the comparison not shown")
     args = ap.parse_args()
-    start = time.perf_counter()
-    latency, app = asyncio.run(run(args.descents, not args.closed))
-    wall = time.perf_counter() - start
-    n = args.descents
-    print(f"{n} descents through the UI with the comparison open: {wall:.0f} s, "
-          f"{len(app.comparisons)} comparisons computed beside the fits")  # fmt: skip
+    f = measure(args.descents, not args.closed)
+    n, latency = args.descents, f["latency_ms"]
+    shown = "closed" if args.closed else "open"
+    print(f"{n} descents through the UI with the comparison {shown}: {f['wall_s']:.0f} s, "
+          f"{f['comparisons']} comparisons computed beside the fits, "
+          f"load {os.getloadavg()[0]:.1f}")  # fmt: skip
     for lo, hi in ((1, 20), (max(1, n // 5 - 9), n // 5 + 10), (max(1, n - 19), n)):
         window = [latency[k] for k in range(lo, hi + 1) if k in latency]
         if window:
             print(f"  descents {lo:>4}–{hi:<4}: last impulse → fit on screen median "
                   f"{statistics.median(window):6.1f} ms, max {max(window):6.1f} ms")  # fmt: skip
-    tail = [latency[k] for k in range(max(1, n - 19), n + 1)]
-    print(f"  at descent {n}: median {statistics.median(tail):.1f} ms "
-          f"({statistics.median(tail) / 50:.2f}× the 50 ms target)")  # fmt: skip
+    print(f"  at descent {n}: median {f['median_end_ms']:.1f} ms "
+          f"({f['median_end_ms'] / 50:.2f}× the 50 ms target)")  # fmt: skip
     return 0
 
 

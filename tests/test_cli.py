@@ -239,3 +239,19 @@ def test_one_item_is_one_item(tmp_path, run_station):
     r = run_station("compare", session)
     assert r.returncode == 0, r.stderr
     assert r.stdout.startswith("joint fit of 2 descents, 1 item, "), r.stdout
+
+
+def test_demo_and_live_refuse_an_existing_session_in_one_line(tmp_path, run_station):
+    """It was a ~120-line Textual traceback, exit 1, from inside the UI."""
+    from tests.session_helpers import make_session
+    from tests.timing_helpers import write_config
+
+    session = make_session(tmp_path, order="A", annotate=False)
+    cfg = write_config(tmp_path, "loop://")
+    for args in (["demo"], ["live", "--config", cfg]):
+        r = run_station(*args, "--session-dir", session)
+        assert r.returncode == 2, r.stderr
+        assert r.stderr == (
+            f"station: error: {session}: a session is already recorded there; "
+            "choose a new --session-dir\n"
+        )

@@ -265,6 +265,21 @@ def test_p_best_for_every_item(demo_track):
     assert sum(p.values()) == pytest.approx(1.0)
     assert p["A"] > 0.9 and p["B"] < 0.05 and p["A"] >= p["C"] >= p["B"]
     assert len(res.comparisons) == 3
+    assert res.item("A").p_best == p["A"]
+
+
+def test_the_day_result_is_built_once(demo_track):
+    """Left-out and wind-flagged descents go in, not onto the result afterwards."""
+    import dataclasses
+
+    data = synthetic(demo_track, "ABBA", {"A": 0.0085, "B": 0.0095})
+    res = joint_fit(demo_track, data, excluded=[(5, "marked invalid: fell")], wind_flagged=[2],
+                    wind_limit_ms=1.0)  # fmt: skip
+    assert res.excluded == ((5, "marked invalid: fell"),) and res.wind_flagged == (2,)
+    assert any("descents 2 had more than 1 m/s" in w for w in res.warnings)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        res.status = "ok"  # type: ignore[misc]
+    assert isinstance(res.warnings, tuple) and isinstance(res.items, tuple)
 
 
 def test_residuals_the_timer_cannot_explain_are_a_poor_fit(demo_track):

@@ -133,6 +133,23 @@ def test_too_few_photocells(demo_track, demo_xs, run):
     assert five.status == "ok" and five.dof == 1
 
 
+def test_a_fit_is_built_once_and_its_json_names_every_parameter(demo_track, demo_xs, run):
+    """The result handed to the UI thread cannot change under it; the JSON keys stay those of
+    earlier versions (the parameters, then the offset)."""
+    import dataclasses
+
+    t = run.solve(Params(0.22, 0.0085, 3.4), COND).t
+    res = fit_descent(demo_track.profile, demo_xs, t, COND)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        res.status = "ok"  # type: ignore[misc]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        res.mu.value = 0.0  # type: ignore[misc]
+    out = res.to_dict()
+    assert list(out["ci90"]) == list(out["stderr"]) == ["cda", "mu", "v0", "dt0"]
+    assert out["mu"] == res.mu.value and out["ci90"]["mu"] == list(res.mu.ci90)
+    assert out["status"] == "ok" and type(out["status"]) is str
+
+
 def test_a_skier_at_terminal_speed_makes_mu_and_cda_unidentifiable():
     """On a plane at terminal speed only μ·g·cos α + k·CdA·v² is known (friction-physics §5.4)."""
     deg, m, rho, cda, mu = 12.0, 88.0, 1.0, 0.3, 0.03

@@ -102,3 +102,51 @@ def test_a_merged_download_brings_the_operators_clears_with_it(tmp_path, run_sta
     assert r.returncode == 0, r.stderr
     assert "10:01:10" not in r.stdout  # the cleared finish is not a crossing time
     assert "10:01:00" in r.stdout and "09:00:30" in r.stdout
+
+
+def _alge_capture(path, demo_track, start_s: float, bib0: int = 1):
+    from station.timing.wireformats import format_alge
+    from tests.timing_helpers import ALGE_CHANNELS
+
+    xs = np.array([pc.x for pc in demo_track.photocells])
+    t = (
+        StraightRun(demo_track.profile, xs)
+        .solve(Params(0.22, 0.0085, 3.4), Conditions(88, 1.079))
+        .t
+    )
+    lines = [format_alge(ch, int((start_s + ti) * 1e6), bib0 + k)
+             for k, (ch, ti) in enumerate(zip(ALGE_CHANNELS, t, strict=True))]  # fmt: skip
+    path.write_text("".join(x + "\r" for x in lines), newline="")
+    return path
+
+
+def test_an_import_is_dated_by_the_test_day_not_by_today(tmp_path, demo_track, run_station):
+    """A download imported days later was dated by the day of the import; now by the file's
+    date (said on stderr), by --date, and a merge by the session's own day."""
+    import datetime as dt
+    import os
+
+    cfg = write_config(tmp_path, "/dev/null")
+    cap = _alge_capture(tmp_path / "day.txt", demo_track, 36_000)
+    t_file = dt.datetime(2026, 1, 14, 18, 30).timestamp()
+    os.utime(cap, (t_file, t_file))
+    r = run_station("import", cap, "--config", cfg, "--session-dir", tmp_path / "a")
+    assert r.returncode == 0, r.stderr
+    assert "dated 2026-01-14 by the file's date; give --date YYYY-MM-DD" in r.stderr
+    df = pd.read_csv(tmp_path / "a" / "results.csv", comment="#")
+    assert df.loc[0, "start_time"].startswith("2026-01-14T10:00:00")
+    r = run_station("import", cap, "--config", cfg, "--session-dir", tmp_path / "b",
+                    "--date", "2026-01-12")  # fmt: skip
+    assert r.returncode == 0 and "by the file's date" not in r.stderr, r.stderr
+    df = pd.read_csv(tmp_path / "b" / "results.csv", comment="#")
+    assert df.loc[0, "start_time"].startswith("2026-01-12T10:00:00")
+    # a download merged later: its descents on the session's day
+    later = _alge_capture(tmp_path / "later.txt", demo_track, 36_600, bib0=100)
+    r = run_station("import", later, "--config", cfg, "--into", tmp_path / "b")
+    assert r.returncode == 0, r.stderr
+    df = pd.read_csv(tmp_path / "b" / "results.csv", comment="#")
+    assert [s[:19] for s in df["start_time"]] == ["2026-01-12T10:00:00", "2026-01-12T10:10:00"]
+    r = run_station(
+        "import", later, "--config", cfg, "--into", tmp_path / "b", "--date", "2026-01-12"
+    )
+    assert r.returncode == 2 and "--date is for a new session" in r.stderr

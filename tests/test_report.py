@@ -222,3 +222,25 @@ def test_the_time_axis_labels_every_tick_on_a_whole_minute(tmp_path):
     assert np.allclose(ticks * 60, np.round(ticks * 60))
     assert all(re.fullmatch(r"\d\d:\d\d", lab) for lab in labels), labels
     assert len(set(labels)) == len(labels)
+
+
+def test_the_out_folder_is_made_as_the_help_says(tmp_path, run_station):
+    """The help said "made if missing"; it is made when its parent exists, and says so."""
+    r = run_station("report", "--help")
+    assert "made if missing, in a folder that exists" in " ".join(r.stdout.split())
+    session = make_session(tmp_path, order="A", annotate=False)
+    r = run_station("report", session, "--out", tmp_path / "new")
+    assert r.returncode == 0 and (tmp_path / "new" / "session.html").exists()
+    assert r.stderr == "1 descent; open it in a browser\n"
+
+
+def test_names_drawn_in_pictures_are_never_read_as_math():
+    """matplotlib reads $…$ as math: an item named "wax $x_1$" was drawn as x₁, and a name
+    with a bad formula between dollars would end the report in a parse error."""
+    from matplotlib.text import Text
+
+    from station.report.day_report import _plain
+
+    for name in ("wax $x_1$", "pair $\\frac$ b", "$5 and $10"):
+        shown, is_math = Text(text=_plain(name))._preprocess_math(_plain(name))
+        assert not is_math and shown == name, (name, shown)

@@ -335,3 +335,21 @@ def test_exact_points_1m_apart_give_the_true_crossing_times():
         t_track = _true_times(track.profile, xs, params, cond)
         t_true = _true_times(run.profile(), run.cell_x, params, cond)
         assert np.max(np.abs(t_track - t_true)) < 0.5e-3
+
+
+def test_an_empty_precision_value_is_refused(tmp_path):
+    """``angle_arcsec:`` with nothing after it was taken as the default 3″, silently."""
+    import shutil
+
+    from tests.conftest import SURVEYS
+
+    for name in ("demo_run.yaml", "demo_run.gsi"):
+        shutil.copy(SURVEYS / name, tmp_path / name)
+    path = tmp_path / "demo_run.yaml"
+    path.write_text(path.read_text().replace("angle_arcsec: 1.5", "angle_arcsec:"))
+    with pytest.raises(InputError) as err:
+        load_survey(str(path))
+    assert str(err.value) == (
+        f"{path}:7: field precision.angle_arcsec: has no value: give a number "
+        "(or leave the key out for 3)"
+    )

@@ -120,3 +120,18 @@ def test_fit_reports_timing_only_and_total_intervals(run_station, tmp_path):
                     "--timing-only").stdout
     )  # fmt: skip
     assert tight["status"] == "poor-fit" and tight["chi2_p"] < 1e-3
+
+
+def test_one_degree_of_freedom_claims_no_share_of_the_variance(tmp_path, run_station):
+    """Five photocells for four parameters: the timing variance is one squared residual, and
+    the fit said the survey explained up to "100 % of the variance"; it now says no share."""
+    from tests.conftest import ROOT
+
+    times = tmp_path / "t5.csv"
+    lines = (ROOT / "surveys" / "demo_descent.csv").read_text().splitlines()
+    times.write_text("\n".join(x for x in lines if not x.startswith(("PC6", "PC7", "PC8", "PC9"))))
+    r = run_station("fit", "--survey", ROOT / "surveys" / "demo_run.yaml", "--times", times,
+                    "--mass", "88")  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert "dof 1" in r.stdout and "timing only [" in r.stdout
+    assert "of the variance" not in r.stdout

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import survey_writers as W
 from conftest import DEMO_SURVEY
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from station.errors import InputError
@@ -442,6 +442,7 @@ def _damaged(draw) -> str:
     return "".join(s)
 
 
+@example(text=W.landxml(ObservationSet()).replace('"UTF-8"', '"\x00TF-8"'))  # found by the test
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(text=_damaged())
 def test_a_damaged_file_is_read_or_refused_in_one_located_line(tmp_path_factory, text):
@@ -510,3 +511,51 @@ def test_sdr_instrument_record_turns_elevation_angles_into_zenith_angles():
     assert parse_sdr(text.replace("10NMJOB1", instrument[:-21] + "1\r\n10NMJOB1")).observations[
         0
     ].zenith == pytest.approx(math.pi / 2 - 0.1)
+
+
+def test_gsi_code_blocks_start_setups_only_with_a_station_code():
+    """41 of value 2 or 21 starts a station; 3 sets the reflector height; others are codes."""
+    shot = "*110002+0000000000000P01 21.322+0000000010000000 22.322+0000000010000000 " \
+        "31..00+0000000000010000"  # fmt: skip
+    text = "\n".join([
+        "*410001+0000000000000002 42....+00000000000000S1 43....+0000000000001500 "
+        "44....+0000000000001300",
+        shot,
+        "*410003+0000000000000007 42....+000000000000TREE",  # a feature code: no setup
+        shot.replace("P01", "P02"),
+        "*410005+0000000000000003 42....+0000000000002000",  # reflector height 2.000 m
+        shot.replace("P01", "P03"),
+    ])  # fmt: skip
+    obs = interpret_gsi(parse_gsi(text, "c.gsi"), "c.gsi")
+    assert [s.station for s in obs.setups] == ["S1"]
+    assert [(o.point, o.reflector_height) for o in obs.observations] == [
+        ("P01", 1.3), ("P02", 1.3), ("P03", 2.0)
+    ]  # fmt: skip
+    assert obs.setups[0].instrument_height == 1.5
+
+
+def test_a_setup_with_coordinates_and_no_backsight_is_named(tmp_path):
+    setup = Setup("7", 100.0, 200.0, 10.0, 1.5)
+    obs = ObservationSet(setups=[setup])
+    obs.observations = [Observation("P1", 1.0, 1.5, 12.0, None, 1.3, setup)]
+    path = tmp_path / "job.sdr"
+    path.write_bytes(W.sdr33(obs))  # orientation 0: the writer leaves the 07 record out
+    s = load_survey(str(path))
+    assert any("setup 7 (line 4) has coordinates but no backsight" in w for w in s.warnings)
+    obs.setups[0] = setup = Setup("7", 100.0, 200.0, 10.0, 1.5, orientation=0.25)
+    obs.observations = [Observation("P1", 1.0, 1.5, 12.0, None, 1.3, setup)]
+    path.write_bytes(W.sdr33(obs))
+    assert not any("no backsight" in w for w in load_survey(str(path)).warnings)
+
+
+def test_a_survey_yaml_naming_an_unknown_observation_file_says_so_at_its_line(tmp_path):
+    (tmp_path / "notes.txt").write_text("surveyed on Tuesday, 14 points\n")
+    y = tmp_path / "s.yaml"
+    y.write_text("name: x\nobservations: notes.txt\nphotocells: [A]\n")
+    msg = _error(load_survey, str(y))
+    assert msg.startswith(f"{y}:2: field observations: 'notes.txt' is not an observation file")
+    assert "Sokkia SDR33/SDR2x" in msg
+    (tmp_path / "e.gsi").write_text("")
+    assert _error(load_survey, str(tmp_path / "e.gsi")).startswith(
+        f"{tmp_path / 'e.gsi'}: an empty"
+    )

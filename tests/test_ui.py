@@ -10,11 +10,13 @@ import inspect
 import os
 import shutil
 import subprocess
+import sys
 import time
 
 import numpy as np
 import pandas as pd
 import pytest
+from textual.binding import Binding
 
 from station.model.physics import Conditions, Params, StraightRun
 from station.session.config import load_config
@@ -653,3 +655,64 @@ async def test_plots_fit_their_boxes_and_grow_with_the_terminal(tmp_path, demo_t
         # the table keeps at least six rows at 24 lines; at 50 the plots take what is left
         assert app.main.query_one("#table").content_region.height >= 6
         assert app.plot_rows == (6 if size[1] <= 30 else 16)
+
+
+def test_no_footer_key_repeats_its_own_letter():
+    """The footer showed "v Refit v"."""
+    for b in StationApp.BINDINGS:
+        if isinstance(b, Binding):
+            assert b.key not in b.description.lower().split(), b
+
+
+@run_async
+async def test_a_replay_names_its_source_and_export_counts_the_rows_written(
+    tmp_path, demo_track, monkeypatch
+):
+    """The replay's title lacked what it replays; ``e`` counted the rows in the table, and
+    said 5 exported when the file had 6 (a fit on its way to the table is written too)."""
+    monkeypatch.chdir(tmp_path)  # a capture's export goes to the working folder
+    app = replay_app(tmp_path, demo_track)
+    async with app.run_test(size=(100, 30)) as pilot:
+        await wait_for_replay(pilot, app)
+        assert app.sub_title == "replay · capture.txt"
+        shown = dict(app.results)
+        app.results.pop(max(app.results))  # as if its message were still on its way
+        app.clear_notifications()
+        await pilot.press("e")
+        await wait_for(pilot, lambda: bool(app._notifications))
+        said = " ".join(str(n.message) for n in app._notifications)
+        app.results.update(shown)
+    written = tmp_path / "capture-results.csv"
+    rows = [x for x in written.read_text().splitlines() if x and not x.startswith(("#", '"'))]
+    assert len(rows) == len(shown) == 4
+    assert said.startswith(f"4 descents exported to {written}"), said
+
+
+@run_async
+async def test_a_ski_typed_in_the_demo_stops_its_rotation(tmp_path, demo_track):
+    """The demo's rotation set the next pair whenever a descent started, over the ski the
+    engineer had just typed."""
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "loop://")))
+    no_timer = [sys.executable, "-c", "pass"]  # the descents are fed below
+    app = StationApp(cfg, mode="demo", session_dir=str(tmp_path / "s"), sim_command=no_timer,
+                     demo_skis=["demo pair A", "demo pair B", "demo pair C"])  # fmt: skip
+    cap = tmp_path / "capture.txt"
+    make_capture(cap, demo_track)
+    lines = cap.read_bytes().split(b"\r")[:17]  # descents 1 and 2 (one photocell missed)
+    async with app.run_test(size=(100, 30)) as pilot:
+        await wait_for(pilot, lambda: app.acq is not None)
+        await pilot.press("m")
+        await wait_for_screen(pilot, app, MetadataScreen)
+        assert app.screen.query_one("#f_ski").value == "demo pair A"
+        app.screen.query_one("#f_ski").value = "my own pair"
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: app.metadata_from is not None)
+        said = " ".join(str(n.message) for n in app._notifications)
+        assert "the demo's rotation of skis stops" in said
+        now = time.time()
+        for i, line in enumerate(lines):
+            app.acq.receive(Chunk(now + i * 0.01, line + b"\r"))
+        await wait_for(pilot, lambda: len(app.results) == 2)
+        assert [app.acq.day.metadata_for(n).ski for n in (1, 2, 3)] == ["my own pair"] * 3

@@ -15,6 +15,7 @@ from collections.abc import Callable, Sequence
 
 from station.cli.common import _warn
 from station.errors import InputError
+from station.model.sequential import BLOCK_HEADER
 from station.report.text import describe, summary
 from station.session import store as sessions
 from station.session.acquisition import Acquisition, Listener
@@ -35,6 +36,7 @@ class PrintListener(Listener):
         self.out = out
         self.port = port
         self._told: set[int] = set()  # descents already printed: a second line is an update
+        self._decisions: tuple[str, ...] = ()  # the decisions last printed
 
     def connection(self, state: str, detail: str) -> None:
         if state == "disconnected":
@@ -54,6 +56,15 @@ class PrintListener(Listener):
 
     def warning(self, text: str) -> None:
         self.out(f"warning: {text}")
+
+    def comparison(self, text: str) -> None:
+        """The decision on each pair of items ("decided: …" or "not yet: …") when it changed;
+        the rest of the comparison is for the UI and ``station compare``."""
+        lines = text.splitlines()
+        start = next((k for k, line in enumerate(lines) if line.startswith(BLOCK_HEADER)), None)
+        if start is not None and tuple(lines[start + 1 :]) != self._decisions:
+            self._decisions = tuple(lines[start + 1 :])
+            self.out("\n".join(lines[start:]))
 
 
 def day_summary(acq: Acquisition) -> str:

@@ -8,6 +8,9 @@ import os
 import sys
 from typing import Any
 
+from station.cli.common import _date
+from station.errors import InputError
+
 
 def cmd_import(args: argparse.Namespace) -> int:
     from station.cli.console import day_summary  # here: numpy, see recording.py's note
@@ -16,6 +19,9 @@ def cmd_import(args: argparse.Namespace) -> int:
     from station.session.acquisition import replay
     from station.session.config import load_config
 
+    if args.into and args.date:
+        raise InputError("--date is for a new session; --into keeps the session's own dates",
+                         field="--date")  # fmt: skip
     if args.into:
         report = memory_import.import_into(args.file, args.into)
         config = sessions.load_session_config(args.into)
@@ -24,7 +30,7 @@ def cmd_import(args: argparse.Namespace) -> int:
                   "the session's config was used", file=sys.stderr)  # fmt: skip
     else:
         config = load_config(args.config)
-        report = memory_import.import_new(args.file, config, args.session_dir)
+        report = memory_import.import_new(args.file, config, args.session_dir, _date(args.date))
         config = sessions.load_session_config(args.session_dir)
     run = replay(report.session, config)
     run.write_csv(os.path.join(report.session, sessions.RESULTS))
@@ -33,6 +39,9 @@ def cmd_import(args: argparse.Namespace) -> int:
         f"the session, {report.added} added; the file is kept as {report.kept_as}",
         file=sys.stderr,
     )
+    if report.dated is not None and not args.date:
+        print(f"dated {report.dated.isoformat()} by the file's date; give --date YYYY-MM-DD when "
+              "the test day was another", file=sys.stderr)  # fmt: skip
     print(day_summary(run), file=sys.stderr)
     return 0
 
@@ -46,4 +55,6 @@ def add_parsers(sub: Any) -> None:
     where = p.add_mutually_exclusive_group(required=True)
     where.add_argument("--session-dir", metavar="NEW", help="make a new session there")
     where.add_argument("--into", metavar="SESSION", help="merge into this session")
+    p.add_argument("--date", metavar="YYYY-MM-DD",
+                   help="the test day of a new session (default: the file's date)")  # fmt: skip
     p.set_defaults(func=cmd_import)

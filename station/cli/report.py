@@ -16,10 +16,11 @@ def cmd_report(args: argparse.Namespace) -> int:
     # here, not at the top: numpy, scipy and matplotlib (see recording.py's note)
     from station.cli.console import day_summary, replayed
     from station.report.day_report import DayData, build_day_report, descent_views
+    from station.report.text import count
     from station.session.comparison import compared_items
     from station.session.recorded import RecordedSession
 
-    session = RecordedSession(args.session)
+    session = RecordedSession(args.session, speed_curves=True)  # the report draws them
     out = output_dir(args.out, "--out")  # checked (and made) before the day is replayed
     path = os.path.join(out, f"{session.name}.html")
     acq = replayed(session).run()  # the session as a replay gives it, annotations included
@@ -51,7 +52,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     with open_output(path, "--out") as fh:
         fh.write(page)
     print(path)
-    print(f"{len(results)} descents; open it in a browser", file=sys.stderr)
+    print(f"{count(len(results), 'descent')}; open it in a browser", file=sys.stderr)
     return 0
 
 
@@ -59,7 +60,8 @@ def add_parsers(sub: Any) -> None:
     p = sub.add_parser("report", help="the day report: one HTML page with pictures")
     p.add_argument("session", metavar="SESSION", help="session folder")
     p.add_argument("--out", required=True, metavar="DIR",
-                   help="folder for SESSION_NAME.html (made if missing)")  # fmt: skip
+                   help="folder for SESSION_NAME.html (made if missing, in a folder that "
+                        "exists)")  # fmt: skip
     p.add_argument("--reference", metavar="ITEM",
                    help="compare every item with this one (its beginning is enough)")  # fmt: skip
     p.add_argument("--drift", choices=["auto", "on", "off"], default="auto",

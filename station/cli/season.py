@@ -301,7 +301,7 @@ def add_parsers(sub: Any) -> None:
         required=True,
         parser_class=type(p),
         metavar="{add,list,compare,export,report,push}",
-        help="what to do with the season store",
+        help="what to do with the store",
     )
 
     q = ssub.add_parser("add", help="add or update session folders in the store")

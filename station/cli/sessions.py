@@ -20,12 +20,24 @@ import argparse
 import os
 import sys
 from dataclasses import asdict, dataclass
+from enum import StrEnum
 from typing import Any
 
 from station.cli.common import EXIT_BAD_INPUT, _print_json
 from station.errors import InputError
 from station.files import MAX_RAWLOG, check_regular
 from station.session import store as sessions
+
+
+class SessionStatus(StrEnum):
+    """What ``station sessions`` says of a session as a whole (its ``status`` column)."""
+
+    RECORDING = "recording"  # a process holds its recording lock
+    FINISHED = "finished"
+    INTERRUPTED = "interrupted"  # its recorder died: the results CSV may lack the last descent
+    NO_RESULTS = "no results (station export SESSION --csv …)"
+    UNKNOWN = "unknown (its recording.lock cannot be tried)"
+    BROKEN = "broken"  # it cannot be read (the reason is in ``problem``)
 
 
 @dataclass(frozen=True)
@@ -38,7 +50,7 @@ class SessionSummary:
     fitted: int  # descents with status ok
     invalid: int  # marked invalid by the engineer
     items: tuple[str, ...]
-    status: str  # recording | finished | interrupted | no results … | unknown | broken
+    status: SessionStatus
     problem: str = ""  # why a broken session cannot be read; "" for the others
 
     def to_json(self) -> dict[str, Any]:
@@ -48,21 +60,21 @@ class SessionSummary:
         return out
 
 
-def session_status(session: Any, has_results: bool) -> str:
+def session_status(session: Any, has_results: bool) -> SessionStatus:
     """``recording`` while a process holds the session's lock, whatever the timer does;
     ``interrupted`` when its recorder died (killed, crashed) without ending it, so its
     results CSV may lack the last descent; ``finished`` when it was ended (or is older than
     the lock)."""
     state = session.recording_state()
-    if state is sessions.Recording.NOW:
-        return "recording"
+    if state is sessions.RecordingStatus.NOW:
+        return SessionStatus.RECORDING
     if not has_results:
-        return "no results (station export SESSION --csv …)"
-    if state is sessions.Recording.INTERRUPTED:
-        return "interrupted"
-    if state is sessions.Recording.UNKNOWN:
-        return "unknown (its recording.lock cannot be tried)"
-    return "finished"
+        return SessionStatus.NO_RESULTS
+    if state is sessions.RecordingStatus.INTERRUPTED:
+        return SessionStatus.INTERRUPTED
+    if state is sessions.RecordingStatus.UNKNOWN:
+        return SessionStatus.UNKNOWN
+    return SessionStatus.FINISHED
 
 
 def summarise(path: str) -> SessionSummary:
@@ -91,7 +103,7 @@ def summarise(path: str) -> SessionSummary:
 
 
 def broken(path: str, why: str) -> SessionSummary:
-    return SessionSummary(path, "", 0, 0, 0, (), "broken", why)
+    return SessionSummary(path, "", 0, 0, 0, (), SessionStatus.BROKEN, why)
 
 
 def find_sessions(folder: str) -> list[str]:

@@ -24,8 +24,9 @@ def cmd_live(args: argparse.Namespace) -> int:
 
     cfg = checked_config(args.config)  # config, survey and photocells, as station check does
     check_port(cfg.serial.port, args.config)  # then a wrong port: say so and list them
-    require_terminal("live", "to record without a terminal: station record")
     folder = args.session_dir or sessions.default_dir()
+    sessions.check_new(folder)  # said in one line here, not as a traceback inside the UI
+    require_terminal("live", "to record without a terminal: station record")
     status = run_ui(StationApp(cfg, mode="live", session_dir=folder))
     if sessions.is_session(folder):
         from station.cli.console import add_after
@@ -47,11 +48,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from station.cli.tui import require_terminal, run_ui
     from station.ui.app import StationApp
 
-    require_terminal("demo", "the simulated timer alone: station-sim")
     cfg = load_config(demo_config_path())
     folder = args.session_dir or sessions.default_dir("sessions").replace(
         os.sep + "20", os.sep + "demo-20", 1
     )
+    sessions.check_new(folder)  # said in one line here, not as a traceback inside the UI
+    require_terminal("demo", "the simulated timer alone: station-sim")
     link = os.path.join(tempfile.mkdtemp(prefix="station-demo-"), "timer")
     # the simulated timer runs as a process of its own, as a real timer would
     sim = [

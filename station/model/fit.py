@@ -43,6 +43,7 @@ from station.model.estimate import MISSING, Estimate, FitStatus
 from station.model.physics import PARAM_NAMES, Conditions, Params, StraightRun
 from station.model.timer import TIMER_PRECISION_S
 from station.model.track_error import (
+    Goodness,
     SurveyError,
     SurveyIntervals,
     add_survey_uncertainty,
@@ -540,26 +541,10 @@ def fit_descent(
     )
     good = judge_goodness(r, dof, timer_precision_s, survey_cov)
     if good is not None and status == FitStatus.OK and good.poor:
-        status = FitStatus.POOR_FIT
-        message = (
-            f"the residuals (RMS {good.rms_s * 1000:.2f} ms) are far above the timer precision "
-            f"{timer_precision_s * 1000:.2f} ms (χ² {good.chi2:.1f} on {dof} dof, "
-            f"p = {good.p:.1e}): a photocell triggered by something else, a photocell position "
-            "or a track that is wrong, or a descent the model does not describe; the numbers "
-            "are not to be trusted"
-        )
+        status, message = FitStatus.POOR_FIT, _poor_fit_message(good, timer_precision_s, dof)
 
     def estimate(k: str) -> Estimate:
-        return Estimate(
-            value=values[k],
-            ci90=widened.ci90[k] if widened else unc.ci90[k],
-            stderr=widened.stderr[k] if widened else unc.stderr[k],
-            ci90_timing=widened.ci90_timing[k] if widened else None,
-            stderr_timing=widened.stderr_timing[k] if widened else None,
-            survey_share=widened.survey_share[k] if widened else None,
-            not_identifiable=k in unc.not_identifiable,
-            consistent_with_zero=k in unc.consistent_with_zero,
-        )
+        return _estimate(k, values[k], unc, widened)
 
     grad = 2.0 * jm.T @ r
     return FitResult(
@@ -589,6 +574,33 @@ def fit_descent(
         chi2_p=good.p if good else None,
         survey_in_intervals=widened is not None,
         survey_time_cov=relative,
+    )
+
+
+def _poor_fit_message(good: Goodness, timer_precision_s: float, dof: int) -> str:
+    return (
+        f"the residuals (RMS {good.rms_s * 1000:.2f} ms) are far above the timer precision "
+        f"{timer_precision_s * 1000:.2f} ms (χ² {good.chi2:.1f} on {dof} dof, "
+        f"p = {good.p:.1e}): a photocell triggered by something else, a photocell position "
+        "or a track that is wrong, or a descent the model does not describe; the numbers "
+        "are not to be trusted"
+    )
+
+
+def _estimate(
+    k: str, value: float | None, unc: Uncertainty, widened: SurveyIntervals | None
+) -> Estimate:
+    """Parameter ``k`` as the result gives it: its timing-only uncertainty, or the one widened
+    by the survey with the timing-only one beside it."""
+    return Estimate(
+        value=value,
+        ci90=widened.ci90[k] if widened else unc.ci90[k],
+        stderr=widened.stderr[k] if widened else unc.stderr[k],
+        ci90_timing=widened.ci90_timing[k] if widened else None,
+        stderr_timing=widened.stderr_timing[k] if widened else None,
+        survey_share=widened.survey_share[k] if widened else None,
+        not_identifiable=k in unc.not_identifiable,
+        consistent_with_zero=k in unc.consistent_with_zero,
     )
 
 

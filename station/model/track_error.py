@@ -148,6 +148,10 @@ class SurveyIntervals:
     survey_share: dict[str, float | None]
 
 
+#: residual degrees of freedom a fit needs before it says the survey's share of the variance
+MIN_DOF_SHARE = 3
+
+
 def add_survey_uncertainty(
     values: Mapping[str, float | None],
     ci90: Mapping[str, tuple[float, float] | None],
@@ -182,7 +186,9 @@ def add_survey_uncertainty(
         est = values.get(k)
         vt, vs = float(cov_t[i, i]), float(cov_s[i, i])
         vtot = vt + vs
-        out.survey_share[k] = vs / vtot if vtot > 0 else None
+        # with fewer than MIN_DOF_SHARE residual degrees of freedom the timing variance is one
+        # or two squared residuals: a split of the variance on it said "survey 100 %"
+        out.survey_share[k] = vs / vtot if vtot > 0 and dof >= MIN_DOF_SHARE else None
         if est is None or ci90[k] is None:
             continue
         # Welch-Satterthwaite: only the timing part is estimated (from dof residuals)

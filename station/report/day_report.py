@@ -318,6 +318,10 @@ def drift_reference_hours(compared: Sequence[Any]) -> float | None:
     return float(np.mean([d.start_hours for d in compared])) if compared else None
 
 
+#: the μ points carry their descent's number up to this many descents
+MAX_NUMBERED = 80
+
+
 def time_of_day_figure(descents: Sequence[DescentView], colours: dict[str, str],
                        comparison=None, compared: Sequence[Any] = ()) -> str:  # fmt: skip
     """μ and CdA of each descent against its start time with 90 % intervals; the joint fit's
@@ -354,7 +358,7 @@ def time_of_day_axes(descents: Sequence[DescentView], colours: dict[str, str],
             ax.errorbar(h, v, yerr=[lo, hi], fmt="o", color=colour,
                         mfc=colour if good else "white", ms=6, capsize=3,
                         linewidth=1.2)  # fmt: skip
-        for d in ds:
+        for d in ds if len(hours_all) <= MAX_NUMBERED else ():  # a long day: a smear of text
             am.annotate(str(d.number), (d.start_hours, d.mu.value),
                         textcoords="offset points", xytext=(5, 3), fontsize=7,
                         color="#555555")  # fmt: skip

@@ -36,16 +36,18 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import IO, Any
 
 from station.errors import InputError
 from station.model.compare import collect, format_comparison
+from station.model.sequential import decision_block
 from station.session import store as sessions
-from station.session.analysis import DescentResult
+from station.session.analysis import DescentResult, FitCache
 from station.session.comparison import compare_results
 from station.session.config import SerialConfig, StationConfig
 from station.session.day import Day, Effect
+from station.session.fitstore import FitStore
 from station.session.rawlog import Chunk, RawLogWriter
 from station.session.records import (
     Annotation,
@@ -162,6 +164,12 @@ class Acquisition:
         self.session_dir = session_dir
         self.rawlog = rawlog
         self.compare = compare
+        #: a replay in line keeps every descent's speed curve (the report draws them all); a
+        #: recording or the UI keeps it only in what it hands to the listener: 12 kB a
+        #: descent, half a 2000-descent day's memory (the UI asks again for the one it shows)
+        self.keep_curves = not threaded
+        #: likewise every impulse's fate (``replay --events`` lists them; the UI is told each)
+        self.keep_events = not threaded
         self.ski_rotation = tuple(ski_rotation)
         self.lock = threading.Lock()  # guards the day: processor, results, annotations
         self.finished_descents = 0  # descents the processor ended, aborted ones not counted
@@ -250,6 +258,8 @@ class Acquisition:
             ski_rotation=ski_rotation,
         )
         acq.recording_lock = lock
+        if session_dir is not None:  # stored as they are made: the day's replays reuse them
+            day.analyser.fits = FitStore.for_session(session_dir, config)
         for problem in (lock.problem if lock is not None else "", day.analyser.site_warning):
             if problem:
                 acq._tell(acq.listener.warning, problem)
@@ -383,6 +393,10 @@ class Acquisition:
                 self._tell(self.listener.impulses, new, proc.line_counts())
             if new or done:
                 self._tell(self.listener.progress, self.day.progress())
+        if not self.keep_events:
+            # a recording hands each impulse's fate to the listener once and keeps none: a
+            # replay of the raw log lists them all (--events); 1.5 kB a descent otherwise
+            del proc.events[:]
         for d in done:
             times = DescentTimes.of(d)
             if times.status != DescentStatus.ABORTED:
@@ -563,11 +577,14 @@ class Acquisition:
                 effect = _effect_now(day, a) if job.applied else day.annotate(a)
                 fit_jobs = [day.fit_job(day.results[n].descent) for n in effect.refit]
         fitted = [day.analyser.run(j) for j in fit_jobs]  # outside the lock: the reader goes on
+        kept = fitted if self.keep_curves else [_without_curve(r) for r in fitted]
         with self.lock:
-            views = [day.store(r) for r in fitted] + [day.view(n) for n in effect.changed]
+            views = [day.store(r) for r in kept] + [day.view(n) for n in effect.changed]
         if views:
             self._save_csv(views)
-        for v in views:
+        for i, v in enumerate(views):
+            if i < len(fitted) and v.speed_x is None:  # the listener shows the new fit's curve
+                v = replace(v, speed_x=fitted[i].speed_x, speed_v=fitted[i].speed_v)
             self._tell(self.listener.result, v)
         if views and self.compare:
             with self._cmp:
@@ -739,6 +756,11 @@ class Acquisition:
 
     # ------------------------------------------------------------------ views
 
+    def speed_curve(self, res: DescentResult) -> tuple[Any, Any] | None:
+        """The fitted speed along the run of a result kept without it (one model solve, no
+        fit; the UI's plot of the descent it shows)."""
+        return self.day.analyser.speed_curve(res)
+
     def results(self) -> tuple[DescentResult, ...]:
         """Every descent as the results show it."""
         with self.lock:
@@ -749,15 +771,24 @@ class Acquisition:
         with self.lock:
             return self.day.processor.line_counts()
 
-    def write_csv(self, path: str) -> None:
-        """The results CSV at ``path`` (export, ``replay --csv``, the UI's ``e``)."""
-        self._write(self.results(), path)
+    def write_csv(self, path: str) -> int:
+        """The results CSV at ``path`` (export, ``replay --csv``, the UI's ``e``); returns the
+        number of descents written."""
+        results = self.results()
+        self._write(results, path)
+        return len(results)
 
     def write_csv_to(self, fh: IO[str]) -> None:
         """The results CSV into an open text file: ``--csv -`` writes to standard output."""
         from station.session.results import write_result_rows_to
 
         write_result_rows_to(fh, [r.row for r in self.results()], self._results_header())
+
+
+def _without_curve(res: DescentResult) -> DescentResult:
+    if res.speed_x is None and res.speed_v is None:
+        return res
+    return replace(res, speed_x=None, speed_v=None)
 
 
 def _effect_now(day: Day, a: Annotation) -> Effect:
@@ -781,7 +812,11 @@ def comparison_text(track: Track, results: Sequence[DescentResult]) -> str:
     if day.result is None:
         return f"no comparison yet: {day.error}"
     res = day.result
-    return format_comparison(res, len(day.compared)) + "".join(f"\n! {w}" for w in res.warnings)
+    text = format_comparison(res, len(day.compared)) + "".join(f"\n! {w}" for w in res.warnings)
+    block = decision_block(
+        res.comparisons, [d.item for d in day.compared], day.compared[-1].number
+    )  # decided or not, after every descent (station/model/sequential.py)
+    return text + "".join(f"\n{line}" for line in ["", *block]) if block else text
 
 
 # ----------------------------------------------------------------------------- commands
@@ -799,7 +834,8 @@ def record(
     from station.session.serialport import ensure_port_free
 
     ensure_port_free(config.serial)  # a second recorder on the port: one line, no session made
-    acq = Acquisition.open(config, listener, session_dir=session_dir)
+    # compare: the console says after every descent whether the day is decided
+    acq = Acquisition.open(config, listener, session_dir=session_dir, compare=True)
     stop = threading.Event()
     previous = {}
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -835,15 +871,21 @@ def replay(
     speed: float | None = None,
     date: dt.date | None = None,
     warnings: list[str] | None = None,
+    fits: FitCache | None = None,
+    speed_curves: bool = True,
 ) -> Acquisition:
     """Feed a session (with its annotations) or a plain capture through the loop, in line.
     Without a listener the replay says nothing as it goes: the caller reports its results
-    (and ``warnings`` collects what the raw log's reader passed over)."""
+    (and ``warnings`` collects what the raw log's reader passed over). ``fits``: the fits
+    stored with the session, used where they fit and added to; ``speed_curves``: the fitted
+    speed along the run of each descent (for the views that draw it)."""
     import gc
 
     acq = Acquisition.open(
         config, listener or QuietListener(), date=source_date(source, date), threaded=False
     )
+    acq.day.analyser.fits = fits
+    acq.day.analyser.speed_curves = speed_curves
     # a replay makes objects by the hundred thousand and keeps most: the garbage collector
     # need not scan the set-up's (modules, the track, the grids) at every full collection
     gc.freeze()

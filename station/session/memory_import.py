@@ -15,6 +15,7 @@ live recording holds some impulses and the download the rest is not joined into 
 
 from __future__ import annotations
 
+import datetime as dt
 import os
 import time
 from dataclasses import dataclass
@@ -40,6 +41,7 @@ class ImportReport:
     already_there: int
     added: int
     kept_as: str
+    dated: dt.date | None = None  # the test day the new session's impulses were dated by
 
 
 def read_import(path: str) -> bytes:
@@ -94,9 +96,21 @@ def _keep_bytes(session: str, src: str, data: bytes) -> str:
     return os.path.join(IMPORTS, name)
 
 
-def import_new(path: str, config: StationConfig, session: str) -> ImportReport:
-    """A new session whose raw log is the file's bytes."""
+def day_noon(date: dt.date) -> float:
+    """The host time the bytes of a download are filed under: noon of the test day, local.
+    A descent is dated by the day that puts its start nearest its host time, so every time of
+    day of that date stays on it (the import's own time, hours or days later, would date the
+    whole test day by the day it was downloaded)."""
+    return dt.datetime.combine(date, dt.time(12)).timestamp()
+
+
+def import_new(
+    path: str, config: StationConfig, session: str, date: dt.date | None = None
+) -> ImportReport:
+    """A new session whose raw log is the file's bytes, dated ``date`` (default: the file's
+    modification date, as the replay of a plain capture is)."""
     data = read_import(path)
+    day = date or dt.date.fromtimestamp(os.path.getmtime(path))
     sessions.create(config, session)
     kept = _keep_bytes(session, path, data)
     log = RawLogWriter(
@@ -104,12 +118,12 @@ def import_new(path: str, config: StationConfig, session: str) -> ImportReport:
         header={"port": f"import {os.path.basename(path)}", "protocol": config.serial.protocol},
     )
     try:
-        log.event(time.time(), "import", kept)
-        log.write(time.time(), data)
+        log.event(day_noon(day), "import", kept)
+        log.write(day_noon(day), data)
     finally:
         log.close()
     n = _impulses(_identities(data, config.serial.protocol))
-    return ImportReport(session, n, 0, n, kept)
+    return ImportReport(session, n, 0, n, kept, day)
 
 
 def import_into(path: str, session: str) -> ImportReport:
@@ -127,7 +141,10 @@ def import_into(path: str, session: str) -> ImportReport:
     have: set[tuple[str, ...]] = set()
     framer = LineFramer()
     parser = make_parser(protocol)
+    last_t: float | None = None  # the session's own last host time: the merged bytes' day
     for chunk in read_rawlog(os.path.join(session, sessions.RAW)):
+        if chunk.t == chunk.t:  # not NaN
+            last_t = chunk.t
         if chunk.event:
             continue
         for line in framer.feed(chunk.data):
@@ -141,14 +158,15 @@ def import_into(path: str, session: str) -> ImportReport:
     n = _impulses(found)
     kept = _keep_bytes(session, path, data)
     log = RawLogWriter(os.path.join(session, sessions.RAW))
+    when = last_t if last_t is not None else time.time()
     try:
         edits = len(missing) - added
-        log.event(time.time(), "import", f"{kept}: {added} of {n} impulses added"
+        log.event(when, "import", f"{kept}: {added} of {n} impulses added"
                   + (f", and {edits} edit line(s)" if edits else ""))  # fmt: skip
         if missing:
             # a line end first: a live line cut off at the end of the log stays cut off
             end = LINE_END[protocol]
-            log.write(time.time(), end + b"".join(s.encode("latin-1") + end for s in missing))
+            log.write(when, end + b"".join(s.encode("latin-1") + end for s in missing))
     finally:
         log.close()
     return ImportReport(session, n, n - added, added, kept)

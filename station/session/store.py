@@ -6,6 +6,8 @@
       <survey files>   the survey YAML and its observation file, at the same relative paths
       results.csv      one row per descent, rewritten after each descent
       annotations.jsonl  what the engineer entered: metadata, invalid marks, refits
+      fits.jsonl       every descent's fit, keyed by what it depends on (a cache:
+                       station.session.fitstore), so a replay fits only what changed
       recording.lock   there while the session is recorded (:class:`RecordingLock`)
 
 Replaying a session (``station replay SESSION``) runs its own snapshot through the same
@@ -113,18 +115,7 @@ def snapshot(cfg: StationConfig, session: str) -> None:
 def create(cfg: StationConfig, session: str) -> str:
     """Make the session folder and its snapshot; refuse a folder that holds anything (another
     session's files are never overwritten) and say in one line why a folder cannot be made."""
-    if os.path.exists(os.path.join(session, RAW)):
-        raise InputError(
-            "a session is already recorded there; choose a new --session-dir", path=session
-        )
-    if os.path.lexists(session) and not os.path.isdir(session):
-        raise InputError("is a file, not a folder; choose a new --session-dir", path=session)
-    if os.path.isdir(session) and os.listdir(session):
-        raise InputError(
-            "the folder is not empty and a session never overwrites files; "
-            "choose a new --session-dir",
-            path=session,
-        )
+    check_new(session)
     made = not os.path.exists(session)
     try:
         os.makedirs(session, exist_ok=True)
@@ -137,6 +128,24 @@ def create(cfg: StationConfig, session: str) -> str:
             path=session,
         ) from None
     return session
+
+
+def check_new(session: str) -> None:
+    """Refuse, in one line, a folder a new session cannot be made in (a session there, a
+    file, a folder that holds anything): what :func:`create` checks, for the commands that
+    must say it before the terminal UI starts (``live``, ``demo``)."""
+    if os.path.exists(os.path.join(session, RAW)):
+        raise InputError(
+            "a session is already recorded there; choose a new --session-dir", path=session
+        )
+    if os.path.lexists(session) and not os.path.isdir(session):
+        raise InputError("is a file, not a folder; choose a new --session-dir", path=session)
+    if os.path.isdir(session) and os.listdir(session):
+        raise InputError(
+            "the folder is not empty and a session never overwrites files; "
+            "choose a new --session-dir",
+            path=session,
+        )
 
 
 def _remove_partial(session: str) -> None:
@@ -283,7 +292,7 @@ def read_annotations_after(session: str, offset: int) -> tuple[list[AppendedReco
 # ----------------------------------------------------------------------------- being recorded
 
 
-class Recording(enum.Enum):
+class RecordingStatus(enum.Enum):
     """Whether a session is being recorded now, as its lock file says (:class:`RecordingLock`)."""
 
     NOW = "recording"  # a live process holds the lock
@@ -291,6 +300,9 @@ class Recording(enum.Enum):
     INTERRUPTED = "interrupted"  # a lock file nobody holds: the recorder was killed or crashed
     UNKNOWN = "unknown"  # the lock cannot be read or tried (permissions, a file system without)
 
+
+#: the name earlier code used
+Recording = RecordingStatus
 
 _BUSY = (errno.EWOULDBLOCK, errno.EAGAIN)
 
@@ -354,7 +366,7 @@ class RecordingLock:
         os.close(fd)
 
 
-def recording_state(session: str) -> Recording:
+def recording_state(session: str) -> RecordingStatus:
     """Is ``session`` being recorded now? A non-blocking try of its lock, released at once.
 
     Opened read-only, so a read-only folder or medium (a session copied to a stick) is read as

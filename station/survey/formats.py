@@ -27,10 +27,13 @@ from station.errors import InputError
 from station.files import MAX_OBSERVATIONS, read_bytes
 from station.survey.polar import ObservationSet, Setup
 
-#: what the station reads, for the one line an unknown file gets
+#: the observation formats, for the one line a file of none of them gets
+OBSERVATION_FORMATS = (
+    "Leica GSI-8/16, Sokkia SDR33/SDR2x, Topcon GTS-7/TopSURV, LandXML 1.2, Carlson RW5"
+)
+#: what ``station survey`` reads
 FORMAT_NAMES = (
-    "a survey YAML (surveys/README.md), Leica GSI-8/16, Sokkia SDR33/SDR2x, "
-    "Topcon GTS-7/TopSURV, LandXML 1.2, Carlson RW5, or a points CSV (id,e,n,h)"
+    f"a survey YAML (surveys/README.md), {OBSERVATION_FORMATS}, or a points CSV (id,e,n,h)"
 )
 
 _CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET  # noqa: S405 - only the Element type; parsing is defusedxml
+from dataclasses import replace
 
 import defusedxml.ElementTree as DET  # type: ignore[import-untyped]
 from defusedxml import DefusedXmlException
@@ -78,6 +79,8 @@ def _parse(text: str, path: str) -> tuple[ET.Element, dict[int, int]]:
     except ET.ParseError as exc:
         line = exc.position[0] if getattr(exc, "position", None) else None
         raise InputError(f"not well-formed XML: {exc}", path=path, line=line) from None
+    except LookupError as exc:  # the XML declaration names an encoding Python does not know
+        raise InputError(f"XML in an unknown encoding: {exc}", path=path, line=1) from None
     return root, builder.lines
 
 
@@ -177,7 +180,7 @@ class _Reader:
                 name = s.get("stationName") or ip.get("pntRef") or name
             e, n, h = enh or (0.0, 0.0, 0.0)
             hi = (self.num(s, "instrumentHeight") or 0.0) * self.metres
-            setup = Setup(name, e, n, h, hi, known=enh is not None)
+            setup = Setup(name, e, n, h, hi, known=enh is not None, oriented=False)
             setup = self.orient(s, setup)
             found[s.get("id") or name] = setup
             self.out.setups.append(setup)
@@ -192,16 +195,7 @@ class _Reader:
             if az is None and target is not None and setup.known:
                 az = math.atan2(target[0] - setup.e, target[1] - setup.n)
             if az is not None:
-                return Setup(
-                    setup.station,
-                    setup.e,
-                    setup.n,
-                    setup.h,
-                    setup.instrument_height,
-                    az - circle,
-                    setup.line,
-                    setup.known,
-                )
+                return replace(setup, orientation=az - circle, oriented=True)
         return setup
 
     def observations(self, setups: dict[str, Setup]) -> None:

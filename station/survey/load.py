@@ -27,8 +27,8 @@ from dataclasses import dataclass, field, replace
 from station.errors import InputError
 from station.survey.formats import (
     FORMAT_NAMES,
+    OBSERVATION_FORMATS,
     is_points_csv,
-    read_observations,
     read_text,
     sniff,
 )
@@ -271,6 +271,8 @@ def load_survey(path: str) -> Survey:
         from station.survey.coords import read_points_csv  # only a list of points needs it
 
         return _bare(path, ObservationSet(format="points CSV"), read_points_csv(path, 0.005))
+    if not text.strip():
+        raise InputError(f"an empty file: the station reads {FORMAT_NAMES}", path=path)
     if not _yaml_like(path, text):
         raise InputError(f"not a survey file: the station reads {FORMAT_NAMES}", path=path)
     data = load_yaml(path)
@@ -280,6 +282,7 @@ def load_survey(path: str) -> Survey:
 
 
 def _bare(path: str, obs: ObservationSet, coords: list[ReducedPoint]) -> Survey:
+    obs.warnings.extend(_orientation_warnings(obs))
     obs, network = place_setups(obs, path)
     reduced = reduce_all(obs) + coords + _known_points(obs, Precision())
     survey = _assemble(path, os.path.basename(path), obs, reduced, [], [], None, 0.13)
@@ -287,6 +290,18 @@ def _bare(path: str, obs: ObservationSet, coords: list[ReducedPoint]) -> Survey:
     survey.format = obs.format
     survey.bare = True
     return survey
+
+
+def _orientation_warnings(obs: ObservationSet) -> list[str]:
+    """A setup with coordinates and shots but no backsight: its circle is taken as azimuth.
+    (A setup without coordinates is oriented by the network adjustment.)"""
+    shooting = {id(o.setup) for o in obs.observations}
+    return [
+        f"setup {s.station} (line {s.line}) has coordinates but no backsight: its horizontal "
+        "circle is taken as azimuth"
+        for s in obs.setups
+        if s.known and not s.oriented and id(s) in shooting
+    ]
 
 
 def _known_points(obs: ObservationSet, precision: Precision) -> list[ReducedPoint]:
@@ -349,7 +364,14 @@ def _observations(
     full = os.path.join(os.path.dirname(os.path.abspath(path)), obs_path)
     if not os.path.exists(full):
         raise top.error("observations", f"observation file {obs_path!r} not found")
-    return read_observations(full, default_setup)
+    text = read_text(full)
+    fmt = sniff(text)
+    if fmt is None:
+        raise top.error(
+            "observations",
+            f"{obs_path!r} is not an observation file the station reads ({OBSERVATION_FORMATS})",
+        )
+    return fmt.read(text, full, default_setup)
 
 
 def _photocells(top: Section, path: str) -> list[PhotocellDef]:
@@ -443,6 +465,7 @@ def _load_yaml_survey(path: str, data: object) -> Survey:
         dsec = Section(top.data["default_setup"], path, "default_setup", _SETUP_KEYS)
         default_setup = _setup_from(dsec, unit, "default")
     obs = _observations(top, path, unit, default_setup)
+    obs.warnings.extend(_orientation_warnings(obs))
     obs, network = place_setups(obs, path, k, precision, default_setup)
     reduced = reduce_all(obs, k, precision) + _known_points(obs, precision)
     if top.has("points"):

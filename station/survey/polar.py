@@ -53,6 +53,9 @@ class Setup:
     #: False: the file gives no coordinates for this setup (a GSI code block ``41``/``42``);
     #: it is placed from the points it shares with other setups (:mod:`station.survey.network`)
     known: bool = True
+    #: False: a reader whose format records raw circle readings found no backsight for this
+    #: setup, so its circle is taken as azimuth (a warning says so)
+    oriented: bool = True
 
 
 @dataclass(frozen=True)
@@ -158,7 +161,9 @@ def reduce_observation(
     )
 
 
-def _gsi_observation(b: GsiBlock, pid: str, setup: Setup, path: str) -> Observation:
+def _gsi_observation(
+    b: GsiBlock, pid: str, setup: Setup, path: str, default_hr: float = 0.0
+) -> Observation:
     zenith = b.value("22")
     assert zenith is not None
     if not (0.0 < zenith < math.pi * 2):
@@ -168,6 +173,7 @@ def _gsi_observation(b: GsiBlock, pid: str, setup: Setup, path: str) -> Observat
             line=b.line,
             field="WI 22 (zenith angle)",
         )
+    hr = b.value("87")
     enh = None
     if b.has("81", "82", "83"):
         enh = (b.value("81"), b.value("82"), b.value("83"))
@@ -177,7 +183,7 @@ def _gsi_observation(b: GsiBlock, pid: str, setup: Setup, path: str) -> Observat
         zenith=float(zenith),
         slope_distance=b.value("31"),
         horizontal_distance=b.value("32"),
-        reflector_height=float(b.value("87") or 0.0),
+        reflector_height=default_hr if hr is None else hr,
         instrument_height=b.value("88"),
         setup=setup,
         line=b.line,
@@ -185,20 +191,29 @@ def _gsi_observation(b: GsiBlock, pid: str, setup: Setup, path: str) -> Observat
     )
 
 
+#: code-block values (WI 41) that start a station: 2, and 21 as Leica MS60 instruments write it
+STATION_CODES = {"2", "21"}
+#: the code-block value whose WI 42 is the default reflector height (mm) of the shots after it
+TARGET_HEIGHT_CODE = "3"
+
+
+def _millimetres(b: GsiBlock, wi: str, path: str, what: str) -> float:
+    """A code-block info word (no unit digit) holding millimetres, e.g. ``43....+00001538``."""
+    text = b.words[wi].text
+    if not text.isdigit():
+        raise InputError(
+            f"{what} {text!r} is not a number of millimetres",
+            path=path,
+            line=b.line,
+            field=f"WI {wi} ({what})",
+        )
+    return int(text) / 1000.0
+
+
 def _code_block_setup(b: GsiBlock, path: str) -> Setup:
-    """A code block ``41`` with ``42`` (station name) and ``43`` (instrument height, mm)."""
+    """A station code block: ``41`` (2 or 21), ``42`` station name, ``43`` instrument height."""
     name = b.words["42"].text.lstrip("0") or "0"
-    hi = 0.0
-    if "43" in b.words:
-        text = b.words["43"].text
-        if not text.isdigit():
-            raise InputError(
-                f"instrument height {text!r} is not a number of millimetres",
-                path=path,
-                line=b.line,
-                field="WI 43 (instrument height)",
-            )
-        hi = int(text) / 1000.0
+    hi = _millimetres(b, "43", path, "instrument height") if "43" in b.words else 0.0
     return Setup(station=name, instrument_height=hi, line=b.line, known=False)
 
 
@@ -219,8 +234,11 @@ def interpret_gsi(
 
     - a block with any of WI 84/85/86 starts a new setup (88 instrument height, 25 recorded);
       right after a code-block setup (below) it gives that setup its coordinates instead;
-    - a code block ``41`` with ``42`` (station name) and ``43`` (instrument height, mm) starts
-      a new setup without coordinates, placed later from the points several setups observe;
+    - a code block ``41`` of value 2 or 21 with ``42`` (station name), ``43`` (instrument
+      height, mm) and optionally ``44`` (reflector height, mm) starts a new setup without
+      coordinates, placed later from the points several setups observe; a code block of value
+      3 sets the reflector height (``42``, mm) of the shots without WI 87 after it; other code
+      blocks (feature codes) are passed over;
     - a block with 21, 22 and 31 or 32 is an observation (87 reflector height, 88 if present
       overrides the setup's instrument height, 81–83 kept as the instrument's own result);
       with 21 and 22 but no distance it cannot be reduced: a warning names its line;
@@ -232,10 +250,12 @@ def interpret_gsi(
     out = ObservationSet(format="Leica GSI")
     setup = default_setup or Setup(station="default")
     out.setups.append(setup)
+    default_hr = 0.0  # a code block's reflector height, for shots without WI 87
     for b in blocks:
         pid = b.point_id or f"block{b.line}"
+        code = b.words["41"].text.lstrip("0") if "41" in b.words else None
         if b.has("21", "22") and (b.has("31") or b.has("32")):
-            out.observations.append(_gsi_observation(b, pid, setup, path))
+            out.observations.append(_gsi_observation(b, pid, setup, path, default_hr))
         elif b.has("21", "22"):
             out.unreduced.setdefault(pid, b.line)
         elif b.has("84") or b.has("85") or b.has("86"):
@@ -254,9 +274,12 @@ def interpret_gsi(
             else:
                 out.setups.append(new)
             setup = new
-        elif b.has("41", "42"):
+        elif code in STATION_CODES and b.has("42"):
             setup = _code_block_setup(b, path)
             out.setups.append(setup)
+            default_hr = _millimetres(b, "44", path, "reflector height") if b.has("44") else 0.0
+        elif code == TARGET_HEIGHT_CODE and b.has("42"):
+            default_hr = _millimetres(b, "42", path, "reflector height")
         elif b.has("81") or b.has("82") or b.has("83"):
             out.known.append(
                 KnownPoint(

@@ -105,7 +105,9 @@ class _Reader:
         elif key == "OC":
             enh = self.point(f, key, lineno)
             e, n, h = enh or (0.0, 0.0, 0.0)
-            self.setup = Setup(f.get("OP", ""), e, n, h, line=lineno, known=enh is not None)
+            self.setup = Setup(
+                f.get("OP", ""), e, n, h, line=lineno, known=enh is not None, oriented=False
+            )
             self.out.setups.append(self.setup)
         elif key == "SP":
             enh = self.point(f, key, lineno)
@@ -120,7 +122,7 @@ class _Reader:
         elif key == "BK" and self.setup is not None:
             az = self.angle(f, "BS", key, lineno) or 0.0
             circle = self.angle(f, "BC", key, lineno) or 0.0
-            self._replace(replace(self.setup, orientation=az - circle))
+            self._replace(replace(self.setup, orientation=az - circle, oriented=True))
         elif key in ("SS", "BD", "FD", "TR"):
             self.shot(f, key, lineno)
 

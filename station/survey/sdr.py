@@ -174,6 +174,7 @@ class _Reader:
             instrument_height=(hi or 0.0) * self.need_units(lineno).distance,
             line=lineno,
             known=known,
+            oriented=False,
         )
         self.out.setups.append(self.setup)
 
@@ -198,7 +199,7 @@ class _Reader:
         reading = (circle or 0.0) * u.angle
         if not u.clockwise:
             reading = -reading
-        self.set_setup(replace(self.setup, orientation=azimuth - reading))
+        self.set_setup(replace(self.setup, orientation=azimuth - reading, oriented=True))
 
     def set_setup(self, new: Setup) -> None:
         assert self.setup is not None

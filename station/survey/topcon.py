@@ -160,8 +160,9 @@ class _Reader:
         )
 
     def feed(self, line: str, lineno: int) -> None:
-        key, _, rest = line.strip().partition(" ")
-        key = key.upper()
+        parts = line.strip().split(None, 1)  # the keyword, then blanks or a tab
+        key = parts[0].upper() if parts else ""
+        rest = parts[1] if len(parts) > 1 else ""
         vals = rest.strip().split(",") if rest.strip() else []
         if key == "UNITS":
             self.units(vals, lineno)
@@ -172,6 +173,7 @@ class _Reader:
                 line=lineno,
                 instrument_height=hi * self.metres,
                 known=False,
+                oriented=False,
             )
             self.out.setups.append(self.setup)
             self.last = key
@@ -196,7 +198,7 @@ class _Reader:
         self.backsight = vals[0].strip() if vals else ""
         az = self.angle(vals, 1, "BKB", lineno, "azimuth")
         reading = self.angle(vals, 2, "BKB", lineno, "circle reading")
-        self._replace_setup(replace(self.setup, orientation=az - reading))
+        self._replace_setup(replace(self.setup, orientation=az - reading, oriented=True))
         self.last = "BKB"
 
 

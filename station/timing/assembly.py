@@ -158,6 +158,7 @@ class DescentAssembler:
         self.order = {pc: i for i, pc in enumerate(photocells)}
         self.photocells = list(photocells)
         self.channels = dict(channels)
+        self._channel_names = {ch: ch for ch in self.channels}
         self.debounce_us = round(debounce_s * 1e6)
         self.positions = list(positions_m) if positions_m is not None else None
         self.min_speed = min_speed_ms
@@ -301,11 +302,15 @@ class DescentAssembler:
         host clock estimates it, where known (it confirms a jump of the device clock)."""
         ch = imp.channel
         pc = self.channels.get(ch)
-        # the common case first: the one open descent reaching its next photocell
-        if pc is not None and self._pending is None and len(self.open) == 1:
-            done = self._next_photocell(imp, line, ch, pc)
-            if done is not None:
-                return done
+        if pc is not None:
+            ch = self._channel_names[ch]  # the config's string, kept: not one per line
+            # the common case first: the one open descent reaching its next photocell
+            if self._pending is None and len(self.open) == 1:
+                done = self._next_photocell(imp, line, ch, pc)
+                if done is not None:
+                    return done
+            if ch is not imp.channel:
+                imp = imp._replace(channel=ch)
         done = []
         number = int(imp.bib) if imp.bib.isascii() and imp.bib.isdigit() else None
         prev_number, self._prev_number = self._prev_number, number

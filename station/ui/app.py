@@ -40,7 +40,7 @@ from station.session.records import (
     ResultRow,
     ValidMark,
 )
-from station.session.store import is_session
+from station.session.store import RESULTS, is_session
 from station.timing.impulses import format_tod
 from station.ui.messages import (
     AcquisitionWarning,
@@ -224,7 +224,7 @@ class StationApp(App):
     BINDINGS = [
         Binding("m", "metadata", "Metadata"),
         Binding("i", "invalid", "Invalid"),
-        Binding("v", "refit", "Refit v"),
+        Binding("v", "refit", "Velocity model"),  # "v Refit v" read as a stutter
         Binding("e", "export", "Export"),
         Binding("c", "compare", "Compare"),
         Binding("question_mark,f1", "help", "Help", key_display="?"),
@@ -308,6 +308,8 @@ class StationApp(App):
         self.photocell_ids = tuple(self.acq.track.photocell_ids)
         if self.session_dir is not None:
             self.sub_title = f"{self.mode} · {self.session_dir}"
+        elif self.source is not None:  # a replay names what it replays: the session's name
+            self.sub_title = f"{self.mode} · {os.path.basename(os.path.normpath(self.source))}"
         if self.mode == "replay":
             assert self.source is not None
             if self.recorded is None:  # a plain capture
@@ -423,7 +425,8 @@ class StationApp(App):
     def on_descent_fitted(self, msg: DescentFitted) -> None:
         res = msg.result
         n = res.number
-        self.results[n] = res
+        # its speed curve (12 kB) only while it is shown: asked for again when selected
+        self.results[n] = replace(res, speed_x=None, speed_v=None)
         table = self.main.query_one("#table", DataTable)
         key = str(n)
         values = self._cells(res)
@@ -554,6 +557,10 @@ class StationApp(App):
             self.main.query_one("#residuals", Static).update(text)
         box = self.main.query_one("#speed", Static)
         width = max(10, left - resid_width - 1 - 7)  # its padding, the speed labels
+        if res.speed_x is None and res.fit is not None and self.acq is not None:
+            curve = self.acq.speed_curve(res)  # one model solve: kept while it is shown
+            if curve is not None:
+                res = self._plotted = replace(res, speed_x=curve[0], speed_v=curve[1])
         if res.speed_x is not None and res.speed_v is not None:
             x, v = res.speed_x.tolist(), res.speed_v.tolist()
             plot = speed_plot(x, v, width=width, height=rows - 1)
@@ -584,9 +591,15 @@ class StationApp(App):
             if not values:  # saved as it was: nothing to record, nothing to apply
                 self.notify("metadata unchanged: nothing saved")
                 return
+            stopped = ""
+            if "ski" in values and self.acq.ski_rotation:
+                # the engineer took over the skis: the demo's rotation would overwrite the
+                # typed ski when the next descent starts
+                self.acq.ski_rotation = ()
+                stopped = "; the demo's rotation of skis stops"
             start = self.metadata_from = self.acq.add_metadata(values)
             a = MetadataAnnotation(Metadata.from_values(values), from_descent=start, t=time.time())
-            self.notify(f"metadata applies from descent {start} on{self._keep(a)}")
+            self.notify(f"metadata applies from descent {start} on{self._keep(a)}{stopped}")
 
         self.push_screen(MetadataScreen(current, nxt), done)
 
@@ -635,18 +648,18 @@ class StationApp(App):
         if self.acq is None:
             return
         if self.session_dir is not None:
-            from station.session.store import RESULTS
-
             path = os.path.join(self.session_dir, RESULTS)
         else:
             base = os.path.splitext(os.path.basename(os.path.normpath(self.source or "replay")))[0]
             path = os.path.abspath(f"{base}-results.csv")
         try:
-            self.acq.write_csv(path)
+            written = self.acq.write_csv(path)
         except OSError as exc:
             self.notify(f"{path} not written: {exc}", severity="error")
             return
-        self.notify(f"{count(len(self.results), 'descent')} exported to {path}")
+        # the rows written, not the rows shown: a descent whose fit is still on its way to
+        # the table is in the file too
+        self.notify(f"{count(written, 'descent')} exported to {path}")
 
     def on_unmount(self) -> None:
         """Quitting ends the day as Ctrl-C ends ``station record``: the open descent is ended

@@ -1,0 +1,117 @@
+"""A long recording stays small and quick: the day keeps no descent's speed curve (the listener
+gets it with the fit, the analyser draws it again on request), the impulses' fates go to the
+listener and are not kept, and the comparison of the day is computed off the fit path, only
+while it is shown, so a descent's fit never waits for the day's joint fit."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+
+import station.session.acquisition as acquisition
+from station.session.acquisition import Acquisition, Listener
+from station.session.config import load_config
+from tests.test_acquisition import descent_lines, feed_like_a_reader
+from tests.timing_helpers import write_config
+
+
+class Seen(Listener):
+    def __init__(self) -> None:
+        self.results: list = []
+        self.comparisons: list[str] = []
+        self.fitted = threading.Semaphore(0)
+
+    def result(self, result) -> None:
+        self.results.append(result)
+        self.fitted.release()
+
+    def comparison(self, text: str) -> None:
+        self.comparisons.append(text)
+
+
+def wait_fitted(seen: Seen, n: int) -> None:
+    for _ in range(n):
+        assert seen.fitted.acquire(timeout=60), "a descent was not fitted"
+
+
+def test_a_recording_keeps_no_speed_curve_and_no_impulse_fates(tmp_path, demo_track):
+    cfg = load_config(str(write_config(tmp_path, "loop://")))
+    seen = Seen()
+    acq = Acquisition.open(cfg, seen)  # threaded, as a recording and the UI run
+    feed_like_a_reader(acq, descent_lines(demo_track, [36000, 36060, 36120]))
+    wait_fitted(seen, 3)
+    assert acq.day.processor.events == []  # handed to the listener, not kept
+    acq.close()
+    handed = {r.number: r for r in seen.results}
+    kept = acq.results()
+    assert [r.speed_x for r in kept] == [None, None, None]
+    for r in kept:  # the listener had it; the analyser draws the same again
+        x, v = acq.speed_curve(r)
+        assert np.array_equal(x, handed[r.number].speed_x)
+        assert np.array_equal(v, handed[r.number].speed_v)
+
+    # a replay in line (the report draws every curve, --events lists every fate) keeps both
+    replayed = Acquisition.open(cfg, threaded=False)
+    feed_like_a_reader(replayed, descent_lines(demo_track, [36000, 36060, 36120]))
+    replayed.close()
+    assert all(r.speed_x is not None for r in replayed.results())
+    assert len(replayed.day.processor.events) == 27
+
+
+def test_the_comparison_is_computed_only_while_shown(tmp_path, demo_track, monkeypatch):
+    monkeypatch.setattr(acquisition, "COMPARE_QUIET_S", 0.05)
+    cfg = load_config(str(write_config(tmp_path, "loop://")))
+    seen = Seen()
+    acq = Acquisition.open(cfg, seen, compare=True)
+    try:
+        feed_like_a_reader(acq, descent_lines(demo_track, [36000, 36060, 36120]))
+        wait_fitted(seen, 3)
+        time.sleep(0.5)
+        assert seen.comparisons == []  # not shown: not computed
+        acq.show_comparison(True)
+        deadline = time.monotonic() + 30
+        while not seen.comparisons:
+            assert time.monotonic() < deadline, "no comparison while shown"
+            time.sleep(0.05)
+        assert "joint fit" in seen.comparisons[-1]
+        acq.show_comparison(False)
+        n = len(seen.comparisons)
+        feed_like_a_reader(acq, descent_lines(demo_track, [36180]))
+        wait_fitted(seen, 1)
+        time.sleep(0.5)
+        assert len(seen.comparisons) == n  # closed again: the new descent is not compared
+    finally:
+        acq.close()
+
+
+def test_a_fit_never_waits_for_the_comparison(tmp_path, demo_track, monkeypatch):
+    """The day's joint fit takes seconds at 2000 descents: here it takes 3 s, and a descent
+    ending while it runs is fitted and handed out meanwhile."""
+    monkeypatch.setattr(acquisition, "COMPARE_QUIET_S", 0.05)
+    started, release = threading.Event(), threading.Event()
+
+    def slow_comparison(track, results) -> str:
+        started.set()
+        release.wait(3.0)
+        return "joint fit (slow)"
+
+    monkeypatch.setattr(acquisition, "comparison_text", slow_comparison)
+    cfg = load_config(str(write_config(tmp_path, "loop://")))
+    seen = Seen()
+    acq = Acquisition.open(cfg, seen, compare=True)
+    try:
+        acq.show_comparison(True)
+        lines = descent_lines(demo_track, [36000, 36060])
+        feed_like_a_reader(acq, lines[:1])
+        wait_fitted(seen, 1)
+        assert started.wait(30)  # the comparison is running
+        t0 = time.monotonic()
+        feed_like_a_reader(acq, lines[1:])
+        wait_fitted(seen, 1)
+        assert time.monotonic() - t0 < 2.5 and not release.is_set()
+        assert seen.comparisons == []  # the comparison was still under way
+    finally:
+        release.set()
+        acq.close()
