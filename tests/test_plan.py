@@ -156,8 +156,8 @@ def test_planned_days_resolve_the_difference_with_the_stated_power(demo_track, d
     """Days simulated with the plan's descents and fitted by the real joint fit resolve Δμ with
     the stated power ± 5 %, and two descents per item fewer do not reach 90 % (the plan is at
     most one larger than needed). benchmarks/plan_power.py prints the whole table; at 1-2 %
-    scatter on four photocells the joint fit's intervals are narrower than the spread of its
-    estimate, so more days resolve than planned (README, "Planning the day")."""
+    scatter on four photocells the plan's standard error is about 10 % larger than the spread
+    of the fit's estimate, so more days resolve than planned (README, "Planning the day")."""
     tr = sparse(demo_track)
     p = plan_day(tr, delta, assume(scatter, 1e-3))
     n = p.descents_per_item
