@@ -16,4 +16,6 @@ PLAUSIBLE: dict[str, tuple[float, float, str]] = {
     "air_density": (0.3, 2.0, "kg/m³"),
     "wind_ms": (0.0, 60.0, "m/s"),
     "wind_from_deg": (0.0, 360.0, "° from north"),
+    "latitude_deg": (-90.0, 90.0, "°"),  # geodetic, + north: local gravity
+    "altitude_m": (-500.0, 9000.0, "m"),  # of the run above sea level
 }

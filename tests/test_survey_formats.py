@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import survey_writers as W
 from conftest import DEMO_SURVEY
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from station.errors import InputError
@@ -442,6 +442,7 @@ def _damaged(draw) -> str:
     return "".join(s)
 
 
+@example(text=W.landxml(ObservationSet()).replace('"UTF-8"', '"\x00TF-8"'))  # found by the test
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(text=_damaged())
 def test_a_damaged_file_is_read_or_refused_in_one_located_line(tmp_path_factory, text):

@@ -81,6 +81,13 @@ def cmd_annotate(args: argparse.Namespace) -> int:
         raise InputError("nothing to annotate: give metadata, --invalid, --valid or --model")
     session.check_descents(targets)  # --from N may name descents still to come
     print(annotate_session(session, records), file=sys.stderr)
+    from station.cli.console import add_after
+
+    try:
+        store = session.config.store
+    except InputError:
+        store = None
+    add_after(session.path, store)  # the season store's rows follow the annotation
     return 0
 
 
@@ -132,7 +139,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def _write_compare_csv(res: JointResult, path: str) -> None:
     with open_output(path, "--csv") as fh:
         head = f"station {__version__} comparison; reference {res.reference}; " \
-               f"drift {'on' if res.drift_per_hour else 'off'}"  # fmt: skip
+               f"drift {'on' if res.drift_per_hour else 'off'}; " \
+               f"g {res.gravity_ms2:.5f} m/s²"  # fmt: skip
         fh.write(f"# {head.replace(',', ';')}\n")  # no comma: a spreadsheet keeps the line whole
         w = csv.writer(fh, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
         w.writerow(["rank", "item", "descents", "mu", "mu_lo", "mu_hi", "delta_mu_vs_reference",

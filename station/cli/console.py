@@ -10,6 +10,7 @@ share it, as they share :mod:`station.cli.common`.
 from __future__ import annotations
 
 import os
+import sys
 from collections.abc import Callable, Sequence
 
 from station.cli.common import _warn
@@ -102,3 +103,33 @@ def annotate_session(session: RecordedSession, records: Sequence[Annotation]) ->
 def _say_warnings(session: RecordedSession) -> None:
     while session.warnings:
         _warn(session.warnings.pop(0))
+
+
+def add_after(session: str, config_store: str | None) -> None:
+    """``record``, ``live`` and ``annotate``: add or update the session in the season store
+    when one is configured ($STATION_STORE, else the config's ``store:``). It never fails the
+    command that called it (the day is recorded, the annotation saved): one line either way."""
+    import sqlalchemy as sa
+
+    from station.store.db import database_error, open_store, safe_url
+    from station.store.writer import add_session
+
+    target = os.environ.get("STATION_STORE") or config_store
+    if not target:
+        return
+    if sessions.recording_state(session) is sessions.Recording.NOW:
+        return  # the recorder adds it when the recording ends
+    where = safe_url(target)
+    try:
+        store = open_store(target, create=True, say=lambda m: print(m, file=sys.stderr))
+        try:
+            verdict = add_session(store, session)
+        finally:
+            store.close()
+    except (InputError, sa.exc.SQLAlchemyError) as exc:
+        why = database_error(exc, where).message if isinstance(exc, sa.exc.SQLAlchemyError) \
+            else str(exc)  # fmt: skip
+        _warn(f"{session} not added to the season store {where}: {why}; "
+              f"station season add {session} --store {where} adds it later")  # fmt: skip
+        return
+    print(f"season store {where}: {session} {verdict}", file=sys.stderr)

@@ -37,6 +37,9 @@ def cmd_record(args: argparse.Namespace) -> int:
                  max_descents=args.max_descents, duration_s=args.duration)  # fmt: skip
     print(day_summary(acq), file=sys.stderr)
     print(f"results: {os.path.join(folder, sessions.RESULTS)}", file=sys.stderr)
+    from station.cli.console import add_after
+
+    add_after(folder, cfg.store)  # when a season store is configured
     return 0
 
 

@@ -12,6 +12,7 @@ from station.cli.common import (
     _add_gravity,
     _density,
     _fmt,
+    _gravity_ms2,
     _load_track,
     _nonnegative,
     _number,
@@ -449,10 +450,12 @@ def cmd_fit_traverse(args: argparse.Namespace) -> int:
             f"traverse {beta:g}° from the fall line "
             f"(given as {args.traverse_from_horizontal_deg:g}° from the horizontal)"
         )
-    res = fit_traverse(t, s, args.slope_deg, beta, args.mass, rho)
+    grav = _traverse_gravity(args)
+    res = fit_traverse(t, s, args.slope_deg, beta, args.mass, rho, grav.value)
     if args.json:
         out = res.to_dict()
-        out.update({"air_density": rho, "mass_kg": args.mass})
+        out.update({"air_density": rho, "mass_kg": args.mass, "gravity_ms2": grav.value,
+                    "gravity_source": grav.source})  # fmt: skip
         out.update(
             {
                 "traverse_from_fall_line_deg": beta,
@@ -467,6 +470,7 @@ def cmd_fit_traverse(args: argparse.Namespace) -> int:
         f"traverse  {args.data}: {len(t)} positions, plane {args.slope_deg:g}°, "
         f"{given}, m {args.mass:g} kg, ρ {rho:.3f} kg/m³"
     )
+    print(f"          g {grav.value:.5f} m/s² ({grav.source})")
     print(f"status  {res.status}" + (f": {res.message}" if res.message else ""))
     for label, est, unit, spec in (
         ("μ", res.mu, "", ".4f"),
@@ -480,6 +484,26 @@ def cmd_fit_traverse(args: argparse.Namespace) -> int:
     rms = math.sqrt(res.sigma_m2 / len(t))
     print(f"  final speed {res.v_final:.2f} m/s   residual RMS {rms * 100:.1f} cm   dof {res.dof}")
     return 0
+
+
+def _traverse_gravity(args: argparse.Namespace) -> Gravity:
+    """The traverse's g: given, else normal gravity at the site's latitude and altitude (a
+    traverse has no survey to take them from), else standard gravity, as every model uses."""
+    from station.model.physics import G_STANDARD, Gravity, local_gravity
+
+    if args.gravity is not None:
+        return Gravity(args.gravity, "given")
+    if args.latitude_deg is not None:
+        h = args.altitude_m if args.altitude_m is not None else 0.0
+        return Gravity(
+            local_gravity(args.latitude_deg, h),
+            f"GRS80 normal gravity at {args.latitude_deg:.3f}° and {h:.0f} m",
+        )
+    if args.altitude_m is not None:
+        raise InputError("--altitude-m needs --latitude-deg (normal gravity needs both)",
+                         field="--altitude-m")  # fmt: skip
+    return Gravity(G_STANDARD, "standard gravity: no --latitude-deg; at 47° N, 1700 m g is "
+                   "0.03 % lower")  # fmt: skip
 
 
 def _angle_below_90(text: str) -> float:
@@ -593,4 +617,11 @@ def add_parsers(sub: Any) -> None:
                    help="skier with equipment, kg")  # fmt: skip
     p.add_argument("--json", action="store_true", help="machine-readable output")
     _add_air(p)
+    p.add_argument("--gravity", type=_gravity_ms2, metavar="G",
+                   help="m/s²; default: normal gravity at --latitude-deg and --altitude-m, "
+                        "else standard gravity 9.80665")  # fmt: skip
+    p.add_argument("--latitude-deg", type=plausible("latitude_deg"), metavar="LAT",
+                   help="the site's latitude (°, + north), for local gravity")  # fmt: skip
+    p.add_argument("--altitude-m", type=plausible("altitude_m"), metavar="H",
+                   help="the site's height (m), for local gravity (default 0)")  # fmt: skip
     p.set_defaults(func=cmd_fit_traverse)

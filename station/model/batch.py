@@ -29,7 +29,9 @@ class Rows:
     mu1: np.ndarray
     k: np.ndarray  # air density / mass
     wind: np.ndarray
-    g: float
+    #: gravity (m/s²): one for all rows, or one per row (a day's descents each carry the g
+    #: their single fit used, so the day model and the single fits agree)
+    g: float | np.ndarray
 
 
 @dataclass
@@ -41,7 +43,7 @@ class BatchSolution:
 
 
 def _grid_rows(grid: Grid, p: Rows, n_params: int):
-    g = p.g
+    g = p.g if np.ndim(p.g) == 0 else np.asarray(p.g)[:, None]
     sin, cos, kap, ds = grid.sin_a, grid.cos_a, grid.kappa, grid.ds
     mu, mu1, cda, k = p.mu[:, None], p.mu1[:, None], p.cda[:, None], p.k[:, None]
     w = p.wind[:, None]
@@ -97,7 +99,8 @@ def solve_rows(run: StraightRun, p: Rows, n_params: int = 3) -> BatchSolution:
     ic, jf = run.coarse.cell_index, run.fine.cell_index
     for lo in range(0, n, CHUNK):
         sl = slice(lo, min(n, lo + CHUNK))
-        part = Rows(p.cda[sl], p.mu[sl], p.v0[sl], p.mu1[sl], p.k[sl], p.wind[sl], p.g)
+        g = p.g if np.ndim(p.g) == 0 else np.asarray(p.g)[sl]
+        part = Rows(p.cda[sl], p.mu[sl], p.v0[sl], p.mu1[sl], p.k[sl], p.wind[sl], g)
         ec, tc, dc, cc = _grid_rows(run.coarse, part, n_params)
         ef, tf, df, cf = _grid_rows(run.fine, part, n_params)
         t[sl] = (4.0 * tf[:, jf] - tc[:, ic]) / 3.0

@@ -107,6 +107,10 @@ class DescentData:
     start_guess: tuple[float, float, float]  # (cda, mu, v0) from the single fit
     #: the timer's precision its single fit was judged against (station.model.timer)
     timer_sd_s: float = TIMER_PRECISION_S
+    #: the gravity its single fit used (the site's: station.model.physics.gravity_for), so
+    #: that the day model's μ and the descents' own agree (standard gravity here moved every
+    #: item's μ by 1.8e-4 at 47° N, 1700 m)
+    gravity_ms2: float = G_STANDARD
 
 
 class DayInputs(NamedTuple):
@@ -184,6 +188,12 @@ class JointResult:
     #: covariance of the items' μ, in the order of ``items`` (the season store joins the days
     #: by it: station.model.season)
     item_cov: tuple[tuple[float, ...], ...] = ()
+    #: the gravity the day was computed with (m/s²): its descents' (the median, when they
+    #: differ, which a warning then says)
+    gravity_ms2: float = G_STANDARD
+    #: the drift's curvature (μ per hour², with its 90 % interval) when the day's drift bends
+    #: and is followed by a quadratic (:func:`drift_bend`); None: straight
+    drift_bend: tuple[float, tuple[float, float]] | None = None
 
     def item(self, name: str) -> ItemResult:
         """The result of the item called ``name``."""
@@ -221,6 +231,14 @@ class JointResult:
                     "mu_per_hour": self.drift_per_hour[0],
                     "ci90": list(self.drift_per_hour[1]),
                     "separable": self.drift_separable,
+                    **(
+                        {
+                            "per_hour2": self.drift_bend[0],
+                            "per_hour2_ci90": list(self.drift_bend[1]),
+                        }
+                        if self.drift_bend
+                        else {}
+                    ),
                 }
                 if self.drift_per_hour
                 else None
@@ -245,6 +263,7 @@ class JointResult:
             "timer_sd_s": self.timer_sd_s,
             "chi2_p": self.chi2_p,
             "typical_v0": self.typical_v0,
+            "gravity_ms2": self.gravity_ms2,
             "descents": [
                 {"descent": d.number, "cda": d.cda, "v0": d.v0, "dt0_s": d.dt0_s}
                 for d in self.descents
@@ -338,8 +357,17 @@ def joint_fit(
     Pure: no I/O; BLAS is held to one thread while it runs."""
     if timer_sd_s is None:
         timer_sd_s = day_timer_sd(data)
+    bent = drift_bend(data) if drift != "off" else None
+    follow = bent is not None and bent.p < BEND_P
     with threadpool_limits(limits=1, user_api="blas"):
-        res = _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s)
+        try:
+            res = _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s, follow)
+        except CompareError:  # too few times for the quadratic: the straight drift, warned
+            if not follow:
+                raise
+            res = _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s)
+    if bent is not None and bent.p < BEND_P:
+        res = replace(res, warnings=(*res.warnings, _bend_warning(bent, res)))
     flagged = tuple(wind_flagged)
     warnings = res.warnings
     if flagged and wind_limit_ms is not None:
@@ -348,6 +376,70 @@ def joint_fit(
             "along-track wind: check them, or mark them invalid",
         )
     return replace(res, excluded=tuple(excluded), wind_flagged=flagged, warnings=warnings)
+
+
+#: the drift is taken to bend when a curvature this unlikely under a straight drift is seen
+#: (so a straight-drift day is warned on about one day in a hundred)
+BEND_P = 0.01
+
+
+class DriftBend(NamedTuple):
+    """The curvature of μ over the day seen in the descents' own μ (per hour²)."""
+
+    per_hour2: float
+    stderr: float
+    p: float  # two-sided, against a straight drift
+    dof: int
+
+
+def drift_bend(data: list[DescentData]) -> DriftBend | None:
+    """Does μ drift straight? The single fits' μ of the day's descents, regressed on the items
+    and a straight and a quadratic drift over the time of day: the quadratic's t-test, its
+    variance from the scatter of the descents about that curve (posture and timer both in
+    it). None when the day has no degrees of freedom for it (fewer than items + 4 descents)
+    or does not span time.
+
+    Why a test of its own, not the joint fit's residuals: a bend of μ is absorbed by each
+    descent's own CdA and v0 in the times, so the times' residuals barely show it, while the
+    descents' μ line it up against the clock (the sun coming onto the track, μ +0.02/h
+    +0.03/h², made the interval miss 0 on 13 of 24 equal-ski days with a straight drift)."""
+    items = sorted({d.item for d in data})
+    n = len(data)
+    dof = n - len(items) - 2
+    if dof < 2:
+        return None
+    t = np.array([d.start_hours for d in data])
+    t = t - t.mean()
+    if np.ptp(t) <= 0:
+        return None
+    x = np.zeros((n, len(items) + 2))
+    for k, d in enumerate(data):
+        x[k, items.index(d.item)] = 1.0
+    x[:, -2], x[:, -1] = t, t * t
+    y = np.array([d.start_guess[1] for d in data])
+    coef, _res, rank, _sv = np.linalg.lstsq(x, y, rcond=None)
+    if rank < x.shape[1]:
+        return None
+    resid = y - x @ coef
+    s2 = float(resid @ resid) / dof
+    se = math.sqrt(max(float(s2 * np.linalg.inv(x.T @ x)[-1, -1]), 0.0))
+    if se <= 0:
+        return None
+    tval = float(coef[-1]) / se
+    return DriftBend(float(coef[-1]), se, float(2.0 * stdtr(dof, -abs(tval))), dof)
+
+
+def _bend_warning(bent: DriftBend, res: JointResult) -> str:
+    what = (
+        "followed by a quadratic drift (the drift line gives its slope at the day's mean time)"
+        if res.drift_bend is not None
+        else "the comparison assumes a straight drift, so its intervals may miss; ski the "
+        "reference more often (ABBA through the day) or compare the parts of the day apart"
+    )
+    return (
+        f"the drift of μ is not straight: it bends by {bent.per_hour2:+.4f} per hour² over "
+        f"the day (p = {bent.p:.2g}, from the descents' own μ): {what}"
+    )
 
 
 def day_timer_sd(data: Iterable[DescentData]) -> float:
@@ -368,6 +460,8 @@ class _Layout:
     use_drift: bool
     drift: str
     t_mean: float
+    #: the drift bends: a quadratic term after the linear one (column i_drift + 1)
+    bend: bool
     n_g: int
     per_item: int
     i_mu: int
@@ -376,7 +470,7 @@ class _Layout:
     dof: int
 
     @classmethod
-    def of(cls, data, cda_fixed, model, drift, reference) -> _Layout:
+    def of(cls, data, cda_fixed, model, drift, reference, bend: bool = False) -> _Layout:
         if not data:
             raise CompareError("no valid descent to compare")
         items = sorted(
@@ -394,7 +488,8 @@ class _Layout:
         n_g = 0 if cda_fixed is not None else len(groups)
         per_item = 2 if model == "velocity" else 1
         i_drift = n_g + len(items) * per_item
-        n_glob = i_drift + (1 if use_drift else 0)
+        bend = bend and use_drift
+        n_glob = i_drift + (1 if use_drift else 0) + (1 if bend else 0)
         n_cells = np.array([len(d.times_s) for d in data])
         n_res = int(n_cells.sum())
         n_fixed = n_glob + 2 * n_d  # v0 and offset per descent are fixed effects too
@@ -403,8 +498,8 @@ class _Layout:
             raise CompareError(
                 f"{n_res} times for {n_fixed} unknowns: too few photocells or descents"
             )
-        return cls(items, groups, counts, ref, use_drift, drift, t_mean, n_g, per_item, n_g,
-                   i_drift, n_glob, dof)  # fmt: skip
+        return cls(items, groups, counts, ref, use_drift, drift, t_mean, bend, n_g, per_item,
+                   n_g, i_drift, n_glob, dof)  # fmt: skip
 
     def mu_index(self, item: str) -> int:
         return self.i_mu + self.items.index(item) * self.per_item
@@ -428,6 +523,7 @@ class _DayModel:
         self.dth = np.array([d.start_hours - lay.t_mean for d in data])
         self.kk = np.array([d.air_density / d.mass_kg for d in data])
         self.wind = np.array([d.wind_ms for d in data])
+        self.grav = np.array([d.gravity_ms2 for d in data])
         self.runs: dict[tuple[str, ...], tuple[StraightRun, np.ndarray]] = {}
         for pcs in {d.photocells for d in data}:
             xs = np.array([track.photocell(p).x for p in pcs])
@@ -446,6 +542,8 @@ class _DayModel:
         col_g, col_mu, dth, per_item = self.col_g, self.col_mu, self.dth, lay.per_item
         cda = self.base_cda(glob) * np.exp(loc[:, 0])
         mu = glob[col_mu] + (glob[lay.i_drift] * dth if lay.use_drift else 0.0)
+        if lay.bend:
+            mu = mu + glob[lay.i_drift + 1] * dth * dth
         mu1 = glob[col_mu + 1] if per_item == 2 else np.zeros(n_d)
         r = np.zeros((n_d, n_max))
         a = np.zeros((n_d, n_max, lay.n_glob))
@@ -456,7 +554,7 @@ class _DayModel:
             sol = solve_rows(
                 run,
                 Rows(cda[idx], mu[idx], loc[idx, 1], mu1[idx], self.kk[idx], self.wind[idx],
-                     G_STANDARD),
+                     self.grav[idx]),
                 n_params=3 + (per_item - 1),
             )  # fmt: skip
             m = sol.t.shape[1]
@@ -469,6 +567,8 @@ class _DayModel:
                 a[idx, :m, col_mu[idx] + 1] = dt[:, :, 3]
             if lay.use_drift:
                 a[idx, :m, lay.i_drift] = dt[:, :, 1] * dth[idx, None]
+            if lay.bend:
+                a[idx, :m, lay.i_drift + 1] = dt[:, :, 1] * (dth[idx] ** 2)[:, None]
             b[idx, :m, 0] = dt[:, :, 0] * cda[idx, None]
             b[idx, :m, 1] = dt[:, :, 2]
             b[idx, :m, 2] = 1.0
@@ -641,8 +741,10 @@ class _Inference:
         return float(g[j] - q * sd[j]), float(g[j] + q * sd[j])
 
 
-def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> JointResult:
-    lay = _Layout.of(data, cda_fixed, model, drift, reference)
+def _joint_fit(
+    track, data, cda_fixed, model, drift, reference, timer_sd_s, bend: bool = False
+) -> JointResult:
+    lay = _Layout.of(data, cda_fixed, model, drift, reference, bend)
     day = _DayModel(track, data, lay, cda_fixed)
     sol = _solve(day)
     inf = _Inference(sol, lay.dof)
@@ -654,6 +756,12 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
             float(glob[g_i]), inf.interval(g_i), float(inf.sd[g_i])
         )  # fmt: skip
     drift_out, separable, warnings = _drift(data, lay, inf)
+    gravities = sorted({d.gravity_ms2 for d in data})
+    if gravities[-1] - gravities[0] > 1e-6:
+        warnings.append(
+            f"the descents were fitted with different gravity ({gravities[0]:.5f} to "
+            f"{gravities[-1]:.5f} m/s²): each is used with its own; were they on one site?"
+        )
     typical_v0 = float(np.median(sol.loc[:, 1]))
     run_time = _run_time(track, day, data, cda_out, typical_v0)
     mus = {it: float(glob[lay.mu_index(it)]) for it in lay.items}
@@ -688,6 +796,9 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
         items=tuple(out_items),
         cda=cda_out,
         drift_per_hour=drift_out,
+        drift_bend=(
+            (float(glob[lay.i_drift + 1]), inf.interval(lay.i_drift + 1)) if lay.bend else None
+        ),
         drift_separable=separable,
         comparisons=tuple(comparisons),
         ranking=tuple(it.item for it in sorted(out_items, key=lambda i: i.mu)),
@@ -704,6 +815,7 @@ def _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s) -> J
         status=status,
         message=message,
         item_cov=_item_cov(lay, inf),
+        gravity_ms2=float(np.median([d.gravity_ms2 for d in data])),
     )
 
 
@@ -764,10 +876,13 @@ def _run_time(track: Track, day: _DayModel, data, cda_out: dict[str, Estimate], 
     )
     mass = float(np.median([d.mass_kg for d in data]))
     rho = float(np.median([d.air_density for d in data]))
+    grav = float(np.median([d.gravity_ms2 for d in data]))
     cda_typ = float(np.median([e.value for e in cda_out.values() if e.value is not None]))
 
     def run_time(mu: float) -> float:
-        sol = run_full.solve(Params(cda_typ, mu, v0), Conditions(mass, rho), sensitivities=False)
+        sol = run_full.solve(
+            Params(cda_typ, mu, v0), Conditions(mass, rho, g=grav), sensitivities=False
+        )
         return float(sol.t[-1])
 
     return run_time
@@ -887,6 +1002,9 @@ def format_comparison(res: JointResult, n_desc: int) -> str:
         d, (lo, hi) = res.drift_per_hour
         sep = "" if res.drift_separable else "  NOT SEPARABLE FROM ITEM"
         lines.append(f"  drift of μ: {d:+.5f} per hour [{lo:+.5f}, {hi:+.5f}]{sep}")
+        if res.drift_bend:
+            b, (blo, bhi) = res.drift_bend
+            lines.append(f"  bending by {b:+.5f} per hour² [{blo:+.5f}, {bhi:+.5f}]")
     lines.append("")
     # the item column as wide as the names (at most the 28 of long names): the table fits an
     # 80-column terminal and the UI's comparison dialog with the names people use
@@ -970,6 +1088,7 @@ def collect(results: Iterable[Any], wind_limit_ms: float = 1.0) -> DayInputs:
                 wind_ms=wind,
                 start_guess=(float(guess[0]), float(guess[1]), float(guess[2])),
                 timer_sd_s=f.timer_precision_s or TIMER_PRECISION_S,
+                gravity_ms2=float(row.gravity) if row.gravity else G_STANDARD,
             )
         )
     return DayInputs(data, excluded, windy)

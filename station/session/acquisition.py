@@ -43,10 +43,11 @@ from station.errors import InputError
 from station.model.compare import collect, format_comparison
 from station.model.sequential import decision_block
 from station.session import store as sessions
-from station.session.analysis import DescentResult
+from station.session.analysis import DescentResult, FitCache
 from station.session.comparison import compare_results
 from station.session.config import SerialConfig, StationConfig
 from station.session.day import Day, Effect
+from station.session.fitstore import FitStore
 from station.session.rawlog import Chunk, RawLogWriter
 from station.session.records import (
     Annotation,
@@ -167,6 +168,8 @@ class Acquisition:
         #: recording or the UI keeps it only in what it hands to the listener: 12 kB a
         #: descent, half a 2000-descent day's memory (the UI asks again for the one it shows)
         self.keep_curves = not threaded
+        #: likewise every impulse's fate (``replay --events`` lists them; the UI is told each)
+        self.keep_events = not threaded
         self.ski_rotation = tuple(ski_rotation)
         self.lock = threading.Lock()  # guards the day: processor, results, annotations
         self.finished_descents = 0  # descents the processor ended, aborted ones not counted
@@ -255,6 +258,8 @@ class Acquisition:
             ski_rotation=ski_rotation,
         )
         acq.recording_lock = lock
+        if session_dir is not None:  # stored as they are made: the day's replays reuse them
+            day.analyser.fits = FitStore.for_session(session_dir, config)
         for problem in (lock.problem if lock is not None else "", day.analyser.site_warning):
             if problem:
                 acq._tell(acq.listener.warning, problem)
@@ -388,7 +393,7 @@ class Acquisition:
                 self._tell(self.listener.impulses, new, proc.line_counts())
             if new or done:
                 self._tell(self.listener.progress, self.day.progress())
-        if not self.keep_curves:
+        if not self.keep_events:
             # a recording hands each impulse's fate to the listener once and keeps none: a
             # replay of the raw log lists them all (--events); 1.5 kB a descent otherwise
             del proc.events[:]
@@ -866,15 +871,21 @@ def replay(
     speed: float | None = None,
     date: dt.date | None = None,
     warnings: list[str] | None = None,
+    fits: FitCache | None = None,
+    speed_curves: bool = True,
 ) -> Acquisition:
     """Feed a session (with its annotations) or a plain capture through the loop, in line.
     Without a listener the replay says nothing as it goes: the caller reports its results
-    (and ``warnings`` collects what the raw log's reader passed over)."""
+    (and ``warnings`` collects what the raw log's reader passed over). ``fits``: the fits
+    stored with the session, used where they fit and added to; ``speed_curves``: the fitted
+    speed along the run of each descent (for the views that draw it)."""
     import gc
 
     acq = Acquisition.open(
         config, listener or QuietListener(), date=source_date(source, date), threaded=False
     )
+    acq.day.analyser.fits = fits
+    acq.day.analyser.speed_curves = speed_curves
     # a replay makes objects by the hundred thousand and keeps most: the garbage collector
     # need not scan the set-up's (modules, the track, the grids) at every full collection
     gc.freeze()

@@ -6,6 +6,8 @@
       <survey files>   the survey YAML and its observation file, at the same relative paths
       results.csv      one row per descent, rewritten after each descent
       annotations.jsonl  what the engineer entered: metadata, invalid marks, refits
+      fits.jsonl       every descent's fit, keyed by what it depends on (a cache:
+                       station.session.fitstore), so a replay fits only what changed
       recording.lock   there while the session is recorded (:class:`RecordingLock`)
 
 Replaying a session (``station replay SESSION``) runs its own snapshot through the same

@@ -79,6 +79,8 @@ def _parse(text: str, path: str) -> tuple[ET.Element, dict[int, int]]:
     except ET.ParseError as exc:
         line = exc.position[0] if getattr(exc, "position", None) else None
         raise InputError(f"not well-formed XML: {exc}", path=path, line=line) from None
+    except LookupError as exc:  # the XML declaration names an encoding Python does not know
+        raise InputError(f"XML in an unknown encoding: {exc}", path=path, line=1) from None
     return root, builder.lines
 
 

@@ -207,8 +207,7 @@ def _millimetres(b: GsiBlock, wi: str, path: str, what: str) -> float:
             line=b.line,
             field=f"WI {wi} ({what})",
         )
-    value = int(text) / 1000.0
-    return -value if b.words[wi].info[-1:] == "-" else value
+    return int(text) / 1000.0
 
 
 def _code_block_setup(b: GsiBlock, path: str) -> Setup:

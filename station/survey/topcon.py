@@ -160,8 +160,9 @@ class _Reader:
         )
 
     def feed(self, line: str, lineno: int) -> None:
-        key, _, rest = line.strip().partition(" ")
-        key = key.upper()
+        parts = line.strip().split(None, 1)  # the keyword, then blanks or a tab
+        key = parts[0].upper() if parts else ""
+        rest = parts[1] if len(parts) > 1 else ""
         vals = rest.strip().split(",") if rest.strip() else []
         if key == "UNITS":
             self.units(vals, lineno)
