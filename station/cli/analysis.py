@@ -137,12 +137,16 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _write_compare_csv(res: JointResult, path: str) -> None:
+    from station import csvfiles
+
     with open_output(path, "--csv") as fh:
-        head = f"station {__version__} comparison; reference {res.reference}; " \
-               f"drift {'on' if res.drift_per_hour else 'off'}; " \
-               f"g {res.gravity_ms2:.5f} m/s²"  # fmt: skip
-        fh.write(f"# {head.replace(',', ';')}\n")  # no comma: a spreadsheet keeps the line whole
-        w = csv.writer(fh, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
+        # an item name is the user's text: one header line whatever it holds, and a name
+        # that looks like a formula is shown as text (station.csvfiles)
+        head = [f"station {__version__} comparison", f"reference {res.reference}",
+                f"drift {'on' if res.drift_per_hour else 'off'}",
+                f"g {res.gravity_ms2:.5f} m/s²"]  # fmt: skip
+        fh.write("# " + "; ".join(csvfiles.header_text(h) for h in head) + "\n")
+        w = csvfiles.writer(fh, quoting=csv.QUOTE_NONNUMERIC)
         w.writerow(["rank", "item", "descents", "mu", "mu_lo", "mu_hi", "delta_mu_vs_reference",
                     "delta_lo", "delta_hi", "p_faster_than_reference", "delta_t_s"])  # fmt: skip
         for k, name in enumerate(res.ranking, start=1):

@@ -77,6 +77,9 @@ def replay_config(source: str, config: str | None) -> StationConfig:
     has none of its own."""
     if not os.path.exists(source):
         raise InputError("no such session or capture", path=source)
+    if os.path.isdir(source) and not sessions.is_session(source):
+        raise InputError(f"is a folder without {sessions.RAW}: not a session, and a capture is "
+                         "a file", path=source)  # fmt: skip
     if config:
         return load_config(config)
     if sessions.is_session(source):

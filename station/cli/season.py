@@ -94,7 +94,7 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from station.session.results import safe_text
+    from station.csvfiles import safe_text  # the one CSV policy
     from station.store.queries import export_frame
 
     output_path(args.csv, "--csv")

@@ -39,7 +39,6 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import IO, Any
 
-from station.errors import InputError
 from station.model.compare import collect, format_comparison
 from station.model.sequential import decision_block
 from station.session import store as sessions
@@ -228,6 +227,7 @@ class Acquisition:
         the results CSV are written there."""
         rawlog = None
         lock = None
+        listener = listener or Listener()
         if session_dir is not None:
             # the user's own config and survey first: a photocell the survey lacks is said
             # naming their files, before a folder is made that the next try would find not
@@ -243,6 +243,7 @@ class Acquisition:
                 rawlog = RawLogWriter(
                     os.path.join(session_dir, sessions.RAW),
                     header={"port": config.serial.port, "protocol": config.serial.protocol},
+                    on_problem=listener.warning,  # a full disk: one line, red in the UI
                 )
         except BaseException:
             if lock is not None:
@@ -756,6 +757,11 @@ class Acquisition:
 
     # ------------------------------------------------------------------ views
 
+    @property
+    def csv_problem(self) -> str | None:
+        """Why the session's results CSV is not written now (None: it is)."""
+        return self._csv_problem
+
     def speed_curve(self, res: DescentResult) -> tuple[Any, Any] | None:
         """The fitted speed along the run of a result kept without it (one model solve, no
         fit; the UI's plot of the descent it shows)."""
@@ -828,14 +834,18 @@ def record(
     listener: Listener,
     max_descents: int | None = None,
     duration_s: float | None = None,
+    started: Callable[[], None] | None = None,
 ) -> Acquisition:
     """Record headless until SIGINT/SIGTERM, ``max_descents`` or ``duration_s``; any of them
-    ends the open descent the same way (:meth:`Acquisition.close`)."""
+    ends the open descent the same way (:meth:`Acquisition.close`). ``started`` is called once
+    the session folder is made and the raw log open (not for a folder refused)."""
     from station.session.serialport import ensure_port_free
 
     ensure_port_free(config.serial)  # a second recorder on the port: one line, no session made
     # compare: the console says after every descent whether the day is decided
     acq = Acquisition.open(config, listener, session_dir=session_dir, compare=True)
+    if started is not None:
+        started()
     stop = threading.Event()
     previous = {}
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -853,12 +863,6 @@ def record(
         acq.close()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    if isinstance(acq.source_error, OSError):  # the raw log could not be written: disk full
-        why = acq.source_error.strerror or str(acq.source_error)
-        raise InputError(
-            f"cannot write the raw log: {why}; recording stopped",
-            path=os.path.join(session_dir, sessions.RAW),
-        )
     if acq.source_error is not None:
         raise acq.source_error
     return acq

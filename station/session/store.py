@@ -235,7 +235,7 @@ def read_annotations(session: str) -> list[Annotation]:
             continue
         try:
             rec = json.loads(line)
-        except ValueError:
+        except (ValueError, RecursionError):  # nested 100 000 deep is not a record either
             if i == len(lines):
                 break
             raise InputError("not an annotation record", path=path, line=i) from None
@@ -282,7 +282,7 @@ def read_annotations_after(session: str, offset: int) -> tuple[list[AppendedReco
         try:
             rec = json.loads(line)
             annotation = annotation_from_json(rec) if isinstance(rec, dict) else None
-        except (ValueError, InputError) as exc:
+        except (ValueError, InputError, RecursionError) as exc:
             out.append(AppendedRecord(line, None, f"not an annotation record ({exc})"))
             continue
         out.append(AppendedRecord(line, annotation))
