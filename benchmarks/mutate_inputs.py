@@ -12,6 +12,9 @@ limit) and run through the command that reads it:
     times        station fit --survey ... --times MUTATED
     capture      station replay MUTATED --config ...
     import       station import MUTATED --config ... --session-dir NEW   (memory download)
+    raw log      station replay SESSION        (SESSION/raw.jsonl MUTATED: also hostile
+                 records, a torn tail), and station import CAPTURE --into SESSION
+    annotations  station replay SESSION        (SESSION/annotations.jsonl MUTATED)
 
 Each run is ``station.cli.main.main(argv)`` in a forked child of a process that has already
 imported everything (a fresh interpreter per run would take a second or two each), with a
@@ -200,6 +203,45 @@ def times_mutations(text: str) -> Iterator[tuple[str, str]]:
     yield "many-columns", "photocell,time" + ",x" * 100_000 + "\nPC1,1\n"
 
 
+def rawlog_mutations(data: bytes) -> Iterator[tuple[str, bytes]]:
+    """Records a raw log should never hold, each among the good ones (issue 18)."""
+    lines = data.split(b"\n")
+    hostile = {
+        "rx-beyond-latin1": b'{"t": 1770000000, "rx": "\\u20ac\\r"}',
+        "rx-number": b'{"t": 1770000000, "rx": 42}',
+        "rx-null": b'{"t": 1770000000, "rx": null}',
+        "t-nan": b'{"t": NaN, "rx": "a"}',
+        "t-1e400": b'{"t": 1e400, "rx": "a"}',
+        "t-huge": b'{"t": 1e300, "rx": "a"}',
+        "t-text": b'{"t": "1", "rx": "a"}',
+        "t-missing": b'{"rx": "a"}',
+        "event-number": b'{"t": 1770000000, "event": 5}',
+        "detail-list": b'{"t": 1770000000, "event": "x", "detail": [1, 2]}',
+        "detail-deep": b'{"t": 1770000000, "event": "x", "detail": '
+        + b'{"a": ' * 500
+        + b"1"
+        + b"}" * 501,
+        "nested-200000": b"[" * 200_000 + b"]" * 200_000,
+        "not-object": b"[1, 2, 3]",
+        "record-32MB": b'{"t": 1770000000, "rx": "' + b"x" * (32 * 1024 * 1024) + b'"}',
+    }
+    for name, rec in hostile.items():
+        yield name, b"\n".join([*lines[:2], rec, *lines[2:]])
+    yield "torn-tail", data.rstrip(b"\n")[:-7]
+    yield "torn-middle", b"\n".join([*lines[:2], lines[2][:9], *lines[2:]])
+
+
+def annotation_mutations() -> Iterator[tuple[str, bytes]]:
+    for key in ("mass_kg", "pressure_hpa", "humidity_pct", "wind_ms", "air_temperature_c"):
+        for bad in ("1e308", "-1e308", "NaN", "Infinity", '"abc"', "[]", "true"):
+            rec = f'{{"type": "metadata", "values": {{"{key}": {bad}}}, "descents": [1]}}\n'
+            yield f"{key}={bad}", rec.encode()
+    yield "descent-huge", b'{"type": "invalid", "descent": 1e300}\n'
+    yield "descent-text", b'{"type": "model", "descent": "x", "model": "quadratic"}\n'
+    yield "deep", b'{"type": "metadata", "values": ' + b'{"a": ' * 100_000 + b"1" + b"}" * 100_001
+    yield "torn", b'{"type": "metadata", "values": {"ski": "A"}, "descents": [1]}\n{"type'
+
+
 def _flip(data: bytes, rng: random.Random, n: int) -> bytes:
     out = bytearray(data)
     for _ in range(n):
@@ -313,6 +355,44 @@ def build_cases(work: Path, seed: int) -> list[Case]:
         import_case(name, cases[-1].argv[1])
     for k in range(10):
         capture_case(f"many-flips-{k}", _flip(cap, rng, 20))
+
+    # a session of the demo descent, its raw log and annotations mutated
+    from station.session.config import load_config
+    from station.session.memory_import import import_new
+
+    session = work / "session"
+    import_new(str(capture), load_config(demo_cfg), str(session))
+    # one chunk per timer line, as a recording writes them
+    from station.session.rawlog import RawLogWriter, read_rawlog
+
+    chunks = list(read_rawlog(str(session / "raw.jsonl")))
+    (session / "raw.jsonl").unlink()
+    log = RawLogWriter(str(session / "raw.jsonl"))
+    for c in chunks:
+        if c.event:
+            log.event(c.t, c.event, c.detail)
+        else:
+            for line in c.data.split(b"\r"):
+                if line:
+                    log.write(c.t, line + b"\r")
+    log.close()
+    raw = (session / "raw.jsonl").read_bytes()
+
+    def session_case(kind: str, name: str, raw_data: bytes, annotations: bytes | None) -> Path:
+        d = new_dir()
+        shutil.copytree(session, d / "s")
+        (d / "s" / "raw.jsonl").write_bytes(raw_data)
+        if annotations is not None:
+            (d / "s" / "annotations.jsonl").write_bytes(annotations)
+        cases.append(Case(kind, name, ["replay", str(d / "s")]))
+        return d / "s"
+
+    for name, data in [*generic(raw, rng), *rawlog_mutations(raw)]:
+        s_path = session_case("raw log", name, data, None)
+        argv = ["import", str(capture), "--config", demo_cfg, "--into", str(s_path)]
+        cases.append(Case("raw log", f"import-into-{name}", argv))
+    for name, data in annotation_mutations():
+        session_case("annotations", name, raw, data)
 
     # special files, for every kind
     specials = _special_files(work)
@@ -463,7 +543,7 @@ def main(argv: list[str] | None = None) -> int:
         shutil.rmtree(work, ignore_errors=True)
 
     kinds = sorted({o.case.kind for o in outcomes})
-    print(f"{'kind':<9} {'runs':>5} {'exit 0':>7} {'exit 2':>7} {'traceback':>10} {'hang':>5} "
+    print(f"{'kind':<11} {'runs':>5} {'exit 0':>7} {'exit 2':>7} {'traceback':>10} {'hang':>5} "
           f"{'multi-line':>11}")  # fmt: skip
     total: Counter[str] = Counter()
     for kind in [*kinds, "all"]:
@@ -478,7 +558,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         if kind == "all":
             total = c
-        print(f"{kind:<9} {c['runs']:>5} {c['ok']:>7} {c['bad']:>7} {c['tb']:>10} "
+        print(f"{kind:<11} {c['runs']:>5} {c['ok']:>7} {c['bad']:>7} {c['tb']:>10} "
               f"{c['hang']:>5} {c['multi']:>11}")  # fmt: skip
     slowest = max(outcomes, key=lambda o: o.seconds)
     print(f"{len(outcomes)} runs in {wall:.1f} s; slowest {slowest.seconds:.2f} s "

@@ -278,15 +278,13 @@ class Section:
     ) -> Any:
         """A finite number within ``[lo, hi]``, the physically sane range of the field: a value
         outside it is a typo (``885`` kg) or a wrong unit, and is refused naming the range. A
-        key written without a value (``angle_arcsec:``) is refused too when the field has a
-        default number: it is a number left out, and taking the default for it would hide
-        that. A field whose default is "none" (``timeout_s: null``: the photocell after next)
-        takes an empty value as that none, as documented."""
-        if key in self.data and self.data[key] is None:
-            if default is None and not required:
-                return None
-            default_text = "" if default is None else f" (or leave the key out for {default:g})"
-            raise self.error(key, f"has no value: give a number{default_text}")
+        key written without a value (``angle_arcsec:``) where the field has a default number
+        is refused too: it is a number left out, and taking the default would hide that (where
+        the default is None, ``timeout_s: null`` is how "computed" is written)."""
+        if default is not None and key in self.data and self.data[key] is None:
+            raise self.error(
+                key, f"has no value: give a number (or leave the key out for {default:g})"
+            )
         value = self.get(key, kind, default, required=required)
         if value is None:
             return None

@@ -23,7 +23,7 @@ import numpy as np
 
 from tests.timing_helpers import ALGE_CHANNELS, write_config
 
-PG_USER = "station"
+PG_USER = "season_admin"
 PG_PASSWORD = "s3cret-'pw\""  # quotes: the URL and the server must take it as it is
 
 
@@ -173,13 +173,13 @@ class PgServer:
     def stop(self, mode: str = "fast") -> None:
         self._run("pg_ctl", "-D", self.data, "-m", mode, "-w", "stop")
 
-    def url(self, db: str, password: str = PG_PASSWORD) -> str:
+    def url(self, db: str, password: str = PG_PASSWORD, user: str = PG_USER) -> str:
         from urllib.parse import quote
 
-        return (f"postgresql://{PG_USER}:{quote(password, safe='')}@/{db}"
+        return (f"postgresql://{user}:{quote(password, safe='')}@/{db}"
                 f"?host={self.sock}&port={self.port}")  # fmt: skip
 
-    def admin(self, sql: str) -> None:
+    def admin(self, sql: str, db: str = "postgres") -> None:
         import psycopg
 
         with psycopg.connect(
@@ -187,7 +187,7 @@ class PgServer:
             port=self.port,
             user=PG_USER,
             password=PG_PASSWORD,
-            dbname="postgres",
+            dbname=db,
             autocommit=True,
         ) as c:
             c.execute(sql)  # fmt: skip

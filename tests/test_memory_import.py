@@ -104,6 +104,55 @@ def test_a_merged_download_brings_the_operators_clears_with_it(tmp_path, run_sta
     assert "10:01:00" in r.stdout and "09:00:30" in r.stdout
 
 
+def test_a_torn_session_is_repaired_and_a_merge_replays_every_descent_of_both(
+    tmp_path, real, run_station
+):
+    """Issue 18: the live recording of a real ALGE day ends in a torn record (the disk filled,
+    the power went); the timer's memory merged into it gives every descent of the day."""
+    import datetime as dt
+    import json
+
+    from station.session import store
+    from station.session.config import load_config
+    from station.session.rawlog import RawLogWriter
+
+    cap = real / "alge" / "ALGETdC8001-202002020841.dump"
+    cfg = write_config(tmp_path, "/dev/null", channels={"C0": "PC1", "C1": "PC9"})
+    session = tmp_path / "s"
+    store.create(load_config(str(cfg)), str(session))
+    lines = cap.read_bytes().split(b"\n")
+    cut = len(lines) * 2 // 5
+    t0 = dt.datetime(2020, 2, 2, 8, 0).timestamp()
+    log = RawLogWriter(str(session / "raw.jsonl"), header={"port": "/dev/ttyUSB0"})
+    for i, line in enumerate(lines[:cut]):
+        log.write(t0 + i, line + b"\r")
+    log.close()
+    torn = json.dumps({"t": t0 + cut, "rx": lines[cut].decode() + "\r"})[:17]
+    with open(session / "raw.jsonl", "a") as fh:
+        fh.write(torn)  # the last record half written
+    r = run_station("import", cap, "--config", cfg, "--into", session)
+    assert r.returncode == 0, r.stderr
+    side = session / "raw.jsonl.torn-1"
+    assert f"{session / 'raw.jsonl'}: torn last record (17 bytes" in r.stderr
+    assert str(side) in r.stderr and side.read_text() == torn
+
+    merged, whole = tmp_path / "merged.csv", tmp_path / "whole.csv"
+    r = run_station("replay", session, "--csv", merged)
+    assert r.returncode == 0, r.stderr
+    assert "passed over" not in r.stderr
+    r = run_station("replay", cap, "--config", cfg, "--csv", whole, "--date", "2020-02-02")
+    assert r.returncode == 0, r.stderr
+    cols = ["start_time", "status", "photocells_used"]
+    got = pd.read_csv(merged, comment="#")[cols]
+    want = pd.read_csv(whole, comment="#")[cols]
+    assert len(want) > 100
+    # the merged lines are dated by the session's day, not the day of the import
+    assert (got["start_time"].str[:10] != dt.date.today().isoformat()).all()
+    for df in (got, want):  # times of day: one descent of bib pairs is undated in a session
+        df["start_time"] = df["start_time"].str.extract(r"(\d\d:\d\d:\d\d\.\d+)")[0]
+    pd.testing.assert_frame_equal(got, want)
+
+
 def _alge_capture(path, demo_track, start_s: float, bib0: int = 1):
     from station.timing.wireformats import format_alge
     from tests.timing_helpers import ALGE_CHANNELS

@@ -232,3 +232,15 @@ def test_the_out_folder_is_made_as_the_help_says(tmp_path, run_station):
     r = run_station("report", session, "--out", tmp_path / "new")
     assert r.returncode == 0 and (tmp_path / "new" / "session.html").exists()
     assert r.stderr == "1 descent; open it in a browser\n"
+
+
+def test_names_drawn_in_pictures_are_never_read_as_math():
+    """matplotlib reads $…$ as math: an item named "wax $x_1$" was drawn as x₁, and a name
+    with a bad formula between dollars would end the report in a parse error."""
+    from matplotlib.text import Text
+
+    from station.report.day_report import _plain
+
+    for name in ("wax $x_1$", "pair $\\frac$ b", "$5 and $10"):
+        shown, is_math = Text(text=_plain(name))._preprocess_math(_plain(name))
+        assert not is_math and shown == name, (name, shown)

@@ -116,3 +116,49 @@ def test_a_screenshot_of_the_first_screen_is_kept(page):
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     assert struct.unpack(">II", data[16:24]) == (1280, 800)
     assert re.search(rb"IDAT", data) and len(data) > 20_000
+
+
+@pytest.fixture(scope="module")
+def season_page(browser, tmp_path_factory):
+    """The season report of three days (A–B, B–C, A–C) with ski A named like markup."""
+    import datetime as dt
+
+    from tests.conftest import station_cmd
+    from tests.season_helpers import make_day
+
+    base = tmp_path_factory.mktemp("season-browser")
+    names = {"A": EVIL, "B": "SB", "C": "SC"}
+    days = []
+    for d, (a, b) in enumerate(["AB", "BC", "AC"]):
+        days.append(make_day(
+            base, f"day{d}", dt.date(2026, 1, 10 + d), (a + b + b + a) * 2,
+            {x: 0.012 + {"A": 0.0, "B": 0.001, "C": -0.0006}[x] for x in (a, b)},
+            items={x: {"ski": names[x], "wax": "blue"} for x in (a, b)},
+            conditions={"snow_temperature_c": -10.0 + 3 * d}, seed=d,
+        ))  # fmt: skip
+    store = str(base / "season.db")
+    for args in (["season", "add", *map(str, days)], ["season", "report", "--out", str(base)]):
+        r = subprocess.run([*station_cmd(), *args, "--store", store], capture_output=True,
+                           text=True, timeout=600)  # fmt: skip
+        assert r.returncode == 0, r.stderr
+    p = browser.open(base / "season.html")
+    p.screenshot(artifacts() / "season_report_first_screen.png")
+    return p
+
+
+def test_the_season_report_in_the_browser(season_page):
+    """Its answer (the ranking) on the first screen, every picture loading, no network, the
+    markup of an item's name shown as text."""
+    top = season_page.evaluate(
+        "(() => { const r = document.querySelector('#ranking table').getBoundingClientRect();"
+        " return [r.top, r.bottom]; })()"
+    )
+    assert 0 <= top[0] < top[1] <= 800, top
+    sizes = season_page.evaluate(
+        "Promise.all([...document.images].map(i => i.decode().then("
+        "() => [i.naturalWidth, i.naturalHeight])))"
+    )
+    assert len(sizes) == 2 and all(w > 300 and h > 150 for w, h in sizes), sizes
+    assert season_page.requests == [] and season_page.failed == []
+    assert season_page.evaluate("document.querySelectorAll('script, b b').length") == 0
+    assert f"{EVIL} / blue" in season_page.evaluate("document.body.innerText")

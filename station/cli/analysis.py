@@ -81,48 +81,72 @@ def cmd_annotate(args: argparse.Namespace) -> int:
         raise InputError("nothing to annotate: give metadata, --invalid, --valid or --model")
     session.check_descents(targets)  # --from N may name descents still to come
     print(annotate_session(session, records), file=sys.stderr)
+    from station.cli.console import add_after
+
+    try:
+        store = session.config.store
+    except InputError:
+        store = None
+    add_after(session.path, store)  # the season store's rows follow the annotation
     return 0
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from station.cli.console import replayed  # here: see cmd_annotate
     from station.model.compare import format_comparison
-    from station.session.comparison import compared_items
+    from station.model.sequential import day_decisions, decision_block
+    from station.session.comparison import compare_results, compared_items
     from station.session.recorded import RecordedSession
 
     session = RecordedSession(args.session)
     output_path(args.csv, "--csv")
     results = replayed(session).results()
+    if args.upto is not None:  # the day as it stood after descent K
+        results = tuple(r for r in results if r.row.descent <= args.upto)
     reference = args.reference
     if reference is not None:
         items = compared_items(results, args.wind_limit)
         reference = unique_prefix(reference, items, "item", "--reference")
-    day = session.compare(
-        wind_limit_ms=args.wind_limit, reference=reference, cda_fixed=args.cda,
-        model=args.model, drift=args.drift,
+    day = compare_results(
+        session.track, results, wind_limit_ms=args.wind_limit, reference=reference,
+        cda_fixed=args.cda, model=args.model, drift=args.drift,
         timer_sd_s=None if args.timer_ms is None else args.timer_ms / 1000.0,
     )  # fmt: skip
     if day.result is None:
         raise InputError(day.error, path=args.session)
     res = day.result
+    run_items = [d.item for d in day.compared]
+    decisions = day_decisions(res.comparisons, run_items, horizon=args.horizon,
+                              margin=args.margin)  # fmt: skip
     if args.csv:
         _write_compare_csv(res, args.csv)
     if args.json:
-        _print_json(res.to_dict())
+        out = res.to_dict()
+        for c, d in zip(out["comparisons"], decisions, strict=True):
+            c["decision"] = d.to_dict()
+        _print_json(out)
         return 0
     print(format_comparison(res, len(day.compared)))
+    block = decision_block(res.comparisons, run_items, day.compared[-1].number,
+                           horizon=args.horizon, margin=args.margin)  # fmt: skip
+    if block:
+        print("\n" + "\n".join(block))
     for w in res.warnings:
         _warn(w)
     return 0
 
 
 def _write_compare_csv(res: JointResult, path: str) -> None:
+    from station import csvfiles
+
     with open_output(path, "--csv") as fh:
-        head = f"station {__version__} comparison; reference {res.reference}; " \
-               f"drift {'on' if res.drift_per_hour else 'off'}; " \
-               f"g {res.gravity_ms2:.5f} m/s²"  # fmt: skip
-        fh.write(f"# {head.replace(',', ';')}\n")  # no comma: a spreadsheet keeps the line whole
-        w = csv.writer(fh, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
+        # an item name is the user's text: one header line whatever it holds, and a name
+        # that looks like a formula is shown as text (station.csvfiles)
+        head = [f"station {__version__} comparison", f"reference {res.reference}",
+                f"drift {'on' if res.drift_per_hour else 'off'}",
+                f"g {res.gravity_ms2:.5f} m/s²"]  # fmt: skip
+        fh.write("# " + "; ".join(csvfiles.header_text(h) for h in head) + "\n")
+        w = csvfiles.writer(fh, quoting=csv.QUOTE_NONNUMERIC)
         w.writerow(["rank", "item", "descents", "mu", "mu_lo", "mu_hi", "delta_mu_vs_reference",
                     "delta_lo", "delta_hi", "p_faster_than_reference", "delta_t_s"])  # fmt: skip
         for k, name in enumerate(res.ranking, start=1):
@@ -187,6 +211,31 @@ def add_parsers(sub: Any) -> None:
                               "resolution the timer states, 0.5 for 1 ms and finer")  # fmt: skip
     p.add_argument("--wind-limit", type=_positive, default=1.0, metavar="MS",
                    help="flag descents with more along-track wind (m/s)")  # fmt: skip
+    p.add_argument("--upto", type=_descent_number, metavar="K",
+                   help="answer as after descent K (the descents after it left out)")  # fmt: skip
+    p.add_argument("--margin", type=_positive, metavar="DMU",
+                   help="a difference of μ that does not matter: 'equivalent' when the "
+                        "interval lies within ±DMU")  # fmt: skip
+    p.add_argument("--horizon", type=_horizon, default=10, metavar="N",
+                   help="descents per item over which the decision's error rate is spent "
+                        "(the plan's number; default 10)")  # fmt: skip
     p.add_argument("--csv", metavar="OUT", help="write the ranking as CSV; - = stdout")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.set_defaults(func=cmd_compare)
+
+
+def _descent_number(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a descent number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"descents are numbered from 1, got {text!r}")
+    return value
+
+
+def _horizon(text: str) -> int:
+    value = _descent_number(text)
+    if value < 2:
+        raise argparse.ArgumentTypeError(f"at least 2 descents per item, got {text!r}")
+    return value

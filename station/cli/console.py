@@ -10,10 +10,12 @@ share it, as they share :mod:`station.cli.common`.
 from __future__ import annotations
 
 import os
+import sys
 from collections.abc import Callable, Sequence
 
 from station.cli.common import _warn
 from station.errors import InputError
+from station.model.sequential import BLOCK_HEADER
 from station.report.text import describe, summary
 from station.session import store as sessions
 from station.session.acquisition import Acquisition, Listener
@@ -34,6 +36,7 @@ class PrintListener(Listener):
         self.out = out
         self.port = port
         self._told: set[int] = set()  # descents already printed: a second line is an update
+        self._decisions: tuple[str, ...] = ()  # the decisions last printed
 
     def connection(self, state: str, detail: str) -> None:
         if state == "disconnected":
@@ -54,6 +57,15 @@ class PrintListener(Listener):
     def warning(self, text: str) -> None:
         self.out(f"warning: {text}")
 
+    def comparison(self, text: str) -> None:
+        """The decision on each pair of items ("decided: …" or "not yet: …") when it changed;
+        the rest of the comparison is for the UI and ``station compare``."""
+        lines = text.splitlines()
+        start = next((k for k, line in enumerate(lines) if line.startswith(BLOCK_HEADER)), None)
+        if start is not None and tuple(lines[start + 1 :]) != self._decisions:
+            self._decisions = tuple(lines[start + 1 :])
+            self.out("\n".join(lines[start:]))
+
 
 def day_summary(acq: Acquisition) -> str:
     """The summary line of a recorded or replayed day: lines read, descents, fits."""
@@ -65,6 +77,9 @@ def replay_config(source: str, config: str | None) -> StationConfig:
     has none of its own."""
     if not os.path.exists(source):
         raise InputError("no such session or capture", path=source)
+    if os.path.isdir(source) and not sessions.is_session(source):
+        raise InputError(f"is a folder without {sessions.RAW}: not a session, and a capture is "
+                         "a file", path=source)  # fmt: skip
     if config:
         return load_config(config)
     if sessions.is_session(source):
@@ -91,3 +106,33 @@ def annotate_session(session: RecordedSession, records: Sequence[Annotation]) ->
 def _say_warnings(session: RecordedSession) -> None:
     while session.warnings:
         _warn(session.warnings.pop(0))
+
+
+def add_after(session: str, config_store: str | None) -> None:
+    """``record``, ``live`` and ``annotate``: add or update the session in the season store
+    when one is configured ($STATION_STORE, else the config's ``store:``). It never fails the
+    command that called it (the day is recorded, the annotation saved): one line either way."""
+    import sqlalchemy as sa
+
+    from station.store.db import database_error, open_store, safe_url
+    from station.store.writer import add_session
+
+    target = os.environ.get("STATION_STORE") or config_store
+    if not target:
+        return
+    if sessions.recording_state(session) is sessions.Recording.NOW:
+        return  # the recorder adds it when the recording ends
+    where = safe_url(target)
+    try:
+        store = open_store(target, create=True, say=lambda m: print(m, file=sys.stderr))
+        try:
+            verdict = add_session(store, session)
+        finally:
+            store.close()
+    except (InputError, sa.exc.SQLAlchemyError) as exc:
+        why = database_error(exc, where).message if isinstance(exc, sa.exc.SQLAlchemyError) \
+            else str(exc)  # fmt: skip
+        _warn(f"{session} not added to the season store {where}: {why}; "
+              f"station season add {session} --store {where} adds it later")  # fmt: skip
+        return
+    print(f"season store {where}: {session} {verdict}", file=sys.stderr)

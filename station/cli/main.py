@@ -25,7 +25,7 @@ COMMANDS = {
     "annotate": "analysis", "compare": "analysis",
     "live": "terminal", "demo": "terminal",
     "sessions": "sessions", "ports": "ports", "import": "memory", "report": "report",
-    "season": "season",
+    "season": "season", "plan": "plan",
 }  # fmt: skip
 
 

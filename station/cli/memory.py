@@ -32,6 +32,8 @@ def cmd_import(args: argparse.Namespace) -> int:
         config = load_config(args.config)
         report = memory_import.import_new(args.file, config, args.session_dir, _date(args.date))
         config = sessions.load_session_config(args.session_dir)
+    if report.repaired:
+        print(f"station: warning: {report.repaired}", file=sys.stderr)
     run = replay(report.session, config)
     run.write_csv(os.path.join(report.session, sessions.RESULTS))
     print(

@@ -31,12 +31,32 @@ def cmd_record(args: argparse.Namespace) -> int:
     cfg = checked_config(args.config)  # config, survey and photocells, as station check does
     check_port(cfg.serial.port, args.config)  # then a wrong port: say so and list them
     folder = args.session_dir or sessions.default_dir()
-    print(f"recording to {folder} from {cfg.serial.port} ({cfg.serial.protocol}); Ctrl-C ends",
-          file=sys.stderr)  # fmt: skip
+
+    def started() -> None:  # said once the folder is accepted, not before a refusal
+        print(f"recording to {folder} from {cfg.serial.port} ({cfg.serial.protocol}); "
+              "Ctrl-C ends", file=sys.stderr)  # fmt: skip
+
     acq = record(cfg, folder, PrintListener(port=cfg.serial.port),
-                 max_descents=args.max_descents, duration_s=args.duration)  # fmt: skip
+                 max_descents=args.max_descents, duration_s=args.duration,
+                 started=started)  # fmt: skip
     print(day_summary(acq), file=sys.stderr)
-    print(f"results: {os.path.join(folder, sessions.RESULTS)}", file=sys.stderr)
+    results = os.path.join(folder, sessions.RESULTS)
+    if acq.csv_problem is not None:  # the last line names no file that is not there
+        print(f"results: not written (said above); station export {folder} --csv {results} "
+              "writes them from the raw log", file=sys.stderr)  # fmt: skip
+    else:
+        print(f"results: {results}", file=sys.stderr)
+    from station.cli.console import add_after
+
+    add_after(folder, cfg.store)  # when a season store is configured
+    log = acq.rawlog
+    if log is not None and log.lost_records:  # the disk stayed full to the end
+        raise InputError(
+            f"{log.lost_records} record(s) ({log.lost_bytes} bytes) the timer sent could not "
+            "be written: the disk was full; import the timer's memory to fill the gap: "
+            f"station import DOWNLOAD --into {folder}",
+            path=log.path,
+        )
     return 0
 
 

@@ -20,7 +20,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     from station.session.comparison import compared_items
     from station.session.recorded import RecordedSession
 
-    session = RecordedSession(args.session)
+    session = RecordedSession(args.session, speed_curves=True)  # the report draws them
     out = output_dir(args.out, "--out")  # checked (and made) before the day is replayed
     path = os.path.join(out, f"{session.name}.html")
     acq = replayed(session).run()  # the session as a replay gives it, annotations included

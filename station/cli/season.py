@@ -94,7 +94,7 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from station.session.results import safe_text
+    from station.csvfiles import safe_text  # the one CSV policy
     from station.store.queries import export_frame
 
     output_path(args.csv, "--csv")
@@ -296,8 +296,13 @@ def _compare_options(p: argparse.ArgumentParser) -> None:
 def add_parsers(sub: Any) -> None:
     p = sub.add_parser("season", help="the season store: add days, list, export, compare across "
                                       "days, report, push")  # fmt: skip
-    ssub = p.add_subparsers(dest="season_command", required=True, parser_class=type(p),
-                            metavar="SUBCOMMAND", help="what to do with the store")  # fmt: skip
+    ssub = p.add_subparsers(
+        dest="season_command",
+        required=True,
+        parser_class=type(p),
+        metavar="{add,list,compare,export,report,push}",
+        help="what to do with the store",
+    )
 
     q = ssub.add_parser("add", help="add or update session folders in the store")
     q.add_argument("sessions", nargs="+", metavar="SESSION", help="session folders")

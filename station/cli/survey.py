@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 from typing import TYPE_CHECKING, Any
 
@@ -40,8 +39,10 @@ def cmd_survey_points(args: argparse.Namespace, survey: Survey) -> int:
     """A bare observation file has no photocells: list the reduced points for checking."""
     pts = list(survey.points.values())
     if args.csv:
+        from station import csvfiles
+
         with open_output(args.csv, "--csv") as fh:
-            w = csv.writer(fh, lineterminator="\n")
+            w = csvfiles.writer(fh)
             w.writerow(["point", "e", "n", "h", "sigma_h_m", "setup", "line"])
             for p in pts:
                 w.writerow([p.point, f"{p.e:.4f}", f"{p.n:.4f}", f"{p.h:.4f}", f"{p.sigma_h:.4f}",
@@ -160,8 +161,10 @@ def cmd_survey(args: argparse.Namespace) -> int:
         if args.json:
             _warn(f"track picture written to {args.plot}")
     if args.csv:
+        from station import csvfiles
+
         with open_output(args.csv, "--csv") as fh:
-            w = csv.writer(fh, lineterminator="\n")
+            w = csvfiles.writer(fh)
             w.writerow(["x_m", "y_m", "slope_deg", "curvature_1_per_m"])
             for row in zip(xg, yg, sg, kg, strict=True):
                 w.writerow([f"{row[0]:.3f}", f"{row[1]:.4f}", f"{row[2]:.4f}", f"{row[3]:.6f}"])
@@ -292,8 +295,10 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if d.stopped_x is not None:
         reached = xs < d.stopped_x
     if args.csv:
+        from station import csvfiles
+
         with open_output(args.csv, "--csv") as fh:
-            w = csv.writer(fh, lineterminator="\n")
+            w = csvfiles.writer(fh)
             w.writerow(["photocell", "time"])
             for pc, ti, ok in zip(track.photocells, t, reached, strict=True):
                 if ok:

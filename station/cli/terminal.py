@@ -27,7 +27,12 @@ def cmd_live(args: argparse.Namespace) -> int:
     folder = args.session_dir or sessions.default_dir()
     sessions.check_new(folder)  # said in one line here, not as a traceback inside the UI
     require_terminal("live", "to record without a terminal: station record")
-    return run_ui(StationApp(cfg, mode="live", session_dir=folder))
+    status = run_ui(StationApp(cfg, mode="live", session_dir=folder))
+    if sessions.is_session(folder):
+        from station.cli.console import add_after
+
+        add_after(folder, cfg.store)  # when a season store is configured
+    return status
 
 
 DEMO_SKIS = [("demo pair A", 0.0080), ("demo pair B", 0.0095), ("demo pair C", 0.0110)]

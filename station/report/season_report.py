@@ -16,6 +16,7 @@ from station.report.day_report import (
     _e,
     _figure,
     _num,
+    _plain,
     _png,
     _style,
     _table,
@@ -49,7 +50,7 @@ def effects_figure(res: Any, days: Sequence[Any], colours: dict[str, str]) -> st
         if temps:
             lo, hi = min(temps) - 0.3, max(temps) + 0.3
             ax.fill_between([lo, hi], it.ci90[0], it.ci90[1], color=c, alpha=0.18, lw=0)
-            ax.plot([lo, hi], [it.delta_mu] * 2, color=c, lw=1.5, label=it.item)
+            ax.plot([lo, hi], [it.delta_mu] * 2, color=c, lw=1.5, label=_plain(it.item))
             drawn = True
         if xs:
             ax.plot(xs, ys, "o", color=c, ms=4)
@@ -57,7 +58,7 @@ def effects_figure(res: Any, days: Sequence[Any], colours: dict[str, str]) -> st
         return None
     ax.axhline(0.0, color="#555", lw=0.8)
     ax.set_xlabel("snow temperature (°C) of the day")
-    ax.set_ylabel(f"Δμ against {res.reference}")
+    ax.set_ylabel(f"Δμ against {_plain(res.reference)}")
     ax.legend(fontsize=7, loc="best")
     return _png(fig)
 
@@ -83,7 +84,7 @@ def network_figure(days: Sequence[Any], colours: dict[str, str]) -> str:
         ax.text((xa + xb) / 2, (ya + yb) / 2, str(k), fontsize=7, color="#444")
     for it, (x, y) in pos.items():
         ax.scatter([x], [y], s=120, color=colours.get(it, "#333"), zorder=2)
-        ax.text(x * 1.12, y * 1.12, it, fontsize=8, ha="center", va="center")
+        ax.text(x * 1.12, y * 1.12, _plain(it), fontsize=8, ha="center", va="center")
     ax.set_xlim(-1.5, 1.5)
     ax.set_ylim(-1.3, 1.3)
     ax.set_aspect("equal")

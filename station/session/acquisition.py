@@ -39,13 +39,14 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import IO, Any
 
-from station.errors import InputError
 from station.model.compare import collect, format_comparison
+from station.model.sequential import decision_block
 from station.session import store as sessions
-from station.session.analysis import DescentResult
+from station.session.analysis import DescentResult, FitCache
 from station.session.comparison import compare_results
 from station.session.config import SerialConfig, StationConfig
 from station.session.day import Day, Effect
+from station.session.fitstore import FitStore
 from station.session.rawlog import Chunk, RawLogWriter
 from station.session.records import (
     Annotation,
@@ -166,6 +167,8 @@ class Acquisition:
         #: recording or the UI keeps it only in what it hands to the listener: 12 kB a
         #: descent, half a 2000-descent day's memory (the UI asks again for the one it shows)
         self.keep_curves = not threaded
+        #: likewise every impulse's fate (``replay --events`` lists them; the UI is told each)
+        self.keep_events = not threaded
         self.ski_rotation = tuple(ski_rotation)
         self.lock = threading.Lock()  # guards the day: processor, results, annotations
         self.finished_descents = 0  # descents the processor ended, aborted ones not counted
@@ -224,6 +227,7 @@ class Acquisition:
         the results CSV are written there."""
         rawlog = None
         lock = None
+        listener = listener or Listener()
         if session_dir is not None:
             # the user's own config and survey first: a photocell the survey lacks is said
             # naming their files, before a folder is made that the next try would find not
@@ -239,6 +243,7 @@ class Acquisition:
                 rawlog = RawLogWriter(
                     os.path.join(session_dir, sessions.RAW),
                     header={"port": config.serial.port, "protocol": config.serial.protocol},
+                    on_problem=listener.warning,  # a full disk: one line, red in the UI
                 )
         except BaseException:
             if lock is not None:
@@ -254,6 +259,8 @@ class Acquisition:
             ski_rotation=ski_rotation,
         )
         acq.recording_lock = lock
+        if session_dir is not None:  # stored as they are made: the day's replays reuse them
+            day.analyser.fits = FitStore.for_session(session_dir, config)
         for problem in (lock.problem if lock is not None else "", day.analyser.site_warning):
             if problem:
                 acq._tell(acq.listener.warning, problem)
@@ -387,7 +394,7 @@ class Acquisition:
                 self._tell(self.listener.impulses, new, proc.line_counts())
             if new or done:
                 self._tell(self.listener.progress, self.day.progress())
-        if not self.keep_curves:
+        if not self.keep_events:
             # a recording hands each impulse's fate to the listener once and keeps none: a
             # replay of the raw log lists them all (--events); 1.5 kB a descent otherwise
             del proc.events[:]
@@ -750,6 +757,11 @@ class Acquisition:
 
     # ------------------------------------------------------------------ views
 
+    @property
+    def csv_problem(self) -> str | None:
+        """Why the session's results CSV is not written now (None: it is)."""
+        return self._csv_problem
+
     def speed_curve(self, res: DescentResult) -> tuple[Any, Any] | None:
         """The fitted speed along the run of a result kept without it (one model solve, no
         fit; the UI's plot of the descent it shows)."""
@@ -806,7 +818,11 @@ def comparison_text(track: Track, results: Sequence[DescentResult]) -> str:
     if day.result is None:
         return f"no comparison yet: {day.error}"
     res = day.result
-    return format_comparison(res, len(day.compared)) + "".join(f"\n! {w}" for w in res.warnings)
+    text = format_comparison(res, len(day.compared)) + "".join(f"\n! {w}" for w in res.warnings)
+    block = decision_block(
+        res.comparisons, [d.item for d in day.compared], day.compared[-1].number
+    )  # decided or not, after every descent (station/model/sequential.py)
+    return text + "".join(f"\n{line}" for line in ["", *block]) if block else text
 
 
 # ----------------------------------------------------------------------------- commands
@@ -818,13 +834,18 @@ def record(
     listener: Listener,
     max_descents: int | None = None,
     duration_s: float | None = None,
+    started: Callable[[], None] | None = None,
 ) -> Acquisition:
     """Record headless until SIGINT/SIGTERM, ``max_descents`` or ``duration_s``; any of them
-    ends the open descent the same way (:meth:`Acquisition.close`)."""
+    ends the open descent the same way (:meth:`Acquisition.close`). ``started`` is called once
+    the session folder is made and the raw log open (not for a folder refused)."""
     from station.session.serialport import ensure_port_free
 
     ensure_port_free(config.serial)  # a second recorder on the port: one line, no session made
-    acq = Acquisition.open(config, listener, session_dir=session_dir)
+    # compare: the console says after every descent whether the day is decided
+    acq = Acquisition.open(config, listener, session_dir=session_dir, compare=True)
+    if started is not None:
+        started()
     stop = threading.Event()
     previous = {}
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -842,12 +863,6 @@ def record(
         acq.close()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    if isinstance(acq.source_error, OSError):  # the raw log could not be written: disk full
-        why = acq.source_error.strerror or str(acq.source_error)
-        raise InputError(
-            f"cannot write the raw log: {why}; recording stopped",
-            path=os.path.join(session_dir, sessions.RAW),
-        )
     if acq.source_error is not None:
         raise acq.source_error
     return acq
@@ -860,15 +875,21 @@ def replay(
     speed: float | None = None,
     date: dt.date | None = None,
     warnings: list[str] | None = None,
+    fits: FitCache | None = None,
+    speed_curves: bool = True,
 ) -> Acquisition:
     """Feed a session (with its annotations) or a plain capture through the loop, in line.
     Without a listener the replay says nothing as it goes: the caller reports its results
-    (and ``warnings`` collects what the raw log's reader passed over)."""
+    (and ``warnings`` collects what the raw log's reader passed over). ``fits``: the fits
+    stored with the session, used where they fit and added to; ``speed_curves``: the fitted
+    speed along the run of each descent (for the views that draw it)."""
     import gc
 
     acq = Acquisition.open(
         config, listener or QuietListener(), date=source_date(source, date), threaded=False
     )
+    acq.day.analyser.fits = fits
+    acq.day.analyser.speed_curves = speed_curves
     # a replay makes objects by the hundred thousand and keeps most: the garbage collector
     # need not scan the set-up's (modules, the track, the grids) at every full collection
     gc.freeze()

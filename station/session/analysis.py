@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import datetime as dt
 from dataclasses import dataclass, replace
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -98,6 +99,17 @@ def start_time(d: DescentTimes, host_t: float | None, date: dt.date | None) -> s
     return dt.datetime.combine(date + dt.timedelta(days=days), t).astimezone().isoformat()
 
 
+class FitCache(Protocol):
+    """Fits stored with the session (:class:`station.session.fitstore.FitStore`): the analyser
+    asks for a fit by the key of what it is computed from before it computes it."""
+
+    def key(self, parts: dict[str, Any], survey_cov: np.ndarray | None) -> str: ...
+
+    def get(self, key: str) -> FitResult | None: ...
+
+    def put(self, key: str, fit: FitResult) -> None: ...
+
+
 class Analyser:
     """Fits finished descents with the station's track, skier and air; grids built once per
     set of photocells."""
@@ -114,6 +126,11 @@ class Analyser:
         # the first good fit on them (linearised at its parameters), then reused, so the
         # intervals of every descent carry the track without ~60 model solves each
         self._survey_cov: dict[tuple[str, ...], np.ndarray] = {}
+        #: fits stored with the session, when it has them: a fit found there is not computed
+        self.fits: FitCache | None = None
+        #: the fitted speed along the run of every descent (one model solve each), for the
+        #: views that draw it (the UI, the report); off for those that only list results
+        self.speed_curves = True
 
     def run(self, job: FitJob) -> DescentResult:
         """Fit one descent; an exception of the fit is the descent's ``error`` status."""
@@ -139,15 +156,27 @@ class Analyser:
             run = self._runs[ids] = StraightRun(self.track.profile, xs)
         t = (np.array(d.times_us) - d.times_us[0]) / 1e6
         cov = self._survey_cov.get(ids)
-        fit = fit_descent(
-            self.track.profile, xs, t, cond, list(ids), model=job.model.value, run=run,
-            survey=survey_error(self.track, list(ids)) if cov is None else None,
-            survey_time_cov=cov, timer_precision_s=job.timer_precision_s,
-        )  # fmt: skip
+        key = fit = None
+        if self.fits is not None:  # everything the fit below depends on but the session's files
+            parts = {
+                "times_us": list(d.times_us), "photocells": list(ids), "model": job.model.value,
+                "mass_kg": job.mass_kg, "air_density": job.air_density, "wind_ms": job.wind_ms,
+                "g": job.gravity, "timer_precision_s": job.timer_precision_s,
+            }  # fmt: skip
+            key = self.fits.key(parts, cov)
+            fit = self.fits.get(key)
+        if fit is None:
+            fit = fit_descent(
+                self.track.profile, xs, t, cond, list(ids), model=job.model.value, run=run,
+                survey=survey_error(self.track, list(ids)) if cov is None else None,
+                survey_time_cov=cov, timer_precision_s=job.timer_precision_s,
+            )  # fmt: skip
+            if self.fits is not None and key is not None:
+                self.fits.put(key, fit)
         if cov is None and fit.status == FitStatus.OK and fit.survey_time_cov is not None:
             self._survey_cov[ids] = fit.survey_time_cov
         row = result_row(job, fit)
-        curve = _speed_curve(run, fit, cond)
+        curve = _speed_curve(run, fit, cond) if self.speed_curves else None
         speed_x, speed_v = curve if curve is not None else (None, None)
         return DescentResult(d, fit, row, speed_x, speed_v)
 

@@ -141,6 +141,9 @@ class StationConfig:
     #: the timer's precision (s) as the config states it (``timer: {precision_ms: …}``); None:
     #: from the resolution the timer states (:func:`station.model.timer.precision_from_resolution`)
     timer_precision_s: float | None = None
+    #: the season store the session is added to when its recording ends (``store:``, a path
+    #: or a postgresql:// URL; None: none, unless $STATION_STORE names one)
+    store: str | None = None
 
     @property
     def air_density(self) -> float:
@@ -149,7 +152,7 @@ class StationConfig:
 
 
 _TOP = {"serial", "survey", "photocells", "skier", "ski", "wax", "notes", "air", "descent", "fit",
-        "items", "latitude_deg", "altitude_m", "timer"}  # fmt: skip
+        "items", "latitude_deg", "altitude_m", "timer", "store"}  # fmt: skip
 
 
 def load_config(path: str) -> StationConfig:
@@ -174,6 +177,7 @@ def load_config(path: str) -> StationConfig:
         latitude_deg=_ranged(top, "latitude_deg"),
         altitude_m=_ranged(top, "altitude_m"),
         timer_precision_s=_timer(top),
+        store=top.get("store", str) or None,
     )
 
 

@@ -12,10 +12,10 @@ its origin). Pure formatting plus one writer; no state.
 
 from __future__ import annotations
 
-import csv
 from collections.abc import Iterable, Mapping
 from typing import IO, TYPE_CHECKING
 
+from station import csvfiles
 from station.timing.impulses import DAY_US, format_tod
 
 if TYPE_CHECKING:  # a replay without fits (--no-fit) does not load the fit
@@ -59,7 +59,7 @@ def write_descent_times(descents: Iterable[DescentTimes], fh: IO[str]) -> int:
 
 
 def write_rows(rows: list[list[str]], fh: IO[str]) -> int:
-    w = csv.writer(fh, lineterminator="\n")
+    w = csvfiles.writer(fh)  # formula-safe cells (a bib is the timer's text)
     w.writerow(TIMES_COLUMNS)
     w.writerows(rows)
     return len(rows)

@@ -8,6 +8,10 @@ cable out. A plain capture or a memory download (ALGE ``RSM`` print-out, TAG ``#
   event, so that a replay of the session reproduces the merged results; the session's
   results are rewritten.
 - either way the file's own bytes are kept in ``SESSION/imports/`` (never overwritten).
+- a session whose raw log ends torn (a full disk, a power cut: exactly when a memory import is
+  needed) is repaired before anything is appended: the torn bytes go to ``raw.jsonl.torn-N``
+  (:func:`station.session.rawlog.repair_tail`), the import's report says so, and the impulses
+  the torn record held are taken from the download like any other missing one.
 
 Known limit: impulses appended by a merge form descents of their own; a descent of which the
 live recording holds some impulses and the download the rest is not joined into one.
@@ -42,6 +46,8 @@ class ImportReport:
     added: int
     kept_as: str
     dated: dt.date | None = None  # the test day the new session's impulses were dated by
+    #: the session's raw log ended torn (a full disk, a power cut): what was done about it
+    repaired: str | None = None
 
 
 def read_import(path: str) -> bytes:
@@ -157,6 +163,8 @@ def import_into(path: str, session: str) -> ImportReport:
     added = sum(ident[0] == "impulse" for _line, ident in new)
     n = _impulses(found)
     kept = _keep_bytes(session, path, data)
+    # a torn last record (what a full disk or a power cut leaves) is cut off into a side file
+    # first: appending after it would glue the import to half a record, unreadable
     log = RawLogWriter(os.path.join(session, sessions.RAW))
     when = last_t if last_t is not None else time.time()
     try:
@@ -169,4 +177,4 @@ def import_into(path: str, session: str) -> ImportReport:
             log.write(when, end + b"".join(s.encode("latin-1") + end for s in missing))
     finally:
         log.close()
-    return ImportReport(session, n, n - added, added, kept)
+    return ImportReport(session, n, n - added, added, kept, repaired=log.repair)

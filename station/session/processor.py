@@ -60,6 +60,7 @@ class Processor:
         self.connection: list[tuple[float, str, str]] = []
         self.offset_us: int | None = None  # device clock − host clock
         self.start_host: dict[int, float | None] = {}
+        self._latest_start: tuple[int, int] | None = None  # (device µs, descent): the last start
         #: the resolution (µs) the timer states in its first impulse from a photocell (not a
         #: keypad's 1/100 s): the default of the timer's precision (station.model.timer); fixed
         #: from then on, so a live day and its replay judge every descent alike
@@ -111,6 +112,7 @@ class Processor:
                     self.offset_us = clock - round(t * 1e6)
             if asm.count > before:
                 self.start_host[asm.count] = t
+                self._started(asm.count)
             return done
         if isinstance(parsed, Edit):
             self.counts["edit"] += 1
@@ -128,6 +130,22 @@ class Processor:
                     (self.lines, "this and later unparsed lines not listed; see the raw log", "")
                 )
         return []
+
+    def _started(self, number: int) -> None:
+        """A descent started: one that starts before an earlier one by the timer's clock (the
+        timer reset to 00:00, its clock set back) is flagged, since its start time then goes
+        backwards in the results."""
+        d = next((d for d in reversed(self.assembler.open) if d.number == number), None)
+        if d is None or not d.times_us:
+            return
+        start = d.times_us[0]
+        if self._latest_start is not None and start < self._latest_start[0]:
+            back = (self._latest_start[0] - start) / 1e6
+            amount = f"{back / 3600:.2f} h" if back >= 3600 else f"{back:.1f} s"
+            d.flags.append(f"starts {amount} before descent {self._latest_start[1]} by the "
+                           "timer's clock (was it reset or set back?): its start time goes "
+                           "backwards")  # fmt: skip
+        self._latest_start = (start, number)
 
     def tick(self, host_t: float) -> list[TimedDescent]:
         """Host time now: end a descent whose time-out passed on the device clock."""

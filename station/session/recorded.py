@@ -20,7 +20,7 @@ import json
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import IO, Any
 
 from station import __version__
 from station.errors import InputError
@@ -31,6 +31,7 @@ from station.session.analysis import DescentResult
 from station.session.comparison import WIND_LIMIT_MS, DayComparison, compare_results
 from station.session.config import StationConfig
 from station.session.day import Day
+from station.session.fitstore import FitStore
 from station.session.rawlog import read_rawlog
 from station.session.records import Annotation
 from station.session.results import read_results
@@ -83,11 +84,16 @@ def sha256_of(path: str, max_bytes: int, what: str) -> str:
 class RecordedSession:
     """A session folder (see :mod:`station.session.store` for what it holds)."""
 
-    def __init__(self, path: str, config: StationConfig | None = None) -> None:
+    def __init__(
+        self, path: str, config: StationConfig | None = None, *, speed_curves: bool = False
+    ) -> None:
         if not sessions.is_session(path):
             raise InputError("not a session directory (no raw.jsonl)", path=path)
         self.path = path
         self._config = config
+        #: the quiet replay (:meth:`run`) draws each descent's fitted speed along the run
+        #: (the report does; a listing, the results CSV and the comparison need none)
+        self.speed_curves = speed_curves
         self._run: Acquisition | None = None
         #: what the raw log's reader passed over in the replay (a torn last record)
         self.warnings: list[str] = []
@@ -145,8 +151,20 @@ class RecordedSession:
         warnings: list[str] | None = None,
     ) -> Acquisition:
         """Replay the session (its annotations applied) through the acquisition loop, in
-        line; a new replay each call, told to ``listener`` as it goes."""
-        return replay(self.path, self.config, listener, speed=speed, warnings=warnings)
+        line; a new replay each call, told to ``listener`` as it goes. The fits stored with
+        the session are used where their key matches, and the new ones stored."""
+        fits = self.fits()
+        acq = replay(
+            self.path, self.config, listener, speed=speed, warnings=warnings, fits=fits,
+            speed_curves=self.speed_curves,
+        )  # fmt: skip
+        if fits is not None:
+            fits.compact()
+        return acq
+
+    def fits(self) -> FitStore | None:
+        """The session's stored fits (``fits.jsonl``, :mod:`station.session.fitstore`)."""
+        return FitStore.for_session(self.path, self.config)
 
     def start_replay(
         self, listener: Listener, *, speed: float | None = None, compare: bool = False
@@ -154,6 +172,7 @@ class RecordedSession:
         """The replay in threads of its own, paced at ``speed`` (the UI): the acquisition
         is returned at once; ``listener`` hears the day as it goes."""
         acq = Acquisition.open(self.config, listener, compare=compare)
+        acq.day.analyser.fits = self.fits()
         acq.start_replay(self.path, speed)
         return acq
 
@@ -171,7 +190,7 @@ class RecordedSession:
         """Every descent, fitted, with the annotations applied, as a replay gives them."""
         return self.run().results()
 
-    def write_results_to(self, fh: Any) -> None:
+    def write_results_to(self, fh: IO[str]) -> None:
         """The results CSV into an open text file (as ``station export`` writes it)."""
         self.run().write_csv_to(fh)
 

@@ -290,6 +290,7 @@ def annotation_from_json(rec: Mapping[str, Any]) -> Annotation | None:
         if not isinstance(values, Mapping):
             raise InputError("expected a mapping of metadata", field="values")
         meta = Metadata.from_values(values, "values.")
+        _plausible(meta)
         if "descents" in rec:
             key = "descents"
             ds = rec[key]
@@ -311,13 +312,35 @@ def annotation_from_json(rec: Mapping[str, Any]) -> Annotation | None:
     return None
 
 
+def _plausible(meta: Metadata) -> None:
+    """A number read back from a file is in the range the form and the command line let in
+    (station/limits.py): ``mass_kg: 1e308`` in an edited annotations file is refused naming
+    the field, not fitted as ``ill-conditioned``."""
+    from station.limits import PLAUSIBLE
+
+    for key, value in meta.values().items():
+        if key in PLAUSIBLE and isinstance(value, float):
+            lo, hi, unit = PLAUSIBLE[key]
+            if not lo <= value <= hi:
+                raise InputError(f"{value:g} is outside {lo:g} to {hi:g} {unit}",
+                                 field="values." + key)  # fmt: skip
+
+
 def _descent_number(v: Any, key: str) -> int:
     if isinstance(v, bool) or not isinstance(v, (int, float, str)):
         raise InputError(f"expected a descent number, got {v!r}", field=key)
     try:
-        return int(v)
+        number = int(v)
     except (ValueError, OverflowError):
         raise InputError(f"expected a descent number, got {v!r}", field=key) from None
+    if number != v and not isinstance(v, str) or not 1 <= number <= MAX_DESCENT:
+        # 1.5 is no descent, and 1e300 none of a day's (it was taken as a 301-digit number)
+        raise InputError(f"expected a descent number (1 to {MAX_DESCENT}), got {v!r}", field=key)
+    return number
+
+
+#: the highest descent number an annotation may name: far beyond any test day
+MAX_DESCENT = 1_000_000
 
 
 # ----------------------------------------------------------------------------- descents

@@ -7,7 +7,6 @@ processor as a live recording, so a replay reproduces the live results.
 
 from __future__ import annotations
 
-import csv
 import datetime as dt
 import os
 import threading
@@ -15,6 +14,7 @@ import time
 from collections.abc import Iterator
 from typing import IO
 
+from station import csvfiles
 from station.files import MAX_CAPTURE, open_regular
 from station.session import store as sessions
 from station.session.processor import Processor
@@ -72,7 +72,7 @@ def replay_chunks(
 def write_events(processor: Processor, fh: IO[str]) -> None:
     """The parsed impulses into an open text file (``newline=""``): line, channel, photocell,
     time, flag, kept or why not."""
-    w = csv.writer(fh)
+    w = csvfiles.writer(fh, lineterminator="\r\n")  # a reason quotes the timer's line
     w.writerow(["line", "channel", "photocell", "time", "flag", "kept", "reason", "descent"])
     for e in processor.events:
         w.writerow(

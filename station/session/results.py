@@ -4,12 +4,10 @@ code reads them).
 
 Read it back with ``read_results`` or ``pandas.read_csv(path, comment="#")``; text fields are
 quoted, so a ``#`` in the notes stays part of them. Text fields are also safe to open in a
-spreadsheet: a value whose first character other than spaces, tabs and line breaks is ``=``,
-``+``, ``-`` or ``@`` (or their full-width forms), or that begins with a tab or a line break,
-gets a leading apostrophe, so it is shown as text, never run as a formula (spreadsheets skip
-leading whitespace before a formula). Header values are put on one line with no commas or
-semicolons, so neither pandas nor a spreadsheet splits a ``#`` line, whatever a survey name or a
-note contains.
+spreadsheet, and header values cannot break their line, by the policy of every CSV the
+station writes (:mod:`station.csvfiles`): a value whose first character other than blanks is
+``=``, ``+``, ``-`` or ``@`` gets a leading apostrophe; header values have no line breaks,
+commas or semicolons.
 """
 
 from __future__ import annotations
@@ -24,7 +22,8 @@ import tempfile
 from collections.abc import Sequence
 from typing import IO, Any
 
-from station import __version__
+from station import __version__, csvfiles
+from station.csvfiles import header_line, header_text, safe_text  # noqa: F401 - one policy
 from station.errors import InputError
 from station.files import decode_text, read_bytes
 from station.session.records import ResultRow, csv_record
@@ -40,29 +39,7 @@ TEXT_COLUMNS = ["missing", "status", "descent_status", "flags", "model", "skier"
                 "notes", "invalid_reason"]  # fmt: skip
 
 
-_FORMULA_START = frozenset("=+-@\uff1d\uff0b\uff0d\uff20")
-_LEADING_BLANKS = " \t\r\n\f\v\u00a0\u3000"
-
-
-def safe_text(value: Any) -> Any:
-    """Neutralise spreadsheet formulas: ``=cmd|…`` (also `` \t=cmd|…``) becomes ``'=cmd|…``."""
-    if not isinstance(value, str) or not value:
-        return value
-    first = value.lstrip(_LEADING_BLANKS)[:1]
-    if first in _FORMULA_START or value[0] in "\t\r\n":
-        return "'" + value
-    return value
-
-
 INT_COLUMNS = ("descent", "photocells_used")
-
-
-def header_text(value: Any) -> str:
-    """A header value on one line without separators: control characters (CR, LF, TAB, …)
-    become spaces, commas and semicolons become `` |``."""
-    text = "".join(" " if (ord(c) < 32 or 0x7F <= ord(c) < 0xA0 or c in "\u2028\u2029") else c
-                   for c in str(value))  # fmt: skip
-    return " ".join(text.replace(",", " |").replace(";", " |").split())
 
 
 def _number(value: Any, col: str) -> int | float | None:
@@ -111,13 +88,6 @@ UNITS = {
 }  # fmt: skip
 
 
-def header_line(key: str, value: Any) -> str:
-    """``# key: value`` on one line without commas or semicolons (:func:`header_text`), so a
-    spreadsheet that splits on either keeps each header line in one cell, and pandas'
-    ``comment="#"`` skips it."""
-    return f"# {header_text(key)}: {header_text(value)}"
-
-
 def write_results_to(fh: IO[str], rows: list[dict[str, Any]], header: dict[str, str]) -> None:
     """The results CSV into an open text file (``newline=""``), e.g. standard output."""
     cells = results_frame(rows)
@@ -127,7 +97,7 @@ def write_results_to(fh: IO[str], rows: list[dict[str, Any]], header: dict[str, 
     fh.write("\n".join(lines) + "\n")
     # the csv module, not DataFrame.to_csv: numbers must stay numbers (unquoted, full
     # precision) while every text field is quoted, so a "#" in the notes is safe
-    w = csv.writer(fh, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
+    w = csvfiles.writer(fh, quoting=csv.QUOTE_NONNUMERIC)
     w.writerow(COLUMNS)
     w.writerows(cells)
 
@@ -144,7 +114,7 @@ def append_results(
     write that fails (disk full) is undone (the file cut back to ``size``) and raised: no
     reader sees half a row."""
     buf = io.StringIO()
-    w = csv.writer(buf, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
+    w = csvfiles.writer(buf, quoting=csv.QUOTE_NONNUMERIC)
     w.writerows(results_frame(rows))
     data = buf.getvalue().encode("utf-8")
     fd = os.open(path, os.O_WRONLY | os.O_APPEND)

@@ -6,6 +6,8 @@
       <survey files>   the survey YAML and its observation file, at the same relative paths
       results.csv      one row per descent, rewritten after each descent
       annotations.jsonl  what the engineer entered: metadata, invalid marks, refits
+      fits.jsonl       every descent's fit, keyed by what it depends on (a cache:
+                       station.session.fitstore), so a replay fits only what changed
       recording.lock   there while the session is recorded (:class:`RecordingLock`)
 
 Replaying a session (``station replay SESSION``) runs its own snapshot through the same
@@ -58,6 +60,9 @@ CONFIG = "config.yaml"
 RESULTS = "results.csv"
 ANNOTATIONS = "annotations.jsonl"
 LOCK = "recording.lock"
+FITS = "fits.jsonl"
+#: files made from the others (a replay makes them again): not part of what a session is
+DERIVED = (RESULTS, LOCK, FITS)
 
 
 def is_session(path: str) -> bool:
@@ -233,7 +238,7 @@ def read_annotations(session: str) -> list[Annotation]:
             continue
         try:
             rec = json.loads(line)
-        except ValueError:
+        except (ValueError, RecursionError):  # nested 100 000 deep is not a record either
             if i == len(lines):
                 break
             raise InputError("not an annotation record", path=path, line=i) from None
@@ -280,7 +285,7 @@ def read_annotations_after(session: str, offset: int) -> tuple[list[AppendedReco
         try:
             rec = json.loads(line)
             annotation = annotation_from_json(rec) if isinstance(rec, dict) else None
-        except (ValueError, InputError) as exc:
+        except (ValueError, InputError, RecursionError) as exc:
             out.append(AppendedRecord(line, None, f"not an annotation record ({exc})"))
             continue
         out.append(AppendedRecord(line, annotation))

@@ -31,7 +31,7 @@ class Identity:
     """What names a session and says whether it changed."""
 
     id: str  # SHA-256 of raw.jsonl
-    content_sha256: str  # of every file of the session except the results CSV and the lock
+    content_sha256: str  # of the session's own files (not the results CSV, fits cache, lock)
 
 
 @dataclass
@@ -66,6 +66,8 @@ def identify(session: str) -> Identity:
         raise InputError("not a session folder (no raw.jsonl)", path=session)
     if sessions.recording_state(session) is sessions.Recording.NOW:
         raise InputError("being recorded now: add it when the recording has ended", path=session)
+    # what is made from the others (the results CSV, the fits' cache) or says who records is
+    # not part of its identity: session/store.DERIVED
     content = hashlib.sha256()
     raw_id = ""
     try:
@@ -74,7 +76,7 @@ def identify(session: str) -> Identity:
             for name in sorted(files):
                 path = os.path.join(root, name)
                 rel = os.path.relpath(path, session)
-                if rel in (sessions.RESULTS, sessions.LOCK) or not os.path.isfile(path):
+                if rel in sessions.DERIVED or not os.path.isfile(path):
                     continue
                 digest = _sha256(path)
                 if rel == sessions.RAW:

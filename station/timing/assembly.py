@@ -46,7 +46,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
-from station.timing.impulses import DAY_US, Edit, Impulse, format_tod
+from station.timing.impulses import DAMAGED_FLAG, DAY_US, Edit, Impulse, format_tod
 
 HALF_DAY_US = DAY_US // 2
 PAIRINGS = ("auto", "bib", "order")
@@ -109,6 +109,12 @@ class ImpulseEvent(NamedTuple):
     kept: bool
     reason: str = ""
     descent: int | None = None
+
+
+def _flag_damaged(d: TimedDescent, imp: Impulse, line: int) -> None:
+    """A kept impulse read from a line with a damaged flag byte: the descent says so."""
+    if imp.flag == DAMAGED_FLAG:
+        d.flags.append(f"line {line}: flag byte {imp.line[:1]!r} damaged, read as an impulse")
 
 
 #: an event made without the NamedTuple's Python-level ``__new__`` (a plain tuple's cost, the
@@ -471,6 +477,7 @@ class DescentAssembler:
             self._move_clock(t)
             self._keep(imp.channel, t)
             self._event(imp, line, pc, True, "", d.number)
+            _flag_damaged(d, imp, line)
             return done
         chosen, reason = self._choose(pc, k, t, bib)
         if chosen is None:
@@ -502,6 +509,7 @@ class DescentAssembler:
         self._move_clock(t)
         self._keep(imp.channel, t)
         self._event(imp, line, pc, True, "", d.number)
+        _flag_damaged(d, imp, line)
         if k == len(self.photocells) - 1:
             self.open.remove(d)
             # a descent recovered without its start is short of the first photocell

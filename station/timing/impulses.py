@@ -12,6 +12,9 @@ from __future__ import annotations
 from typing import NamedTuple
 
 DAY_US = 86_400_000_000
+#: the flag of an impulse read from a line whose flag byte was damaged (an unknown flag, but a
+#: channel, time and number that read): kept, and its descent says so
+DAMAGED_FLAG = "damaged"
 
 
 class Impulse(NamedTuple):

@@ -11,7 +11,15 @@ uses them, and the tests use them for round trips.
 
 from __future__ import annotations
 
-from station.timing.impulses import Edit, Impulse, Parsed, Skip, Unparsed, format_tod
+from station.timing.impulses import (
+    DAMAGED_FLAG,
+    Edit,
+    Impulse,
+    Parsed,
+    Skip,
+    Unparsed,
+    format_tod,
+)
 
 # ----------------------------------------------------------------------------- helpers
 
@@ -153,7 +161,11 @@ class AlgeParser:
             kind = ALGE_EDIT_FLAGS.get(flag)
             if kind is not None:
                 return Edit(kind, channel, t[0], flag, bib, line)
-            return Skip(f"flag {flag!r} is not an impulse", line)
+            # an unknown flag on a line whose channel, time and number read is a damaged
+            # byte (one flipped bit of " " or "?"), not a foreign line: skipping it lost the
+            # skier's start (issue 18). Kept, flagged; a repeat of a kept impulse (a damaged
+            # "c" or "m" line) is not doubled by the assembler.
+            return Impulse(channel, t[0], t[1], DAMAGED_FLAG, bib, None, line)
         if n in (5, 6) and s[0] in "ns" and _digits(s[1:5]):
             return Skip("start number shown", line)
         if n == 10 and _tod(s) is not None:

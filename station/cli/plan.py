@@ -1,0 +1,215 @@
+"""``station plan``: how many descents per item resolve a difference, in which order, how long.
+
+The computation is :mod:`station.model.plan` (the day model of ``station compare``); this module
+reads the options, takes the posture scatter from a past session when asked, and prints."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from station.cli.common import (
+    _add_air,
+    _add_gravity,
+    _density,
+    _load_track,
+    _nonnegative,
+    _number,
+    _positive,
+    _print_json,
+    plausible,
+)
+from station.errors import InputError
+
+
+def _fraction(text: str) -> float:
+    value = _nonnegative(text)
+    if value >= 0.5:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is a fraction of CdA (0.015 = 1.5 %), less than 0.5"
+        )
+    return value
+
+
+def _power(text: str) -> float:
+    value = _number(text)
+    if not 0.5 <= value < 1.0:
+        raise argparse.ArgumentTypeError(f"must lie between 0.5 and 1 (e.g. 0.9), got {text!r}")
+    return value
+
+
+def _items(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
+    if not 2 <= value <= 12:
+        raise argparse.ArgumentTypeError(f"a day compares 2 to 12 items, got {text!r}")
+    return value
+
+
+def _from_session(args: argparse.Namespace) -> dict[str, Any]:
+    """The posture scatter (and the skier's CdA and v0) that a past session's joint fit
+    estimated, with the words that say where they came from."""
+    from station.cli.console import replayed
+    from station.session.recorded import RecordedSession
+
+    session = replayed(RecordedSession(args.from_session))
+    day = session.compare(timer_sd_s=args.timer_ms / 1000.0)
+    if day.result is None:
+        raise InputError(f"--from: {day.error}", path=args.from_session)
+    res = day.result
+    if res.status != "ok":
+        raise InputError(
+            f"--from: the session's joint fit is {res.status} ({res.message}); its posture "
+            "scatter is not to be trusted: give --posture-scatter",
+            path=args.from_session,
+        )
+    cdas = sorted(e.value for e in res.cda.values() if e.value is not None) or [args.cda]
+    return {
+        "posture_sd": res.posture_sd,
+        "posture_ci90": res.posture_ci90,
+        "cda": cdas[len(cdas) // 2],
+        "v0": res.typical_v0,
+        "mu": sorted(i.mu for i in res.items)[len(res.items) // 2],
+        "descents": len(day.compared),
+    }
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    from station.model.physics import gravity_for
+    from station.model.plan import DayAssumptions, delta_mu_of_ms, plan_day
+
+    track = _load_track(args.survey)
+    if len(track.photocells) < 3:
+        raise InputError("a plan needs at least three photocells", path=args.survey)
+    rho = _density(args)
+    g = gravity_for(track, args.gravity).value
+    source = "given"
+    posture, cda, v0, mu = args.posture_scatter, args.cda, args.v0, args.mu
+    if args.from_session is not None:
+        past = _from_session(args)
+        posture = past["posture_sd"]
+        cda = cda if args.cda_given else past["cda"]
+        v0 = v0 if args.v0_given else past["v0"]
+        mu = mu if args.mu_given else past["mu"]
+        ci = past["posture_ci90"]
+        source = f"estimated from {args.from_session} ({past['descents']} descents" + (
+            f", 90 % CI [{ci[0] * 100:.2f}, {ci[1] * 100:.2f}] %)" if ci else ")"
+        )
+    a = DayAssumptions(
+        mass_kg=args.mass,
+        air_density=rho,
+        cda=cda,
+        v0=v0,
+        mu=mu,
+        timer_sd_s=args.timer_ms / 1000.0,
+        posture_sd=posture,
+        drift_per_hour=args.drift_per_hour,
+        minutes_between=args.minutes_between,
+        g=g,
+    )
+    try:
+        delta = args.delta_mu if args.delta_mu is not None else delta_mu_of_ms(
+            track, args.delta_ms, a
+        )  # fmt: skip
+        plan = plan_day(track, delta, a, n_items=args.items, target_power=args.power)
+    except ValueError as exc:
+        raise InputError(str(exc), path=args.survey) from None
+    if args.json:
+        out = plan.to_dict()
+        out["assumptions"]["posture_source"] = source
+        if args.delta_ms is not None:
+            out["assumptions"]["delta_ms"] = args.delta_ms
+        _print_json(out)
+        return 0
+    print(format_plan(plan, source, args.delta_ms))
+    if not plan.reached:
+        print(
+            f"warning: {plan.target_power * 100:.0f} % power is out of reach within "
+            f"{plan.descents_per_item} descents per item; more photocells, a steadier tuck or a "
+            "larger difference",
+            file=sys.stderr,
+        )
+    return 0
+
+
+def format_plan(plan: Any, posture_source: str, delta_ms: float | None) -> str:
+    a = plan.assumptions
+    n = plan.descents_per_item
+    ms = f" ({delta_ms:g} ms over the run)" if delta_ms is not None else ""
+    reach = "" if plan.reached else " OUT OF REACH; the largest day considered gives"
+    lines = [
+        f"to resolve Δμ {plan.delta_mu:.5f}{ms} between {len(plan.items)} items with "
+        f"{plan.target_power * 100:.0f} % power (90 % intervals):{reach}",
+        f"  {n} descents per item, {len(plan.order)} in all, in this order: {plan.order}",
+        f"  about {plan.minutes:.0f} minutes at {a.minutes_between:g} minutes between descents",
+        f"  power {plan.power:.3f}; expected 90 % interval of Δμ ±{plan.halfwidth_mu:.5f}",
+    ]
+    if n - 1 in plan.power_by_n:
+        lines.append(f"  ({n - 1} descents per item: power {plan.power_by_n[n - 1]:.3f})")
+    if plan.power_watched is not None:
+        lines.append(
+            f"  watched after every descent (station compare --horizon {n}): power "
+            f"{plan.power_watched:.3f}, and the day may end early"
+        )
+    lines.append(
+        f"assumed: {a.mass_kg:g} kg, air {a.air_density:.3f} kg/m³, CdA {a.cda:.3f} m², "
+        f"v0 {a.v0:.1f} m/s, μ {a.mu:.4f}, timer {a.timer_sd_s * 1e3:.2f} ms, posture scatter "
+        f"{a.posture_sd * 100:.2f} % ({posture_source}), drift {a.drift_per_hour:g} per hour"
+    )
+    return "\n".join(lines)
+
+
+class _Given(argparse.Action):
+    """Store the value and note that the user gave it (so --from does not override it)."""
+
+    def __call__(self, parser: Any, namespace: Any, values: Any, option_string: Any = None):
+        setattr(namespace, self.dest, values)
+        setattr(namespace, f"{self.dest}_given", True)
+
+
+def add_parsers(sub: Any) -> None:
+    p = sub.add_parser(
+        "plan", help="how many descents per item resolve a difference, in which order, how long"
+    )
+    p.add_argument(
+        "--survey", required=True, help="survey YAML with the photocells (surveys/README.md)"
+    )
+    p.add_argument("--mass", type=plausible("mass_kg"), required=True, metavar="KG",
+                   help="skier with equipment, kg")  # fmt: skip
+    d = p.add_mutually_exclusive_group(required=True)
+    d.add_argument("--delta-mu", type=_positive, metavar="DMU",
+                   help="the difference of μ to resolve, e.g. 0.001")  # fmt: skip
+    d.add_argument("--delta-ms", type=_positive, metavar="MS",
+                   help="the difference to resolve as time over the run (first to last "
+                        "photocell), ms")  # fmt: skip
+    s = p.add_mutually_exclusive_group(required=True)
+    s.add_argument("--posture-scatter", type=_fraction, metavar="FRAC",
+                   help="SD of the drag area between descents, a fraction "
+                        "(0.015 = 1.5 %%)")  # fmt: skip
+    s.add_argument("--from", dest="from_session", metavar="SESSION",
+                   help="take the posture scatter (and CdA, v0, μ) from a past session's "
+                        "joint fit")  # fmt: skip
+    p.add_argument("--power", type=_power, default=0.9,
+                   help="probability that the day's 90 %% interval excludes 0 "
+                        "(default 0.9)")  # fmt: skip
+    p.add_argument("--items", type=_items, default=2, help="skis or waxes to compare (default 2)")
+    p.add_argument("--timer-ms", type=_positive, default=0.5, metavar="MS",
+                   help="the timer's precision, SD of one time in ms (default 0.5)")  # fmt: skip
+    p.add_argument("--drift-per-hour", type=_number, default=0.0, metavar="DMU",
+                   help="expected drift of μ per hour (the fit estimates it; "
+                        "default 0)")  # fmt: skip
+    p.add_argument("--minutes-between", type=_positive, default=3.0, metavar="MIN",
+                   help="from one descent's start to the next (default 3)")  # fmt: skip
+    p.add_argument("--cda", type=_positive, default=0.22, metavar="M2", action=_Given,
+                   help="the skier's drag area, m² (default 0.22)")  # fmt: skip
+    p.add_argument("--v0", type=_positive, default=3.5, metavar="M_S", action=_Given,
+                   help="typical speed at the first photocell, m/s (default 3.5)")  # fmt: skip
+    p.add_argument("--mu", type=_positive, default=0.01, action=_Given,
+                   help="typical μ of the items (default 0.01)")  # fmt: skip
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    _add_air(p)
+    _add_gravity(p)
+    p.set_defaults(func=cmd_plan, cda_given=False, v0_given=False, mu_given=False)

@@ -1,0 +1,367 @@
+"""Decided or not, after every descent: a group-sequential rule for the day's comparisons.
+
+Looking at the 90 % interval of Δμ after every descent and stopping as soon as it excludes 0
+declares a winner between equal skis far more often than one day in ten (with ten looks,
+several times as often). This module gives each look its own, wider boundary so that over all
+the looks of a day a winner between equal items is declared on at most α = 10 % of days (5 %
+for each side), the error rate of the single 90 % interval ``station compare`` prints.
+
+Why α-spending and not a confidence sequence. Two families do this (season-and-planning
+notes): a group-sequential boundary with an α-spending function (Lan & DeMets 1983; Jennison &
+Turnbull 2000) and a time-uniform confidence sequence (Howard, Ramdas, McAuliffe & Sekhon 2021).
+A confidence sequence is valid for any number of looks, for ever, and pays for it: its
+boundary never comes below about z = 2.8 at the 90 % level, where the fixed day needs 1.645,
+so a day needs about (2.8/1.645)² ≈ 2.9 times the descents to decide. A test day has a bounded
+number of descents (the skier tires, the snow changes), so we spend α over a *horizon*
+(``horizon`` descents per item, default 10, or the plan's number) with the O'Brien–Fleming-
+type spending function, α/2 · 2(1 − Φ(z₁₋α/₄ / √t)) on each side: it spends almost nothing on
+the first looks, when the posture scatter is estimated from a handful of descents, and keeps
+the last boundary close to the fixed one (1.645 → 1.84 at a horizon of 10 with a look after
+every descent), so a day planned with ``station plan`` loses little power to being watched.
+
+The information time of a pair (a, b) after its looks is t = h/N, h = 2/(1/n_a + 1/n_b) the
+harmonic mean of the two items' descents and N the horizon: the information about Δμ grows
+with h (the variance of a difference of two means), and it is known before the times are, so
+the boundaries do not depend on the data. A look is each descent of a or b once both have two
+(one descent's glide cannot be told from its posture). Boundaries are computed by the
+recursive numerical integration of Armitage, McPherson & Rowe (1969) on the Brownian scale
+B(t) = Z·√t: under "no difference" the increments of B are independent N(0, Δt).
+
+The decision uses the repeated confidence interval Δμ̂ ± c_k·se at look k (c_k turned into a
+Student t quantile at the fit's Satterthwaite degrees of freedom with the same nominal level):
+these intervals hold the true Δμ at all looks at once with probability ≥ 90 %, so
+
+- "decided" when the interval excludes 0 (the item with the lower μ is faster),
+- "equivalent" when it lies within ±margin (two one-sided tests, Schuirmann 1987), and
+- "undecided" otherwise, with about how many more descents per item would decide at today's
+  scatter (the current estimate and standard error, projected to a larger day).
+
+Beyond the horizon there is no α left to spend: the last boundary is kept, which is what a
+fixed day of that length would use, and the decision says so (``beyond_horizon``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+#: two-sided error rate over all looks: that of the 90 % interval
+ALPHA = 0.10
+#: descents per item over which α is spent when no plan says otherwise
+DEFAULT_HORIZON = 10
+#: the furthest the "more descents per item" projection looks ahead
+MAX_MORE = 50
+#: grid points of the numerical integration (301 points and 601 differ by 7e-5 in z)
+GRID = 401
+
+
+def spent(t: float, alpha: float = ALPHA) -> float:
+    """α spent by information time ``t``: O'Brien–Fleming type (Lan & DeMets 1983), α/2 on
+    each side, 2 − 2Φ(z₁₋α/₄ / √t) per side."""
+    from scipy.special import ndtr, ndtri
+
+    if t <= 0:
+        return 0.0
+    t = min(t, 1.0)
+    return float(2.0 * (2.0 - 2.0 * ndtr(ndtri(1.0 - alpha / 4.0) / math.sqrt(t))))
+
+
+@lru_cache(maxsize=256)
+def boundaries(fractions: tuple[float, ...], alpha: float = ALPHA) -> tuple[float, ...]:
+    """z boundaries c_k (decide when |Z_k| ≥ c_k) for looks at increasing information times
+    ``fractions`` (≤ 1), so that P(|Z_k| ≥ c_k at some look | no difference) = α(t_last)."""
+    from scipy.optimize import brentq
+    from scipy.special import ndtr, ndtri
+
+    out: list[float] = []
+    prev_t, prev_spent = 0.0, 0.0
+    ys = np.zeros(0)  # grid on the B scale of the continuation region at the last look
+    fy = np.zeros(0)  # sub-density there (trapezoid weights folded in)
+    for t in fractions:
+        if t <= prev_t:
+            raise ValueError("information times must increase")
+        target = spent(t, alpha) - prev_spent
+        if not out:
+            c = float(ndtri(1.0 - target / 2.0)) if target > 0 else math.inf
+            c = min(c, 40.0)
+            x = c * math.sqrt(t)
+            ys = np.linspace(-x, x, GRID)
+            dens = np.exp(-0.5 * ys * ys / t) / math.sqrt(2 * math.pi * t)
+        else:
+            sd = math.sqrt(t - prev_t)
+
+            def excess(x: float, sd: float = sd, ys: np.ndarray = ys, fy: np.ndarray = fy,
+                       target: float = target) -> float:  # fmt: skip
+                """P(first crossing at this look beyond ±x) minus what may be spent."""
+                return float(fy @ (ndtr((-x - ys) / sd) + ndtr((ys - x) / sd))) - target
+
+            if target <= 0:
+                x = 40.0 * math.sqrt(t)
+            elif excess(0.0) <= 0:
+                x = 0.0
+            else:
+                x = brentq(excess, 0.0, 40.0 * math.sqrt(t), xtol=1e-10)
+            c = x / math.sqrt(t)
+            new = np.linspace(-x, x, GRID)
+            kern = np.exp(-0.5 * ((new[:, None] - ys[None, :]) / sd) ** 2) / (
+                sd * math.sqrt(2 * math.pi)
+            )
+            dens = kern @ fy
+            ys = new
+        w = np.full(GRID, (ys[1] - ys[0]) if GRID > 1 else 0.0)
+        w[0] *= 0.5
+        w[-1] *= 0.5
+        fy = dens * w
+        out.append(float(c))
+        prev_t, prev_spent = t, spent(t, alpha)
+    return tuple(out)
+
+
+def pair_counts(run_items: Sequence[str], a: str, b: str) -> list[tuple[int, int]]:
+    """(n_a, n_b) at each look of the pair: after each descent of a or b once both have two."""
+    na = nb = 0
+    out = []
+    for it in run_items:
+        if it not in (a, b):
+            continue
+        na += it == a
+        nb += it == b
+        if na >= 2 and nb >= 2:
+            out.append((na, nb))
+    return out
+
+
+def _h(na: int, nb: int) -> float:
+    return 2.0 / (1.0 / na + 1.0 / nb)
+
+
+def _fractions(counts: Sequence[tuple[int, int]], horizon: int) -> tuple[float, ...]:
+    """Information times of the looks within the horizon (later looks keep the last)."""
+    return tuple(min(_h(na, nb) / horizon, 1.0) for na, nb in counts)
+
+
+def look_boundaries(counts: Sequence[tuple[int, int]], horizon: int) -> list[float]:
+    """The z boundary of every look; looks beyond the horizon keep the horizon's boundary
+    (computed as if the last look within it had been at the horizon itself)."""
+    fr = _fractions(counts, horizon)
+    inside = [f for f in fr if f < 1.0]
+    if len(inside) < len(fr):
+        inside.append(1.0)
+    bounds = list(boundaries(tuple(inside))) if inside else []
+    return [bounds[min(k, len(bounds) - 1)] for k in range(len(fr))]
+
+
+def power_watched(
+    z_horizon: float,
+    run_items: Sequence[str],
+    a: str,
+    b: str,
+    horizon: int,
+    *,
+    draws: int = 20000,
+    seed: int = 0,
+) -> float:
+    """P(the rule declares the right item faster at some look) for a day run in
+    ``run_items`` when the true Δμ is ``z_horizon`` standard errors of the estimate at the
+    horizon: the z statistic as Brownian motion with drift in information time (seeded Monte
+    Carlo; the plan's "watched" power)."""
+    counts = pair_counts(run_items, a, b)
+    if not counts:
+        return 0.0
+    c = np.array(look_boundaries(counts, horizon))
+    t = np.array(_fractions(counts, horizon))
+    inc = np.diff(t, prepend=0.0)
+    rng = np.random.default_rng(seed)
+    path = np.cumsum(rng.normal(size=(draws, len(t))) * np.sqrt(inc) + z_horizon * inc, axis=1)
+    return float(np.mean((path / np.sqrt(t) >= c).any(axis=1)))
+
+
+def _t_boundary(c: float, dof: float | None) -> float:
+    """The Student t quantile at ``dof`` with the nominal level of the z boundary ``c``."""
+    from scipy.special import ndtr, stdtrit
+
+    if dof is None or not math.isfinite(c):
+        return c
+    p = float(ndtr(-c))  # one side
+    if p <= 0:
+        return c
+    return float(stdtrit(max(dof, 1.0), 1.0 - p))
+
+
+@dataclass(frozen=True)
+class Decision:
+    """What the day says of one pair of items after its latest look."""
+
+    a: str
+    b: str
+    state: str  # "decided" | "undecided" | "equivalent"
+    faster: str | None
+    looks: int
+    more_descents_per_item: int | None  # None: decided, or not within MAX_MORE
+    delta_mu: float  # μ_a − μ_b
+    interval: tuple[float, float] | None  # the repeated confidence interval, None: no look yet
+    boundary: float | None  # the look's boundary (t scale), None: no look yet
+    horizon: int
+    beyond_horizon: bool
+    margin: float | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "state": self.state,
+            "faster": self.faster,
+            "looks": self.looks,
+            "more_descents_per_item": self.more_descents_per_item,
+            "interval": list(self.interval) if self.interval else None,
+            "boundary": self.boundary,
+            "horizon": self.horizon,
+            "beyond_horizon": self.beyond_horizon,
+            "margin": self.margin,
+        }
+
+    def line(self) -> str:
+        """One line for the console and the UI: "decided: …" or "not yet: …"."""
+        return describe(self)
+
+
+def _more(
+    delta: float,
+    se: float,
+    counts: list[tuple[int, int]],
+    horizon: int,
+    margin: float | None,
+) -> int | None:
+    """About how many more descents per item decide the pair (or show it equivalent) if the
+    estimate stays and the standard error shrinks as the information grows."""
+    na, nb = counts[-1] if counts else (2, 2)
+    h_now = _h(na, nb)
+    ext = list(counts)
+    for m in range(1, MAX_MORE + 1):
+        ext += [(na + m, nb + m - 1), (na + m, nb + m)]
+    # a look's boundary depends on the looks before it only: one computation serves all m
+    bounds = look_boundaries(ext, horizon)
+    for m in range(1, MAX_MORE + 1):
+        c = bounds[len(counts) + 2 * m - 1]
+        se_m = se * math.sqrt(h_now / _h(na + m, nb + m))
+        if abs(delta) >= c * se_m:
+            return m
+        if margin is not None and abs(delta) + c * se_m <= margin:
+            return m
+    return None
+
+
+def decide(
+    a: str,
+    b: str,
+    delta_mu: float,
+    se: float | None,
+    dof: float | None,
+    run_items: Sequence[str],
+    *,
+    horizon: int = DEFAULT_HORIZON,
+    margin: float | None = None,
+) -> Decision:
+    """The decision on Δμ = μ_a − μ_b (estimate, standard error and degrees of freedom from
+    the day's joint fit) after the descents ``run_items`` (the item of each, in run order)."""
+    if horizon < 2:
+        raise ValueError("the horizon is at least 2 descents per item")
+    counts = pair_counts(run_items, a, b)
+    if not counts or se is None or not math.isfinite(se) or se <= 0:
+        na = sum(it == a for it in run_items)
+        nb = sum(it == b for it in run_items)
+        more = max(2 - na, 2 - nb, 1)
+        return Decision(a, b, "undecided", None, 0, more, delta_mu, None, None, horizon,
+                        False, margin)  # fmt: skip
+    c = look_boundaries(counts, horizon)[-1]
+    ct = _t_boundary(c, dof)
+    lo, hi = delta_mu - ct * se, delta_mu + ct * se
+    beyond = _h(*counts[-1]) > horizon
+    if lo > 0 or hi < 0:
+        faster = a if delta_mu < 0 else b
+        return Decision(a, b, "decided", faster, len(counts), None, delta_mu, (lo, hi), ct,
+                        horizon, beyond, margin)  # fmt: skip
+    if margin is not None and -margin < lo and hi < margin:
+        return Decision(a, b, "equivalent", None, len(counts), None, delta_mu, (lo, hi), ct,
+                        horizon, beyond, margin)  # fmt: skip
+    more = _more(delta_mu, se, counts, horizon, margin)
+    return Decision(a, b, "undecided", None, len(counts), more, delta_mu, (lo, hi), ct,
+                    horizon, beyond, margin)  # fmt: skip
+
+
+def describe(d: Decision) -> str:
+    """ "decided: A faster by Δμ 0.00100 [0.00042, 0.00158]", "equivalent: …" or
+    "not yet: about k more descents per item at today's scatter"."""
+    if d.state == "decided" and d.interval is not None:
+        lo, hi = sorted(abs(v) for v in d.interval)
+        return f"decided: {d.faster} faster by Δμ {abs(d.delta_mu):.5f} [{lo:.5f}, {hi:.5f}]"
+    if d.state == "equivalent" and d.interval is not None and d.margin is not None:
+        lo, hi = d.interval
+        return (f"equivalent: Δμ {d.delta_mu:+.5f} [{lo:+.5f}, {hi:+.5f}] lies within "
+                f"±{d.margin:g}: no difference that matters")  # fmt: skip
+    if d.interval is None:
+        return "not yet: a comparison needs two descents of each item"
+    if d.more_descents_per_item is None:
+        return (f"not yet: no difference in sight (more than {MAX_MORE} more descents per item "
+                "at today's scatter)")  # fmt: skip
+    k = d.more_descents_per_item
+    return f"not yet: about {k} more descent{'s' * (k != 1)} per item at today's scatter"
+
+
+def standard_error(ci90: tuple[float, float], dof: float | None) -> float:
+    """The standard error behind a 90 % Student-t interval (the joint fit's comparisons)."""
+    from scipy.special import ndtri, stdtrit
+
+    q = float(stdtrit(dof, 0.95)) if dof is not None else float(ndtri(0.95))
+    return (ci90[1] - ci90[0]) / (2.0 * q)
+
+
+def day_decisions(
+    comparisons: Sequence[Any],
+    run_items: Sequence[str],
+    *,
+    horizon: int = DEFAULT_HORIZON,
+    margin: float | None = None,
+) -> list[Decision]:
+    """The decision on each of the joint fit's comparisons (``a``, ``b``, ``delta_mu``,
+    ``ci90``, ``dof``, as :class:`station.model.compare.Comparison` has them) after the
+    descents whose items are ``run_items``, in run order."""
+    out = []
+    for c in comparisons:
+        se = standard_error(c.ci90, c.dof) if c.ci90 is not None else None
+        out.append(
+            decide(c.a, c.b, c.delta_mu, se, c.dof, run_items, horizon=horizon, margin=margin)
+        )
+    return out
+
+
+def decision_lines(decisions: Sequence[Decision]) -> list[str]:
+    """One line per pair: "A vs B: decided: A faster by Δμ … [..]" or "… not yet: …"."""
+    return [f"{d.a} vs {d.b}: {describe(d)}" for d in decisions]
+
+
+#: the first words of the decision block (the console of ``station record`` picks it out of
+#: the comparison the UI shows)
+BLOCK_HEADER = "decided or not after descent"
+
+
+def decision_block(
+    comparisons: Sequence[Any],
+    run_items: Sequence[str],
+    last_descent: int,
+    *,
+    horizon: int = DEFAULT_HORIZON,
+    margin: float | None = None,
+) -> list[str]:
+    """The decision on every pair as ``station compare``, the UI's comparison panel and
+    ``station record``'s console show it: a header line and one indented line per pair (no
+    lines when there is no pair)."""
+    decisions = day_decisions(comparisons, run_items, horizon=horizon, margin=margin)
+    if not decisions:
+        return []
+    head = (f"{BLOCK_HEADER} {last_descent}, with a look after every descent "
+            f"(α spent over {horizon} descents per item):")  # fmt: skip
+    return [head, *(f"  {line}" for line in decision_lines(decisions))]

@@ -1,0 +1,336 @@
+"""Fits are computed once: each descent's fit stored with its session (``SESSION/fits.jsonl``),
+so ``annotate``, ``compare``, ``report``, ``export`` and the UI's replay refit only what changed.
+
+A fit depends on the crossing times, the photocells, the model, the skier's mass, the air,
+the wind, g, the survey covariance it was given (the first good fit on a set of photocells
+hands its covariance to the later ones), the session's config and survey files and the code
+that fits. The key of a stored fit is the SHA-256 of all of these (the code by the SHA-256 of
+the source files of the fit's path, so a changed station never reads an older one's fit as its
+own); an annotation that changes a fit (mass, air, wind, a model) changes its key, and that fit
+alone is computed again.
+
+One JSON record a line, appended: ``{"key": …, "fit": {…}}``. The file is a cache, never the
+day: a record that cannot be read (torn, from another version, hand-edited into nonsense) is
+passed over and that descent fitted again; a session folder that cannot be written (read-only,
+a full disk) is replayed with every fit computed, as before. Only a regular file is read, and
+at most :data:`MAX_FITS` bytes. When most of the records are no longer used, the file is
+rewritten with the used ones only.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import hashlib
+import json
+import os
+import types
+import typing
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from station import __version__
+from station.errors import InputError
+from station.files import MAX_OBSERVATIONS, read_bytes
+from station.model.fit import FitResult
+from station.session.config import StationConfig
+from station.session.store import FITS
+
+#: a stored fit is 2-4 kB: 64 MB holds a season of days
+MAX_FITS = 64 * 1024 * 1024
+#: the source files whose code decides a fit's numbers (the key changes when one changes)
+_FIT_CODE = ("model", "survey", "session/analysis.py", "session/config.py", "session/records.py")
+
+
+@cache
+def code_digest() -> str:
+    """The SHA-256 of the source of the fit's path, and the version: read once a process."""
+    root = Path(__file__).resolve().parents[1]
+    h = hashlib.sha256(__version__.encode())
+    for part in _FIT_CODE:
+        p = root / part
+        for f in sorted(p.rglob("*.py")) if p.is_dir() else [p]:
+            h.update(f.relative_to(root).as_posix().encode())
+            h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def fit_key(context: str, parts: dict[str, Any], survey_cov: np.ndarray | None) -> str:
+    """The key of one fit: what it was computed from (``parts``: JSON values), the survey
+    covariance it was handed (its bytes), and ``context`` (files and code)."""
+    h = hashlib.sha256(context.encode())
+    h.update(json.dumps(parts, sort_keys=True, separators=(",", ":")).encode())
+    if survey_cov is not None:
+        h.update(np.ascontiguousarray(survey_cov, dtype=float).tobytes())
+    return h.hexdigest()
+
+
+# ----------------------------------------------------------------------------- the JSON form
+
+
+def to_json(value: Any) -> Any:
+    """A fit (or any of its parts) as JSON values; floats keep every bit (repr round-trips)."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: to_json(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, enum.Enum):
+        return value.value
+    if isinstance(value, np.ndarray):
+        return {"ndarray": value.tolist(), "shape": list(value.shape)}
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, dict):
+        return {str(k): to_json(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [to_json(v) for v in value]
+    return value
+
+
+class _Bad(ValueError):
+    """A stored record that is not a fit of this version: passed over."""
+
+
+Decode = typing.Callable[[Any], Any]
+
+
+def from_json(kind: Any, value: Any) -> Any:
+    """The value of type ``kind`` (a type hint) back from :func:`to_json`'s form; a value that
+    does not fit the type raises :class:`_Bad`."""
+    return _decoder(kind)(value)
+
+
+@cache
+def _decoder(kind: Any) -> Decode:
+    """The decoder of one type, built once: typing's look at the annotations is done here,
+    not for every value (it was most of a stored fit's decoding time)."""
+    origin, args = typing.get_origin(kind), typing.get_args(kind)
+    if kind is Any:
+        return lambda v: v
+    if origin in (typing.Union, types.UnionType):
+        return _union([_decoder(a) for a in args if a is not type(None)], type(None) in args)
+    if kind is type(None):
+        return _null
+    if kind is np.ndarray:
+        return _array
+    if isinstance(kind, type) and dataclasses.is_dataclass(kind):
+        return _record(kind)
+    if isinstance(kind, type) and issubclass(kind, enum.Enum):
+        return _member(kind)
+    if origin is list:
+        item = _decoder(args[0] if args else Any)
+        return lambda v: [item(x) for x in _of(v, list)]
+    if origin is tuple:
+        if len(args) == 2 and args[1] is Ellipsis:
+            each = _decoder(args[0])
+            return lambda v: tuple(each(x) for x in _of(v, list))
+        items = [_decoder(a) for a in args]
+        return lambda v: _fixed_tuple(items, _of(v, list))
+    if origin is dict:
+        val = _decoder(args[1] if args else Any)
+        return lambda v: {_of(k, str): val(x) for k, x in _of(v, dict).items()}
+    if kind is float:
+        return _float
+    if kind is int:
+        return _int
+    if kind in (str, bool):
+        return lambda v: _of(v, kind)
+    raise _Bad(f"no JSON form for {kind!r}")
+
+
+def _of(value: Any, kind: type) -> Any:
+    if not isinstance(value, kind):
+        raise _Bad(f"expected {kind.__name__}")
+    return value
+
+
+def _null(value: Any) -> None:
+    if value is not None:
+        raise _Bad("expected null")
+
+
+def _float(value: Any) -> float:
+    if type(value) is float:
+        return value
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise _Bad("expected a number")
+    return float(value)
+
+
+def _int(value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise _Bad("expected a whole number")
+    return value
+
+
+def _union(options: list[Decode], nullable: bool) -> Decode:
+    def decode(value: Any) -> Any:
+        if value is None and nullable:
+            return None
+        for option in options:
+            try:
+                return option(value)
+            except _Bad:
+                continue
+        raise _Bad(f"{value!r} is of none of the types expected")
+
+    return decode
+
+
+def _array(value: Any) -> np.ndarray:
+    if not isinstance(value, dict) or "ndarray" not in value:
+        raise _Bad("expected an array")
+    a = np.array(value["ndarray"], dtype=float)
+    if list(a.shape) != value.get("shape"):
+        raise _Bad("array of the wrong shape")
+    return a
+
+
+def _fixed_tuple(items: list[Decode], value: list) -> tuple:
+    if len(items) != len(value):
+        raise _Bad("a tuple of the wrong length")
+    if len(items) == 2:  # an interval: most tuples of a fit (a generator costs 3× as much)
+        return (items[0](value[0]), items[1](value[1]))
+    return tuple([d(x) for d, x in zip(items, value, strict=True)])
+
+
+def _member(kind: type[enum.Enum]) -> Decode:
+    def decode(value: Any) -> Any:
+        try:
+            return kind(value)
+        except ValueError:
+            raise _Bad(f"{value!r} is no {kind.__name__}") from None
+
+    return decode
+
+
+def _record(kind: type) -> Decode:
+    hints = typing.get_type_hints(kind)
+    names = frozenset(f.name for f in dataclasses.fields(kind) if f.init)
+    fields = {name: _decoder(hints[name]) for name in names}
+
+    def decode(value: Any) -> Any:
+        if not isinstance(value, dict) or value.keys() != names:
+            raise _Bad(f"not a {kind.__name__} of this version")
+        return kind(**{k: d(value[k]) for k, d in fields.items()})
+
+    return decode
+
+
+def fit_from_json(value: Any) -> FitResult:
+    fit = from_json(FitResult, value)
+    if not isinstance(fit, FitResult):  # pragma: no cover - from_json builds the kind asked
+        raise _Bad("not a fit")
+    return fit
+
+
+# ----------------------------------------------------------------------------- the store
+
+
+def session_context(config: StationConfig) -> str:
+    """The files and code every fit of a session depends on, as one string."""
+    digests = [
+        hashlib.sha256(read_bytes(p, MAX_OBSERVATIONS, what)).hexdigest()
+        for p, what in ((config.path, "config"), (config.survey_path, "survey file"))
+    ]
+    return "|".join([*digests, code_digest()])
+
+
+class FitStore:
+    """The stored fits of one session: read when opened, a new fit appended as it is made.
+    What the analyser asks for (:class:`station.session.analysis.FitCache`)."""
+
+    def __init__(self, path: str, context: str) -> None:
+        self.path = path
+        self.context = context
+        self._fits: dict[str, Any] = {}  # key -> the fit's JSON form (decoded when asked for)
+        self._records = 0
+        self.used: set[str] = set()
+        self.hits = 0
+        self.misses = 0
+        self._writable = True
+        self._read()
+
+    @classmethod
+    def for_session(cls, session: str, config: StationConfig) -> FitStore | None:
+        """The store of a session; None when its config or survey cannot be read for the key
+        (the replay then says why, as before)."""
+        try:
+            context = session_context(config)
+        except InputError:
+            return None
+        return cls(os.path.join(session, FITS), context)
+
+    def _read(self) -> None:
+        if not os.path.lexists(self.path):
+            return
+        try:
+            data = read_bytes(self.path, MAX_FITS, "stored fits")
+        except InputError:
+            self._writable = False  # not a regular file, or too large: leave it alone
+            return
+        for line in data.split(b"\n"):
+            if not line.strip():
+                continue
+            self._records += 1
+            try:
+                rec = json.loads(line)
+            except ValueError:
+                continue
+            if isinstance(rec, dict) and isinstance(rec.get("key"), str) and "fit" in rec:
+                self._fits[rec["key"]] = rec["fit"]
+
+    def key(self, parts: dict[str, Any], survey_cov: np.ndarray | None) -> str:
+        return fit_key(self.context, parts, survey_cov)
+
+    def get(self, key: str) -> FitResult | None:
+        stored = self._fits.get(key)
+        if stored is None:
+            self.misses += 1
+            return None
+        try:
+            fit = fit_from_json(stored)
+        except (_Bad, TypeError, ValueError, OverflowError):
+            del self._fits[key]
+            self.misses += 1
+            return None
+        self.used.add(key)
+        self.hits += 1
+        return fit
+
+    def put(self, key: str, fit: FitResult) -> None:
+        form = to_json(fit)
+        self._fits[key] = form
+        self.used.add(key)
+        if not self._writable:
+            return
+        line = json.dumps({"key": key, "fit": form}, separators=(",", ":")) + "\n"
+        try:
+            fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NONBLOCK, 0o644)
+            try:
+                os.write(fd, line.encode())  # one write: a concurrent writer's lines stay whole
+            finally:
+                os.close(fd)
+            self._records += 1
+        except OSError:
+            self._writable = False  # a read-only copy, a full disk: fits are computed, not kept
+
+    def compact(self) -> None:
+        """Rewrite the file with the fits used since it was opened, when most records are not
+        (every annotation leaves the fits it replaced behind)."""
+        if not self._writable or self._records <= 2 * len(self.used) + 100:
+            return
+        tmp = f"{self.path}.{os.getpid()}.tmp"
+        try:
+            with open(tmp, "w", encoding="ascii") as fh:
+                for key in sorted(self.used):
+                    form = self._fits.get(key)
+                    if form is not None:
+                        fh.write(json.dumps({"key": key, "fit": form}, separators=(",", ":")))
+                        fh.write("\n")
+            os.replace(tmp, self.path)
+            self._records = len(self.used)
+        except OSError:
+            if os.path.exists(tmp):
+                os.unlink(tmp)

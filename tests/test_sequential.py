@@ -1,0 +1,247 @@
+"""Decided or not after every descent: the group-sequential boundary, the decision, and (slow)
+simulated days looked at after every descent."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from station.model.sequential import (
+    Decision,
+    boundaries,
+    decide,
+    describe,
+    look_boundaries,
+    pair_counts,
+)
+
+
+def test_the_boundaries_are_the_published_obrien_fleming_type_ones():
+    """Lan–DeMets O'Brien–Fleming-type spending, five equally spaced looks, two-sided 0.05:
+    4.877, 3.357, 2.680, 2.290, 2.031 (Jennison & Turnbull 2000, table 2.7; gsDesign)."""
+    got = boundaries((0.2, 0.4, 0.6, 0.8, 1.0), 0.05)
+    assert got == pytest.approx((4.877, 3.357, 2.680, 2.290, 2.031), abs=2e-3)
+
+
+def test_looking_after_every_descent_declares_equal_items_different_at_most_alpha():
+    """Brownian motion in information time, looked at on an ABBA day's schedule: the z
+    statistic crosses a boundary at some look on 10 % of days; the 90 % interval looked at the
+    same way would cross on far more."""
+    counts = pair_counts("ABBAABBAABBAABBAABBA", "A", "B")
+    c = np.array(look_boundaries(counts, 10))
+    t = np.array([2 / (1 / a + 1 / b) / 10 for a, b in counts])
+    rng = np.random.default_rng(0)
+    b = np.cumsum(rng.normal(size=(200_000, len(t))) * np.sqrt(np.diff(t, prepend=0.0)), axis=1)
+    z = np.abs(b / np.sqrt(t))
+    assert np.mean((z >= c).any(axis=1)) == pytest.approx(0.10, abs=0.003)
+    assert np.mean((z >= 1.645).any(axis=1)) > 0.25  # the naive rule
+    assert c[-1] < 1.9 and c[0] > 4.0  # strict early, close to the fixed 1.645 at the horizon
+
+
+def test_looks_count_only_descents_of_the_pair_once_both_have_two():
+    assert pair_counts("ABCCBAABC", "A", "B") == [(2, 2), (3, 2), (3, 3)]
+    assert pair_counts("AAB", "A", "B") == []
+
+
+def test_beyond_the_horizon_the_last_boundary_is_kept():
+    counts = pair_counts("AB" * 8, "A", "B")
+    c = look_boundaries(counts, 4)
+    assert c[-1] == c[-2] == c[-3]
+
+
+def test_the_decision_states():
+    run = "ABBAABBA"
+    d = decide("A", "B", -0.001, 0.0001, 50, run)
+    assert d.state == "decided" and d.faster == "A" and d.looks == 5
+    lo, hi = d.interval
+    assert hi < 0 and lo < -0.001 < hi
+    assert describe(d).startswith("decided: A faster by Δμ 0.00100 [")
+    assert decide("A", "B", 0.001, 0.0001, 50, run).faster == "B"
+    d = decide("A", "B", 0.00005, 0.0001, 50, run, margin=0.001)
+    assert d.state == "equivalent" and d.faster is None
+    assert "no difference that matters" in describe(d)
+    d = decide("A", "B", 0.0002, 0.0001, 50, run)
+    assert d.state == "undecided" and d.more_descents_per_item is not None
+    assert describe(d) == (
+        f"not yet: about {d.more_descents_per_item} more descents per item at today's scatter"
+    )
+    d = decide("A", "B", 0.0, 0.0001, 50, run)
+    assert d.more_descents_per_item is None and "no difference in sight" in describe(d)
+    d = decide("A", "B", 0.0, None, None, "AB")
+    assert d.state == "undecided" and d.looks == 0 and d.more_descents_per_item == 1
+    assert describe(d) == "not yet: a comparison needs two descents of each item"
+    assert Decision.to_dict(decide("A", "B", -0.001, 0.0001, 50, run))["faster"] == "A"
+
+
+def test_the_projection_of_more_descents_comes_true_when_the_estimate_stays():
+    """The projection "about k more descents per item": with k more of each, the same
+    estimate and the standard error shrunk as the information grows, the rule decides; with
+    k − 1 it does not."""
+    run = "ABBAAB"
+    delta, se = 0.0003, 0.00015
+    d = decide("A", "B", delta, se, None, run)
+    k = d.more_descents_per_item
+    assert d.state == "undecided" and k is not None and k >= 2
+
+    def later(m: int) -> Decision:
+        na, nb = 3, 3
+        h0, h1 = 2 / (1 / na + 1 / nb), 2 / (1 / (na + m) + 1 / (nb + m))
+        return decide("A", "B", delta, se * math.sqrt(h0 / h1), None, run + "AB" * m)
+
+    assert later(k).state == "decided" and later(k - 1).state == "undecided"
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory):
+    """Twelve descents, ABBA…, skis 0.0002 apart (a day that decides after a few looks)."""
+    from tests.session_helpers import make_session
+
+    return make_session(
+        tmp_path_factory.mktemp("seq"), order="ABBAABBAABBA", mus={"A": 0.0085, "B": 0.0087}
+    )
+
+
+def test_compare_upto_answers_as_after_descent_k(run_station, session):
+    r = run_station("compare", str(session), "--upto", "3")
+    assert r.returncode == 0, r.stderr
+    assert "decided or not after descent 3" in r.stdout
+    assert "not yet: a comparison needs two descents of each item" in r.stdout
+    r = run_station("compare", str(session), "--upto", "6", "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert [len(i["descents"]) for i in out["items"]] == [3, 3]
+    d = out["comparisons"][0]["decision"]
+    assert set(d) >= {"state", "faster", "looks", "more_descents_per_item"}
+    assert d["looks"] == 3  # after descents 4, 5 and 6
+    assert d["state"] == "decided" and d["faster"] == "pair A / blue"
+    r = run_station("compare", str(session))
+    assert "pair A / blue vs pair B / blue: decided: pair A / blue faster by Δμ 0.000" in r.stdout
+
+
+def test_compare_margin_says_equivalent(run_station, tmp_path):
+    from tests.session_helpers import make_session
+
+    s = make_session(tmp_path, order="ABBAABBA", mus={"A": 0.0085, "B": 0.0085})
+    r = run_station("compare", str(s), "--margin", "0.001", "--json")
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)["comparisons"][0]["decision"]
+    assert d["state"] == "equivalent" and d["faster"] is None and d["margin"] == 0.001
+    r = run_station("compare", str(s))
+    assert "not yet: " in r.stdout and "per item at today's scatter" in r.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "expect"),
+    [
+        (["--upto", "0"], "descents are numbered from 1"),
+        (["--upto", "x"], "must be a descent number"),
+        (["--margin", "-0.001"], "--margin"),
+        (["--horizon", "1"], "at least 2 descents per item"),
+    ],
+)
+def test_compare_refuses_bad_decision_options(run_station, session, args, expect):
+    r = run_station("compare", str(session), *args)
+    assert r.returncode == 2 and expect in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.slow  # a simulation study: 240 days with a joint fit after every descent
+@pytest.mark.parametrize(("delta", "seed"), [(0.0, 100), (0.001, 200)])
+def test_watched_days_declare_equal_skis_rarely_and_never_the_wrong_one(demo_track, delta, seed):
+    """Days of ABBA… up to a horizon of 6 per item at 1 % posture scatter, fitted by the real
+    joint fit after every descent from the fourth and decided by the rule at every look. Equal
+    skis: a winner at some look on at most 10 % of days, here ≤ 15.5 % (10 % and two binomial
+    SDs of 120 days: this seed gave 13.3 %); the naive rule, the 90 % interval at every look,
+    exceeds 25 %; benchmarks/plan_sequential.py prints the table. Δμ = 0.001: never the
+    wrong ski."""
+    from simulators.days import DaySetup, simulate_day
+    from station.model.compare import joint_fit
+    from station.model.sequential import standard_error
+
+    rng = np.random.default_rng(seed)
+    order = "ABBA" * 3
+    declared = wrong = naive = 0
+    days = 120
+    for _ in range(days):
+        data = simulate_day(demo_track, order, {"A": 0.0085, "B": 0.0085 + delta},
+                            DaySetup(scatter=0.01), rng)  # fmt: skip
+        won, bad, looked = set(), False, False
+        for k in range(4, len(data) + 1):
+            c = joint_fit(demo_track, data[:k]).comparisons[0]
+            assert c.ci90 is not None
+            looked = looked or c.ci90[0] > 0 or c.ci90[1] < 0
+            d = decide(c.a, c.b, c.delta_mu, standard_error(c.ci90, c.dof), c.dof, order[:k],
+                       horizon=6)  # fmt: skip
+            if d.state == "decided":
+                won.add(d.faster)
+                bad = bad or d.faster == "B"
+        declared += bool(won)
+        wrong += bad
+        naive += looked
+    if delta == 0.0:
+        assert declared / days <= 0.155 and naive / days > 0.25
+    else:
+        assert wrong == 0 and declared == days
+
+
+def test_the_comparison_panel_and_the_record_console_say_decided_or_not(session):
+    """The UI's comparison panel shows comparison_text; `station record`'s console
+    (PrintListener) prints its decision block, once for each change."""
+    from station.cli.console import PrintListener
+    from station.session.acquisition import comparison_text
+    from station.session.recorded import RecordedSession
+
+    acq = RecordedSession(str(session))
+    acq.run()
+    text = comparison_text(acq.track, acq.results())
+    assert "\ndecided or not after descent 12, with a look after every descent" in text
+    assert "\n  pair A / blue vs pair B / blue: decided: pair A / blue faster by Δμ 0.000" in text
+    said: list[str] = []
+    console = PrintListener(said.append)
+    console.comparison(text)
+    console.comparison(text)  # unchanged: not said again
+    assert len(said) == 1 and said[0].startswith("decided or not after descent 12")
+    assert said[0].splitlines()[1].startswith("  pair A / blue vs pair B / blue: decided: ")
+    early = comparison_text(acq.track, acq.results()[:3])
+    assert "not yet: a comparison needs two descents of each item" in early
+    console.comparison(early)
+    assert len(said) == 2
+
+
+def test_the_watched_power_spends_alpha_on_one_side_and_costs_little():
+    """With no difference the rule names a given item faster on α/2 = 5 % of days; with a
+    difference a fixed day resolves with 90 % power, watching every descent over the same
+    horizon keeps most of it."""
+    from station.model.sequential import power_watched
+
+    run = "ABBA" * 4
+    assert power_watched(0.0, run, "A", "B", 8, draws=100_000) == pytest.approx(0.05, abs=0.003)
+    p = power_watched(1.6449 + 1.2816, run, "A", "B", 8)
+    assert 0.85 < p < 0.9
+
+
+def test_the_ui_comparison_panel_says_whether_the_day_is_decided(tmp_path):
+    """The trackside UI replaying a day: its comparison (key c) ends with the decision."""
+    from station.ui.screens import ComparisonScreen
+    from tests.session_helpers import make_session
+    from tests.test_replay_marks import session_replay_app
+    from tests.test_ui import run_async, wait_for, wait_for_replay, wait_for_screen
+
+    session = make_session(tmp_path, order="ABBAABBA", mus={"A": 0.0085, "B": 0.0087})
+
+    @run_async
+    async def check() -> None:
+        app = session_replay_app(session)
+        async with app.run_test(size=(100, 40)) as pilot:
+            await wait_for_replay(pilot, app)
+            await wait_for(pilot, lambda: "after descent 8" in app.comparison_text)
+            assert "decided or not after descent 8" in app.comparison_text
+            assert "pair A / blue vs pair B / blue: decided: pair A / blue faster" in (
+                app.comparison_text
+            )
+            await pilot.press("c")
+            await wait_for_screen(pilot, app, ComparisonScreen)
+
+    check()
