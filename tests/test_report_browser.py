@@ -147,8 +147,15 @@ def season_page(browser, tmp_path_factory):
 
 
 def test_the_season_report_in_the_browser(season_page):
-    """Its answer (the ranking) on the first screen, every picture loading, no network, the
-    markup of an item's name shown as text."""
+    """Its answer (a verdict per item, then the ranking) on the first screen, every picture
+    loading, no network, the markup of an item's name shown as text."""
+    verdict = season_page.evaluate(
+        "(() => { const r = document.querySelector('#verdict ul.verdicts').getBoundingClientRect();"
+        " return [r.top, r.bottom]; })()"
+    )
+    assert 0 <= verdict[0] < verdict[1] <= 800, verdict
+    first = season_page.evaluate("document.querySelector('#verdict li').innerText")
+    assert "Δμ" in first and "days" in first and ("decided" in first or "comparable" in first)
     top = season_page.evaluate(
         "(() => { const r = document.querySelector('#ranking table').getBoundingClientRect();"
         " return [r.top, r.bottom]; })()"

@@ -92,6 +92,52 @@ def network_figure(days: Sequence[Any], colours: dict[str, str]) -> str:
     return _png(fig)
 
 
+def season_verdicts(res: Any, by: str) -> str:
+    """The answer first, in words and numbers, as the day report gives it: per item against
+    the reference, which glides better across the days, Δμ with its 90 % interval (the
+    between-day heterogeneity in it), how sure, on how many days and descents, and whether
+    the interval settles it. An item that cannot be compared says why."""
+    ref = _e(res.reference)
+    where = ", ".join(f"{_e(k)} = {v:g}" for k, v in res.at.items())
+    lines = []
+    for it in sorted(res.items, key=lambda i: (i.delta_mu is None, i.delta_mu or 0.0)):
+        if it.item == res.reference:
+            continue
+        name = _e(it.item)
+        if it.delta_mu is None or it.ci90 is None or it.p_faster is None:
+            why = _e(it.note) if it.note else "no interval"
+            lines.append(("none", f"<b>{name}</b> against <b>{ref}</b>: not comparable ({why})"))
+            continue
+        lo, hi = it.ci90
+        item_better = it.delta_mu < 0
+        better, worse = (name, ref) if item_better else (ref, name)
+        size, blo, bhi = (-it.delta_mu, -hi, -lo) if item_better else (it.delta_mu, lo, hi)
+        p = it.p_faster if item_better else 1.0 - it.p_faster
+        sure = "> 0.999" if p > 0.999 else f"{p:.3f}"
+        numbers = (
+            f"by Δμ {size:.5f} [{blo:+.5f}, {bhi:+.5f}] (90 %); P({better} faster) {sure}; "
+            f"{it.days} days, {it.descents} descents"
+        )
+        if lo > 0 or hi < 0:
+            head = f"<b>{better}</b> glides better than <b>{worse}</b>"
+            tail = "<b>decided</b>: the 90 % interval excludes 0"
+            kind = "decided"
+        else:
+            head = f"<b>{better}</b> ahead of <b>{worse}</b>"
+            tail = "<b>not decided</b>: the 90 % interval includes 0"
+            kind = "open"
+        lines.append((kind, f"{head} <span class='numbers'>{numbers}</span>. {tail}."))
+    if not lines:
+        lines.append(("none", f"one {_e(by)} only: nothing to compare"))
+    items = "".join(f"<li class='{k}'>{h}</li>" for k, h in lines)
+    at = f" at {where}" if where else ""
+    return (
+        f"<ul class='verdicts'>{items}</ul><p class='sub'>Each {_e(by)} against {ref}{at}, "
+        f"across {res.days} days (between-day heterogeneity τ = {res.tau:.5f} in every "
+        "interval).</p>"
+    )
+
+
 def build_season_report(
     res: Any, days: Sequence[Any], conditions: Mapping[str, Mapping[str, Any]], by: str
 ) -> str:
@@ -100,13 +146,16 @@ def build_season_report(
     colours = item_colours([i.item for i in ranked])
     at = ", ".join(f"{k} = {v:g}" for k, v in res.at.items())
     rows = [
-        [str(k), it.item, str(it.days), str(it.descents), _num(it.delta_mu, "+.5f"),
-         f"[{it.ci90[0]:+.5f}, {it.ci90[1]:+.5f}]" if it.ci90 else "—",
+        [str(k), it.item, str(it.days), str(it.descents),
+         "reference" if it.item == res.reference else _num(it.delta_mu, "+.5f"),
+         f"[{it.ci90[0]:+.5f}, {it.ci90[1]:+.5f}]"
+         if it.ci90 and it.item != res.reference else "—",
          _num(it.p_faster, ".3f"), _num(it.p_best, ".3f"), it.note]
         for k, it in enumerate(ranked, start=1)
     ]  # fmt: skip
     warn = "".join(f"<p class='warn'>{_e(w)}</p>" for w in res.warnings)
     sections = [
+        Section("verdict", "Verdict", season_verdicts(res, by)),
         Section(
             "ranking",
             "Ranking" + (f" at {at}" if at else ""),
