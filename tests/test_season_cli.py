@@ -70,6 +70,9 @@ def test_add_list_export_compare(run_station, store, season, tmp_path):
     assert rows[0]["items"] == ["SA / blue", "SB / blue"]
     assert rows[0]["snow_temperature_c"] == pytest.approx(-14.0)
     assert rows[0]["snow_type"] == "PP" and rows[0]["descents"] == 8
+    r = run_station("season", "list", "--store", store)
+    assert r.returncode == 0, r.stderr
+    assert all(x["site"] in r.stdout for x in rows)  # the site in full, not cut at 16 characters
 
     out = tmp_path / "season.csv"
     r = run_station("season", "export", "--csv", out, "--store", store)
