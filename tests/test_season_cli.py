@@ -99,6 +99,17 @@ def test_add_list_export_compare(run_station, store, season, tmp_path):
     assert "3 days" in r.stdout
 
 
+def test_a_season_of_one_day_says_one_day(run_station, season, tmp_path):
+    store = str(tmp_path / "season.db")
+    run_station("season", "add", season[0], "--store", store)
+    r = run_station("season", "compare", "--store", store)
+    assert r.returncode == 0, r.stderr
+    assert ": 1 day, 8 descents," in r.stdout.splitlines()[0]  # not "1 days"
+    r = run_station("season", "report", "--out", tmp_path / "rep", "--store", store)
+    assert r.returncode == 0, r.stderr
+    assert "1 day, 8 descents" in (tmp_path / "rep" / "season.html").read_text()
+
+
 def test_compare_at_a_condition_warns_outside_the_tested_range(run_station, store, season):
     run_station("season", "add", *season[:3], "--store", store)  # −14 … −9.2 °C
     r = run_station("season", "compare", "--json", "--at", "snow_temperature_c=-1",

@@ -199,8 +199,8 @@ def _ranked(res: Any) -> list[Any]:
 def format_season(res: Any, by: str) -> str:
     at = ", ".join(f"{k}={v:g}" for k, v in res.at.items())
     lines = [
-        f"season comparison by {by}: {res.days} days, {res.descents} descents, against "
-        f"{res.reference}" + (f", at {at}" if at else ""),
+        f"season comparison by {by}: {res.days} day{'s' * (res.days != 1)}, "
+        f"{res.descents} descents, against {res.reference}" + (f", at {at}" if at else ""),
         f"between-day heterogeneity: τ {res.tau:.5f} (SD of a difference from day to day "
         f"beyond {'the conditions given' if at else 'the within-day uncertainty'}; Q "
         f"{res.q:.1f} on {res.dof} dof"
