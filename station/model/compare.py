@@ -37,10 +37,12 @@ saves (50 descents took 3.7 s instead of 0.19 s with the default pool).
 Uncertainty. The covariance of the global parameters is σ̂²·S⁻¹ (S the Schur complement: the
 fixed-effect block of the mixed-model equations' inverse). A comparison's interval uses
 Student's t with Satterthwaite's degrees of freedom, computed from how its variance moves with
-(log σ², log γ) and their covariance from the REML curvature, so the uncertainty of the
-estimated scatter widens the interval as much as it should (on the simulated ABBA days of
-benchmarks/compare_calibration.py they come out at 45–52 of 52: each descent's nine times pin
-its own posture well, so the scatter's estimate costs little).
+(log σ², γ) and their covariance from the REML expected information, and its variance adds the
+Kackar-Harville term (∂Δμ̂/∂γ)²·Var(γ̂), so the uncertainty of the estimated scatter widens the
+interval as much as it should (on the simulated ABBA days of benchmarks/compare_calibration.py
+the degrees of freedom come out at 45–52 of 52: each descent's nine times pin its own posture
+well, so the scatter's estimate costs little; on small days, 2 descents an item, it does not,
+and the scatter is often estimated at 0: benchmarks/compare_small_days.py).
 
 Goodness of fit. The residual standard deviation is compared with the timer's precision
 (χ² test of PRSS/σ_timer² on n − p degrees of freedom): a day whose residuals the timer cannot
@@ -706,18 +708,63 @@ class _Inference:
         except np.linalg.LinAlgError:
             vcov = None
         self.vcov = vcov
+        self._natural_scale(pc, lg)
+
+    def _natural_scale(self, pc: _Pieces, lg: float) -> None:
+        """Var(log σ̂², γ̂) for the degrees of freedom and the Kackar-Harville term, from the
+        REML *expected* information with γ on its natural scale, not from the curvature in
+        log γ. Why: on small days (2 descents an item) the posture scatter is often estimated
+        at or near 0; there the log scale's derivatives γ·∂/∂γ vanish, the observed curvature
+        is no variance at all, and the interval was as narrow as if the scatter were known to
+        be 0 (70–79 % coverage of a 90 % interval at 0.5 % scatter, issue 24). V/σ² = I + γZZᵀ
+        is linear in γ, so the expected information of −2·log L_REML in (log σ², γ) is
+        [[dof, ∂L], [∂L, −∂²L]] with L(γ) = q·log γ + log det M(γ) (= log|V/σ²| + log|XᵀV⁻¹X|
+        up to constants): smooth through γ = 0 and never negative. Step: a fraction of γ̂ or
+        of the γ at which a descent's posture is as uncertain as its timing makes it, the
+        larger; one-sided at 0."""
+        n_d = len(pc.u)
+        g = math.exp(lg)
+        g0 = 1.0 / max(float(np.median(pc.bb[:, 0, 0])), 1e-300)
+        hg = self.H * max(g, g0)
+        xs = (g - hg, g, g + hg) if g - hg > 0 else (g, g + hg, g + 2 * hg)
+        sts = [self.st if x == g else _linear_step(pc, 1.0 / x) for x in xs]
+        self._gamma_steps = (sts, hg, xs[0] < g)
+        ld = [n_d * math.log(x) + s.logdet for x, s in zip(xs, sts, strict=True)]
+        info = np.array([[float(self.dof), self._d_gamma(ld)], [self._d_gamma(ld), 0.0]])
+        info[1, 1] = -(ld[0] - 2 * ld[1] + ld[2]) / hg**2
+        self.nat_vcov: np.ndarray | None = None
+        try:
+            v = 2.0 * np.linalg.inv(info)
+            if np.all(np.isfinite(v)) and v[0, 0] > 0 and v[1, 1] > 0:
+                self.nat_vcov = v
+        except np.linalg.LinAlgError:
+            pass
+
+    def _d_gamma(self, vals: list[float]) -> float:
+        """∂/∂γ at γ̂ of a quantity given at the three γ of :meth:`_natural_scale`."""
+        _sts, hg, central = self._gamma_steps
+        if central:
+            return (vals[2] - vals[0]) / (2 * hg)
+        return (-3 * vals[0] + 4 * vals[1] - vals[2]) / (2 * hg)
+
+    def kackar_harville(self, c: np.ndarray) -> float:
+        """The variance c·globals gains from γ being estimated, (∂(c·β̂)/∂γ)²·Var(γ̂): the
+        plug-in covariance σ̂²·S⁻¹ treats γ̂ as the truth (Kackar & Harville 1984)."""
+        if self.nat_vcov is None:
+            return 0.0
+        c_s = c * self.sol.cs
+        db = self._d_gamma([float(c_s @ s.dg) for s in self._gamma_steps[0]])
+        return db * db * float(self.nat_vcov[1, 1])
 
     def satterthwaite(self, c: np.ndarray) -> float:
         """Degrees of freedom of the variance of c·globals."""
-        h, vcov, sigma2 = self.H, self.vcov, self.sigma2
+        vcov, sigma2 = self.nat_vcov, self.sigma2
         c_s = c * self.sol.cs
         f = sigma2 * float(c_s @ self.st.s_inv @ c_s)
         if vcov is None or f <= 0:
             return float(self.dof)
-        fm = sigma2 * float(c_s @ self.probe[-h].s_inv @ c_s)
-        fp = sigma2 * float(c_s @ self.probe[h].s_inv @ c_s)
-        grad = np.array([f, (fp - fm) / (2 * h)])
-        var_f = float(grad @ vcov @ grad)
+        df = self._d_gamma([sigma2 * float(c_s @ s.s_inv @ c_s) for s in self._gamma_steps[0]])
+        var_f = float(np.array([f, df]) @ vcov @ np.array([f, df]))
         if var_f <= 0:
             return float(self.dof)
         return float(min(max(2.0 * f * f / var_f, 1.0), self.dof))
@@ -737,8 +784,8 @@ class _Inference:
         c = np.zeros(len(self.sol.glob))
         c[j] = 1.0
         q = float(stdtrit(self.satterthwaite(c), 0.95))
-        g, sd = self.sol.glob, self.sd
-        return float(g[j] - q * sd[j]), float(g[j] + q * sd[j])
+        g, sd = self.sol.glob[j], math.sqrt(self.sd[j] ** 2 + self.kackar_harville(c))
+        return float(g - q * sd), float(g + q * sd)
 
 
 def _joint_fit(
@@ -909,7 +956,7 @@ def _comparisons(lay: _Layout, inf: _Inference, mus: dict[str, float], run_times
             continue
         c = np.zeros(lay.n_glob)
         c[ja], c[jb] = 1.0, -1.0
-        s = math.sqrt(max(float(c @ cov @ c), 0.0))
+        s = math.sqrt(max(float(c @ cov @ c), 0.0) + inf.kackar_harville(c))
         nu = inf.satterthwaite(c)
         dofs.append(nu)
         q = float(stdtrit(nu, 0.95))
