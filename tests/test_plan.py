@@ -150,6 +150,29 @@ def test_station_plan_takes_the_scatter_from_a_past_session(run_station, tmp_pat
     assert out["assumptions"]["posture_scatter_pct"] < 0.5  # the session has none
 
 
+def test_station_plan_from_a_session_plans_in_its_air(run_station, tmp_path):
+    """The CdA taken from a session was fitted in the session's air: without air options the
+    plan takes that air too (not the standard 1.290 kg/m³, 20 % more drag at 1.079), and an
+    air option given still wins."""
+    import pandas as pd
+
+    from tests.session_helpers import make_session
+
+    session = make_session(tmp_path)
+    rows = pd.read_csv(session / "results.csv", comment="#")
+    rho = float(rows["air_density"].median())
+    assert abs(rho - 1.290) > 0.05  # the test would prove nothing in standard air
+    base = ["plan", "--survey", "surveys/demo_run.yaml", "--mass", "88", "--from", str(session),
+            "--delta-mu", "0.001", "--json"]  # fmt: skip
+    r = run_station(*base)
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["assumptions"]["air_density"] == pytest.approx(rho, rel=1e-9)
+    assert "no air data given" not in r.stderr
+    r = run_station(*base, "--air-density", "1.2")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["assumptions"]["air_density"] == pytest.approx(1.2)
+
+
 @pytest.mark.slow  # a simulation study: 150 simulated days
 @pytest.mark.parametrize(("delta", "scatter"), [(0.001, 0.005)])
 def test_planned_days_resolve_the_difference_with_the_stated_power(demo_track, delta, scatter):

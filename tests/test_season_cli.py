@@ -70,6 +70,9 @@ def test_add_list_export_compare(run_station, store, season, tmp_path):
     assert rows[0]["items"] == ["SA / blue", "SB / blue"]
     assert rows[0]["snow_temperature_c"] == pytest.approx(-14.0)
     assert rows[0]["snow_type"] == "PP" and rows[0]["descents"] == 8
+    r = run_station("season", "list", "--store", store)
+    assert r.returncode == 0, r.stderr
+    assert all(x["site"] in r.stdout for x in rows)  # the site in full, not cut at 16 characters
 
     out = tmp_path / "season.csv"
     r = run_station("season", "export", "--csv", out, "--store", store)
@@ -94,6 +97,17 @@ def test_add_list_export_compare(run_station, store, season, tmp_path):
     r = run_station("season", "compare", "--where", "snow_type=RG", "--store", store)
     assert r.returncode == 0, r.stderr
     assert "3 days" in r.stdout
+
+
+def test_a_season_of_one_day_says_one_day(run_station, season, tmp_path):
+    store = str(tmp_path / "season.db")
+    run_station("season", "add", season[0], "--store", store)
+    r = run_station("season", "compare", "--store", store)
+    assert r.returncode == 0, r.stderr
+    assert ": 1 day, 8 descents," in r.stdout.splitlines()[0]  # not "1 days"
+    r = run_station("season", "report", "--out", tmp_path / "rep", "--store", store)
+    assert r.returncode == 0, r.stderr
+    assert "1 day, 8 descents" in (tmp_path / "rep" / "season.html").read_text()
 
 
 def test_compare_at_a_condition_warns_outside_the_tested_range(run_station, store, season):

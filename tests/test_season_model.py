@@ -54,6 +54,14 @@ def test_a_gap_in_the_network_is_named_and_not_bridged():
         compare_season(days, "X")
 
 
+def test_a_condition_no_day_has_is_named_in_the_error():
+    """`season compare --at snow_temperature_c=-12` on days nobody measured the snow of: the
+    error names the condition and the days, not just 'no day left'."""
+    days = [day("d1", {"A": 0, "B": 0.001}, temp=float("nan"))]
+    with pytest.raises(SeasonError, match=r"1 day\(s\) without snow_temperature_c .*: d1"):
+        compare_season(days, "A", {"snow_temperature_c": -12.0})
+
+
 def test_an_effect_linear_in_snow_temperature_is_reported_where_asked():
     # B loses 0.0001 per °C warmer than A: at −12 °C it is 0.0004 faster, at −2 °C 0.0006 slower
     days = [

@@ -67,6 +67,7 @@ def _from_session(args: argparse.Namespace) -> dict[str, Any]:
             path=args.from_session,
         )
     cdas = sorted(e.value for e in res.cda.values() if e.value is not None) or [args.cda]
+    rhos = sorted(d.air_density for d in day.compared)
     return {
         "posture_sd": res.posture_sd,
         "posture_ci90": res.posture_ci90,
@@ -74,6 +75,9 @@ def _from_session(args: argparse.Namespace) -> dict[str, Any]:
         "v0": res.typical_v0,
         "mu": sorted(i.mu for i in res.items)[len(res.items) // 2],
         "descents": len(day.compared),
+        # the CdA above was fitted with the session's air: planning it in another air would
+        # change the drag ρ·CdA the plan assumes (1.290 instead of 1.079 kg/m³: +20 %)
+        "air_density": rhos[len(rhos) // 2] if rhos else None,
     }
 
 
@@ -84,7 +88,10 @@ def cmd_plan(args: argparse.Namespace) -> int:
     track = _load_track(args.survey)
     if len(track.photocells) < 3:
         raise InputError("a plan needs at least three photocells", path=args.survey)
-    rho = _density(args)
+    air_given = args.air_density is not None or any(
+        v is not None for v in (args.pressure_hpa, args.temperature_c, args.humidity_pct)
+    )
+    rho = _density(args) if air_given or args.from_session is None else 0.0
     g = gravity_for(track, args.gravity).value
     source = "given"
     posture, cda, v0, mu = args.posture_scatter, args.cda, args.v0, args.mu
@@ -94,6 +101,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
         cda = cda if args.cda_given else past["cda"]
         v0 = v0 if args.v0_given else past["v0"]
         mu = mu if args.mu_given else past["mu"]
+        if not air_given:
+            rho = past["air_density"] if past["air_density"] is not None else _density(args)
         ci = past["posture_ci90"]
         source = f"estimated from {args.from_session} ({past['descents']} descents" + (
             f", 90 % CI [{ci[0] * 100:.2f}, {ci[1] * 100:.2f}] %)" if ci else ")"

@@ -82,15 +82,22 @@ def cmd_list(args: argparse.Namespace) -> int:
         print(f"no sessions in {store.where}")
         return 0
     w = max(len("session"), *(len(r["session"]) for r in rows))
-    print(f"{'session':<{w}}  {'date':<10}  {'site':<16}  {'descents':>8}  {'valid':>5}  "
+    # the site in full up to 40 characters ("Demo run (simula" told nobody which run it was)
+    ws = min(40, max(len("site"), *(len(r["site"] or "") for r in rows)))
+    print(f"{'session':<{w}}  {'date':<10}  {'site':<{ws}}  {'descents':>8}  {'valid':>5}  "
           f"{'snow °C':>7}  {'air °C':>6}  {'snow':<4}  items")  # fmt: skip
     for r in rows:
         snow = "/".join(x for x in (r["snow_type"], r["wetness"]) if x) or "—"
-        print(f"{r['session']:<{w}}  {r['date'] or '—':<10}  {r['site'][:16]:<16}  "
+        print(f"{r['session']:<{w}}  {r['date'] or '—':<10}  {_cut(r['site'] or '—', ws):<{ws}}  "
               f"{r['descents']:>8}  {r['valid']:>5}  {_cond(r['snow_temperature_c'], '.1f'):>7}  "
               f"{_cond(r['air_temperature_c'], '.1f'):>6}  {snow:<4}  "
               f"{'; '.join(r['items']) or '—'}")  # fmt: skip
     return 0
+
+
+def _cut(text: str, width: int) -> str:
+    """``text`` in ``width`` characters, an ellipsis where it was cut."""
+    return text if len(text) <= width else text[: width - 1] + "…"
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -192,8 +199,8 @@ def _ranked(res: Any) -> list[Any]:
 def format_season(res: Any, by: str) -> str:
     at = ", ".join(f"{k}={v:g}" for k, v in res.at.items())
     lines = [
-        f"season comparison by {by}: {res.days} days, {res.descents} descents, against "
-        f"{res.reference}" + (f", at {at}" if at else ""),
+        f"season comparison by {by}: {res.days} day{'s' * (res.days != 1)}, "
+        f"{res.descents} descents, against {res.reference}" + (f", at {at}" if at else ""),
         f"between-day heterogeneity: τ {res.tau:.5f} (SD of a difference from day to day "
         f"beyond {'the conditions given' if at else 'the within-day uncertainty'}; Q "
         f"{res.q:.1f} on {res.dof} dof"

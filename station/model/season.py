@@ -181,16 +181,20 @@ def compare_season(
 
     # the conditions: each item's tested range, which items get a slope
     conds = list(at)
+    left_out: list[str] = []
     for c in conds:
         missing = [d.day for d in days if not math.isfinite(d.conditions.get(c, math.nan))]
         if missing:
-            warnings.append(
+            left_out.append(
                 f"{len(missing)} day(s) without {c} left out of the comparison at {c}="
                 f"{at[c]:g}: {', '.join(missing[:5])}{' …' if len(missing) > 5 else ''}"
             )
             days = [d for d in days if d.day not in missing]
+    warnings.extend(left_out)
     if not days:
-        raise SeasonError("no day left with the conditions asked for")
+        # say which condition emptied the comparison: the warnings above die with the error
+        raise SeasonError("no day left with the conditions asked for (" + "; ".join(left_out)
+                          + ")")  # fmt: skip
     tested: dict[str, dict[str, tuple[float, float]]] = {it: {} for it in linked}
     for c in conds:
         for it in linked:
