@@ -9,6 +9,7 @@ import io
 import json
 import os
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -191,3 +192,25 @@ def test_the_recorder_stores_its_fits_so_the_first_annotate_refits_nothing(recor
     s.annotate([InvalidMark(1, "gate", 1.0)])
     fits = s.run().day.analyser.fits
     assert isinstance(fits, FitStore) and (fits.hits, fits.misses) == (6, 0)
+
+
+def test_the_store_keeps_where_a_fit_is_not_the_fit(session, tmp_path):
+    """In memory a written fit is the offset of its line (a 2000-descent recording kept 6.6 kB
+    a descent of JSON forms); asked for again it is read back equal, and a line that is not
+    its own any more (the file compacted by another process) is a miss, never a wrong fit."""
+    acq = RecordedSession(str(session)).replay()
+    fits = [r.fit for r in acq.results() if r.fit is not None]
+    path = str(tmp_path / FITS)
+    store_ = FitStore(path, "context")
+    keys = [f"k{n}" for n in range(len(fits))]
+    for key, fit in zip(keys, fits, strict=True):
+        store_.put(key, fit)
+    assert store_._fits == {} and len(store_._where) == len(fits)
+    assert store_.get(keys[-1]) == fits[-1]
+    again = FitStore(path, "context")  # opened afresh: offsets from the file
+    assert again._fits == {} and again.get(keys[0]) == fits[0]
+    lines = Path(path).read_bytes().split(b"\n")
+    with open(path, "wb") as fh:  # another process keeps only the last fit, at the start
+        fh.write(lines[len(fits) - 1] + b"\n")
+    assert store_.get(keys[0]) is None and store_.misses == 1
+    assert store_.get(keys[-1]) is None  # its offset now points past the end

@@ -24,6 +24,7 @@ import enum
 import hashlib
 import json
 import os
+import stat
 import types
 import typing
 from functools import cache
@@ -237,14 +238,27 @@ def session_context(config: StationConfig) -> str:
     return "|".join([*digests, code_digest()])
 
 
+#: the longest line a stored fit takes (a fit of 64 photocells is some 25 kB)
+MAX_LINE = 1 << 20
+
+
 class FitStore:
     """The stored fits of one session: read when opened, a new fit appended as it is made.
-    What the analyser asks for (:class:`station.session.analysis.FitCache`)."""
+    What the analyser asks for (:class:`station.session.analysis.FitCache`).
+
+    In memory it keeps where each fit's line starts in the file, not the fit: a recording of
+    2000 descents kept every fit's JSON form as Python objects, 6.6 kB a descent (issue 18's
+    memory target is 2 kB). A fit asked for again is read back from its line (0.5 ms), and a
+    line that is not the fit's any more (another process compacted the file) is a miss: the
+    fit is computed again, never taken from the wrong line."""
 
     def __init__(self, path: str, context: str) -> None:
         self.path = path
         self.context = context
-        self._fits: dict[str, Any] = {}  # key -> the fit's JSON form (decoded when asked for)
+        #: fits that could not be written (a read-only copy, a full disk): their JSON form
+        self._fits: dict[str, Any] = {}
+        #: fits in the file: the offset of their line
+        self._where: dict[str, int] = {}
         self._records = 0
         self.used: set[str] = set()
         self.hits = 0
@@ -270,7 +284,9 @@ class FitStore:
         except InputError:
             self._writable = False  # not a regular file, or too large: leave it alone
             return
+        offset = 0
         for line in data.split(b"\n"):
+            at, offset = offset, offset + len(line) + 1
             if not line.strip():
                 continue
             self._records += 1
@@ -279,7 +295,27 @@ class FitStore:
             except ValueError:
                 continue
             if isinstance(rec, dict) and isinstance(rec.get("key"), str) and "fit" in rec:
-                self._fits[rec["key"]] = rec["fit"]
+                self._where[rec["key"]] = at
+
+    def _load(self, key: str) -> Any:
+        """The JSON form of a fit from its line in the file; None when that line is not the
+        fit's any more (the file was compacted or cut since) or cannot be read."""
+        at = self._where.get(key)
+        if at is None:
+            return None
+        try:
+            fd = os.open(self.path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO put there: no wait
+            with os.fdopen(fd, "rb") as fh:
+                if not stat.S_ISREG(os.fstat(fd).st_mode):
+                    return None
+                fh.seek(at)
+                line = fh.readline(MAX_LINE)
+            rec = json.loads(line)
+        except (OSError, ValueError):
+            return None
+        if not isinstance(rec, dict) or rec.get("key") != key or "fit" not in rec:
+            return None
+        return rec["fit"]
 
     def key(self, parts: dict[str, Any], survey_cov: np.ndarray | None) -> str:
         return fit_key(self.context, parts, survey_cov)
@@ -287,12 +323,16 @@ class FitStore:
     def get(self, key: str) -> FitResult | None:
         stored = self._fits.get(key)
         if stored is None:
+            stored = self._load(key)
+        if stored is None:
+            self._where.pop(key, None)
             self.misses += 1
             return None
         try:
             fit = fit_from_json(stored)
         except (_Bad, TypeError, ValueError, OverflowError):
-            del self._fits[key]
+            self._fits.pop(key, None)
+            self._where.pop(key, None)
             self.misses += 1
             return None
         self.used.add(key)
@@ -301,20 +341,28 @@ class FitStore:
 
     def put(self, key: str, fit: FitResult) -> None:
         form = to_json(fit)
-        self._fits[key] = form
         self.used.add(key)
         if not self._writable:
+            self._fits[key] = form
             return
-        line = json.dumps({"key": key, "fit": form}, separators=(",", ":")) + "\n"
+        data = (json.dumps({"key": key, "fit": form}, separators=(",", ":")) + "\n").encode()
         try:
             fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NONBLOCK, 0o644)
             try:
-                os.write(fd, line.encode())  # one write: a concurrent writer's lines stay whole
+                written = os.write(fd, data)  # one write: a concurrent writer's lines stay whole
+                end = os.lseek(fd, 0, os.SEEK_CUR)
             finally:
                 os.close(fd)
             self._records += 1
         except OSError:
             self._writable = False  # a read-only copy, a full disk: fits are computed, not kept
+            self._fits[key] = form
+            return
+        if written == len(data):
+            self._where[key] = end - len(data)
+            self._fits.pop(key, None)
+        else:  # a short write: the line is torn; keep the fit here
+            self._fits[key] = form
 
     def compact(self) -> None:
         """Rewrite the file with the fits used since it was opened, when most records are not
@@ -323,14 +371,21 @@ class FitStore:
             return
         tmp = f"{self.path}.{os.getpid()}.tmp"
         try:
-            with open(tmp, "w", encoding="ascii") as fh:
+            with open(tmp, "wb") as fh:
+                where: dict[str, int] = {}
                 for key in sorted(self.used):
                     form = self._fits.get(key)
+                    if form is None:
+                        form = self._load(key)
                     if form is not None:
-                        fh.write(json.dumps({"key": key, "fit": form}, separators=(",", ":")))
-                        fh.write("\n")
+                        where[key] = fh.tell()
+                        line = json.dumps({"key": key, "fit": form}, separators=(",", ":"))
+                        fh.write(line.encode() + b"\n")
             os.replace(tmp, self.path)
             self._records = len(self.used)
+            self._where = where
+            for key in where:
+                self._fits.pop(key, None)
         except OSError:
             if os.path.exists(tmp):
                 os.unlink(tmp)
