@@ -44,7 +44,18 @@ def stored_content(conn: sa.Connection, session_id: str) -> str | None:
 
 
 def write_record(conn: sa.Connection, rec: SessionRecord) -> str:
-    """Write one session's rows in the caller's transaction; returns added/updated/unchanged."""
+    """Write one session's rows in the caller's transaction; returns added/updated/unchanged.
+
+    On PostgreSQL the session's id is locked for the transaction first (an advisory lock: a
+    row lock cannot hold a row not yet there), so two stations adding the same day at once
+    take turns and the second sees the first's rows: one says "added", the other "unchanged"
+    (both said "added" before, the rows whole either way). SQLite's writers take turns
+    already (BEGIN IMMEDIATE)."""
+    if conn.dialect.name == "postgresql":
+        conn.execute(
+            sa.text("SELECT pg_advisory_xact_lock(hashtextextended(:id, 0))"),
+            {"id": rec.identity.id},
+        )
     before = stored_content(conn, rec.identity.id)
     if before == rec.identity.content_sha256:
         return UNCHANGED
