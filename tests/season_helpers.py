@@ -135,10 +135,13 @@ class PgServer:
     def __init__(self) -> None:
         bindir = pg_bindir()
         if bindir is None:
-            raise RuntimeError(
-                "PostgreSQL's binaries are not installed (apt-get install postgresql): the "
-                "season store's tests run on a real server"
-            )
+            why = ("PostgreSQL's binaries are not installed (apt-get install postgresql): the "
+                   "season store's tests run on a real server")  # fmt: skip
+            if os.environ.get("CI"):  # CI installs it (.ci/run): missing there is a failure
+                raise RuntimeError(why)
+            import pytest
+
+            pytest.skip(why)
         self.bindir = bindir
         self.root = tempfile.mkdtemp(prefix="station-pg-")
         self.data = os.path.join(self.root, "data")
