@@ -217,14 +217,16 @@ def _code_block_setup(b: GsiBlock, path: str) -> Setup:
     return Setup(station=name, instrument_height=hi, line=b.line, known=False)
 
 
-def _unreduced_warning(unreduced: dict[str, int]) -> str:
+def unreduced_warning(
+    unreduced: dict[str, int], noun: str = "block", why: str = "with angles but no distance"
+) -> str:
+    """The one warning every observation reader gives for the shots it could not reduce,
+    naming the first eight with their lines (a photocell on one of them is refused later,
+    naming that line: survey.load)."""
     shown = ", ".join(f"{pid} (line {line})" for pid, line in list(unreduced.items())[:8])
     more = f" and {len(unreduced) - 8} more" if len(unreduced) > 8 else ""
     n = len(unreduced)
-    return (
-        f"{n} block{'s' * (n != 1)} with angles but no distance (WI 31 or 32) not reduced: "
-        f"{shown}{more}"
-    )
+    return f"{n} {noun}{'s' * (n != 1)} {why} not reduced: {shown}{more}"
 
 
 def interpret_gsi(
@@ -294,7 +296,9 @@ def interpret_gsi(
     if not any(o.setup is first for o in out.observations):
         out.setups.remove(first)  # a file that starts with its station block: no such setup
     if out.unreduced:
-        out.warnings.append(_unreduced_warning(out.unreduced))
+        out.warnings.append(
+            unreduced_warning(out.unreduced, why="with angles but no distance (WI 31 or 32)")
+        )
     if any(b.gsi16 for b in blocks):
         out.format = "Leica GSI-16"
     elif blocks:

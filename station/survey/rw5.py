@@ -21,7 +21,13 @@ from dataclasses import replace
 
 from station.errors import InputError
 from station.survey.gsi import split_lines
-from station.survey.polar import KnownPoint, Observation, ObservationSet, Setup
+from station.survey.polar import (
+    KnownPoint,
+    Observation,
+    ObservationSet,
+    Setup,
+    unreduced_warning,
+)
 from station.survey.topcon import packed_dms
 
 UNITS = {"0": 1200.0 / 3937.0, "1": 1.0, "2": 0.3048}  # US survey foot, metre, foot
@@ -161,9 +167,7 @@ def parse_rw5(text: str, path: str = "<rw5>") -> ObservationSet:
         reader.feed(line, lineno)
     out = reader.out
     if out.unreduced:
-        n = len(out.unreduced)
-        shown = ", ".join(f"{p} (line {ln})" for p, ln in list(out.unreduced.items())[:8])
         out.warnings.append(
-            f"{n} shot{'s' * (n != 1)} without angles and a slope distance not reduced: {shown}"
+            unreduced_warning(out.unreduced, "shot", "without angles and a slope distance")
         )
     return out

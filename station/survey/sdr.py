@@ -30,7 +30,13 @@ from dataclasses import dataclass, replace
 
 from station.errors import InputError
 from station.survey.gsi import split_lines
-from station.survey.polar import KnownPoint, Observation, ObservationSet, Setup
+from station.survey.polar import (
+    KnownPoint,
+    Observation,
+    ObservationSet,
+    Setup,
+    unreduced_warning,
+)
 
 FOOT_M = 0.3048
 _CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
@@ -292,10 +298,8 @@ def parse_sdr(text: str, path: str = "<sdr>") -> ObservationSet:
         reader.feed(line.rstrip("\n"), lineno)
     out = reader.out
     if out.unreduced:
-        n = len(out.unreduced)
-        shown = ", ".join(f"{p} (line {ln})" for p, ln in list(out.unreduced.items())[:8])
         out.warnings.append(
-            f"{n} observation{'s' * (n != 1)} without a slope distance not reduced: {shown}"
+            unreduced_warning(out.unreduced, "observation", "without a slope distance")
         )
     out.format = "Sokkia SDR33" if reader.id_w == 16 else "Sokkia SDR2x"
     return out

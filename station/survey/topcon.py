@@ -22,7 +22,13 @@ from dataclasses import replace
 
 from station.errors import InputError
 from station.survey.gsi import split_lines
-from station.survey.polar import KnownPoint, Observation, ObservationSet, Setup
+from station.survey.polar import (
+    KnownPoint,
+    Observation,
+    ObservationSet,
+    Setup,
+    unreduced_warning,
+)
 
 FOOT_M = 0.3048
 
@@ -209,9 +215,5 @@ def parse_gts7(text: str, path: str = "<gts7>") -> ObservationSet:
         reader.feed(line, lineno)
     out = reader.out
     if out.unreduced:
-        n = len(out.unreduced)
-        shown = ", ".join(f"{p} (line {ln})" for p, ln in list(out.unreduced.items())[:8])
-        out.warnings.append(
-            f"{n} shot{'s' * (n != 1)} with angles but no distance not reduced: {shown}"
-        )
+        out.warnings.append(unreduced_warning(out.unreduced, "shot", "with angles but no distance"))
     return out
