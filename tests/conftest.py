@@ -123,3 +123,16 @@ def run_station_process():
         )
 
     return run
+
+
+@pytest.fixture(scope="session")
+def pg():
+    """One real PostgreSQL server for the season store's tests on both engines (Debian's
+    binaries: tests/season_helpers.PgServer); each test makes its own database on it."""
+    from tests.season_helpers import PgServer
+
+    server = PgServer()
+    try:
+        yield server
+    finally:
+        server.close()

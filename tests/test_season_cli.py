@@ -8,24 +8,14 @@ import csv
 import datetime as dt
 import io
 import json
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from tests.season_helpers import PgServer, make_day
+from tests.season_helpers import make_day
 
 #: the true μ of each ski against SA: SC glides best, SB worst
 THETA = {"A": 0.0, "B": 0.0010, "C": -0.0006}
-
-
-@pytest.fixture(scope="module")
-def pg() -> Iterator[PgServer]:
-    server = PgServer()
-    try:
-        yield server
-    finally:
-        server.close()
 
 
 @pytest.fixture(params=["sqlite", "postgresql"])

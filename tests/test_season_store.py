@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import datetime as dt
 import sqlite3
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -16,16 +15,7 @@ from station.errors import InputError
 from station.store import schema
 from station.store.db import StoreError, head_revision, open_store
 from station.store.writer import ADDED, UNCHANGED, UPDATED, add_session
-from tests.season_helpers import PgServer, make_day
-
-
-@pytest.fixture(scope="session")
-def pg() -> Iterator[PgServer]:
-    server = PgServer()
-    try:
-        yield server
-    finally:
-        server.close()
+from tests.season_helpers import make_day
 
 
 @pytest.fixture(params=["sqlite", "postgresql"])
