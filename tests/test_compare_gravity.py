@@ -87,3 +87,9 @@ def test_fit_traverse_takes_the_sites_gravity(run_station, tmp_path):
     assert abs(plain["mu"] - site["mu"]) > 1e-5
     text = run_station(*base, "--latitude-deg", "47").stdout
     assert "GRS80 normal gravity at 47.000°" in text
+    alone = run_station(*base, "--altitude-m", "1700")
+    assert alone.returncode == 2
+    assert alone.stderr.strip().splitlines() == [
+        "station: error: field --altitude-m: needs --latitude-deg: normal gravity needs the "
+        "site's latitude"
+    ]

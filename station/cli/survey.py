@@ -445,6 +445,7 @@ def cmd_fit_traverse(args: argparse.Namespace) -> int:
     from station.model.traverse import fit_traverse, read_traverse_data
 
     t, s = read_traverse_data(args.data)
+    grav = _traverse_gravity(args)  # before the air: a refused site says nothing else first
     rho = _density(args)
     if args.traverse_deg is not None:
         beta = args.traverse_deg
@@ -455,7 +456,6 @@ def cmd_fit_traverse(args: argparse.Namespace) -> int:
             f"traverse {beta:g}° from the fall line "
             f"(given as {args.traverse_from_horizontal_deg:g}° from the horizontal)"
         )
-    grav = _traverse_gravity(args)
     res = fit_traverse(t, s, args.slope_deg, beta, args.mass, rho, grav.value)
     if args.json:
         out = res.to_dict()
@@ -505,7 +505,7 @@ def _traverse_gravity(args: argparse.Namespace) -> Gravity:
             f"GRS80 normal gravity at {args.latitude_deg:.3f}° and {h:.0f} m",
         )
     if args.altitude_m is not None:
-        raise InputError("--altitude-m needs --latitude-deg (normal gravity needs both)",
+        raise InputError("needs --latitude-deg: normal gravity needs the site's latitude",
                          field="--altitude-m")  # fmt: skip
     return Gravity(G_STANDARD, "standard gravity: no --latitude-deg; at 47° N, 1700 m g is "
                    "0.03 % lower")  # fmt: skip
