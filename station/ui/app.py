@@ -55,6 +55,7 @@ from station.ui.messages import (
 from station.ui.plots import residual_plot, speed_plot
 from station.ui.screens import ComparisonScreen, HelpScreen, MetadataScreen, ReasonScreen
 from station.ui.simulator import SimulatedTimer, SimulatorError
+from station.ui.table import ResultsTable
 
 
 @dataclass(frozen=True)
@@ -208,7 +209,7 @@ class MainScreen(Screen):
                     yield Static("", id="residuals", markup=False)
                     yield Static("", id="speed", markup=False)
             yield RichLog(id="log", max_lines=500, markup=False, wrap=False)
-        yield DataTable(id="table", cursor_type="row", zebra_stripes=True, cell_padding=0)
+        yield ResultsTable(id="table", cursor_type="row", zebra_stripes=True, cell_padding=0)
         # compact, without the command palette's key: at 80 columns "q Quit" stays in sight
         yield Footer(compact=True, show_command_palette=False)
 

@@ -242,7 +242,9 @@ class ComparisonScreen(ModalScreen[None]):
 
     def update(self, text: str) -> None:
         self.text = text
-        self.query_one("#comparison_text", Static).update(text)
+        # not composed yet, or being closed: what it composes with is the text just kept
+        for box in self.query("#comparison_text").results(Static):
+            box.update(text)
 
     def on_button_pressed(self, _event: Button.Pressed) -> None:
         self.dismiss(None)
