@@ -12,6 +12,8 @@ strip), and text in a cell is text: a note "[kg]" is not taken for markup.
 
 from __future__ import annotations
 
+from typing import Any
+
 from rich.cells import set_cell_size
 from rich.segment import Segment
 from rich.style import Style
@@ -23,7 +25,7 @@ from textual.widgets import DataTable
 class ResultsTable(DataTable[str]):
     """A DataTable whose cells are single lines of plain text (``str``)."""
 
-    def __init__(self, *args, **kwargs) -> None:  # type: ignore[no-untyped-def]
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
         # set first: DataTable's own __init__ clears the caches
         self._plain_cells: LRUCache[tuple[object, ...], list[list[Segment]]] = LRUCache(4000)
         self._plain_lines: LRUCache[tuple[object, ...], Strip] = LRUCache(1000)
@@ -77,6 +79,8 @@ class ResultsTable(DataTable[str]):
         if column_index < 0 or (row_index >= 0 and row_index < self.fixed_rows):
             return super()._render_cell(row_index, column_index, base_style, width, cursor, hover)
         column_key = self._column_locations.get_key(column_index)
+        if column_key is None:
+            return super()._render_cell(row_index, column_index, base_style, width, cursor, hover)
         if row_index == -1:
             label = self.columns[column_key].label
             if label.spans or self.header_height != 1:
@@ -86,8 +90,9 @@ class ResultsTable(DataTable[str]):
             text: object = label.plain
         else:
             row_key = self._row_locations.get_key(row_index)
-            text = self._data[row_key].get(column_key)
-            if not isinstance(text, str) or self.rows[row_key].height != 1 or "\n" in text:
+            row = None if row_key is None else self.rows.get(row_key)
+            text = None if row_key is None else self._data[row_key].get(column_key)
+            if row is None or row.height != 1 or not isinstance(text, str) or "\n" in text:
                 return super()._render_cell(
                     row_index, column_index, base_style, width, cursor, hover
                 )
