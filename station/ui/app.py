@@ -216,6 +216,9 @@ class MainScreen(Screen):
     def on_resize(self, _event: object) -> None:
         self.app.on_resize()  # type: ignore[attr-defined]
 
+    def on_screen_resume(self, _event: object) -> None:
+        self.app.on_main_uncovered()  # type: ignore[attr-defined]
+
 
 class StationApp(App):
     """One session at the trackside."""
@@ -274,6 +277,9 @@ class StationApp(App):
         self.columns: list[Column] = []
         self.plot_rows = 6
         self._plotted: DescentResult | None = None
+        self._resid_width = 0  # the residual plot's width (the panel's layout follows it)
+        self._panel_of: DescentResult | None = None  # the snapshot the panel shows (or will)
+        self._panel_due: DescentResult | None = None  # to show when the dialog on top closes
         self.comparison_text = (
             "no comparison yet: it needs fitted descents with ski or wax entered (m)"
         )
@@ -392,18 +398,21 @@ class StationApp(App):
         counts = f"{c.impulses} impulses · {c.edits} edits · {c.unparsed} unparsed"
         problem = f"  │  ! {self.problem}" if self.problem else ""
         detail = f"  │  {self.connection_detail}" if self.connection_detail else ""
+        # one line of a fixed height and the screen's width: no layout needed
         self.main.query_one("#status", Static).update(
-            f" {self.connection}  │  {counts}{problem}{detail}"
+            f" {self.connection}  │  {counts}{problem}{detail}", layout=False
         )
 
     def on_impulses_arrived(self, msg: ImpulsesArrived) -> None:
         self.counts = msg.counts
         self._update_status()
-        log = self.main.query_one("#log", RichLog)
+        lines = []
         for e in msg.events:
             where = f"{e.channel}→{e.photocell}" if e.photocell else e.channel
             fate = f"#{e.descent}" if e.kept else f"✗ {e.reason}"
-            log.write(f"{format_tod(e.tod_us, 4)} {where:<8} {fate}")
+            lines.append(f"{format_tod(e.tod_us, 4)} {where:<8} {fate}")
+        if lines:  # one write: the log (500 lines at most) is drawn once for the chunk
+            self.main.query_one("#log", RichLog).write("\n".join(lines))
 
     def on_descent_progress(self, msg: DescentProgress) -> None:
         p = self.progress = msg.progress
@@ -419,7 +428,7 @@ class StationApp(App):
                 f"descent {p.number} running: {len(p.passed)}/{len(ids)} · "
                 f"{last} +{(passed[last] - t0) / 1e6:.2f} s\n{marks}"
             )
-        self.main.query_one("#progress", Static).update(text)
+        self.main.query_one("#progress", Static).update(text, layout=False)  # 2 lines, fixed
         if isinstance(self.screen, MetadataScreen):  # a descent started while it is open
             self.screen.set_next(p.next_number)
 
@@ -449,9 +458,23 @@ class StationApp(App):
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
         if event.row_key is None or event.row_key.value is None:
             return
-        res = self.results.get(int(event.row_key.value))
-        if res is not None:
-            self._show(res)
+        n = int(event.row_key.value)
+        res = self.results.get(n)
+        if res is None:
+            return
+        if self.shown == n and self._panel_of is res:
+            return  # the new descent the table moved to: its fit is shown (or due) already
+        self._show(res)
+
+    def _main_covered(self) -> bool:
+        """A dialog (the comparison, the metadata form, the help) covers the main screen."""
+        return self.screen is not self.main
+
+    def on_main_uncovered(self) -> None:
+        """The main screen is on top again: the panel drawn for the selected descent, if a
+        fit arrived while a dialog covered it."""
+        if self._panel_due is not None:
+            self._show(self._panel_due)
 
     def on_comparison_updated(self, msg: ComparisonUpdated) -> None:
         self.comparison_text = msg.text
@@ -482,8 +505,15 @@ class StationApp(App):
         self.notify(msg.summary, title="replay finished", timeout=10)
 
     def _show(self, res: DescentResult) -> None:
-        """Result panel and plots for one descent."""
+        """Result panel and plots for one descent: drawn once per fit, and while a dialog
+        covers the main screen not at all (the comparison, open all day, hides them): then
+        when the dialog closes."""
         self.shown = res.number
+        self._panel_of = self.results.get(res.number)  # the snapshot shown, or due
+        if self._main_covered():
+            self._panel_due = res
+            return
+        self._panel_due = None
         f, row, d = res.fit, res.row, res.descent
         head = f"descent {d.number} · {local_time(res.start_time)} · "
         if f is None:
@@ -492,6 +522,7 @@ class StationApp(App):
                 head + f"{status}: {'; '.join(row.flags)}\n" + conditions(row)
             )
             self.main.query_one("#residuals", Static).update("")
+            self._resid_width = 40  # its min-width
             self.main.query_one("#speed", Static).update("")
             self._plotted = None
             return
@@ -531,7 +562,7 @@ class StationApp(App):
             + (f"\n{notes}" if notes else "")
             + (f"\n{f.message}" if f.message else "")
         )
-        self.main.query_one("#result", Static).update(text)
+        self.main.query_one("#result", Static).update(text, layout=False)  # a fixed box
         self._plotted = res
         self._draw_plots()
 
@@ -555,7 +586,10 @@ class StationApp(App):
             lines = residual_plot(ids, res_ms, height=rows, bar_width=bar)
             text = "\n".join(lines) if ids else "no residuals: " + f.status
             resid_width = max(resid_width, *(len(line) for line in text.splitlines()))
-            self.main.query_one("#residuals", Static).update(text)
+            # its width follows its text: laid out again only when that changes
+            box = self.main.query_one("#residuals", Static)
+            box.update(text, layout=resid_width != self._resid_width)
+            self._resid_width = resid_width
         box = self.main.query_one("#speed", Static)
         width = max(10, left - resid_width - 1 - 7)  # its padding, the speed labels
         if res.speed_x is None and res.fit is not None and self.acq is not None:
@@ -567,7 +601,7 @@ class StationApp(App):
             plot = speed_plot(x, v, width=width, height=rows - 1)
         else:
             plot = ["(no speed profile)"]
-        box.update("\n".join(plot))
+        box.update("\n".join(plot), layout=False)  # the rest of the row: a fixed box
 
     # ------------------------------------------------------------------ actions
 
