@@ -42,6 +42,7 @@ from station.session.records import (
 )
 from station.session.store import RESULTS, is_session
 from station.timing.impulses import format_tod
+from station.ui.comparison import ComparisonProcess
 from station.ui.messages import (
     AcquisitionWarning,
     ComparisonUpdated,
@@ -263,6 +264,7 @@ class StationApp(App):
         self.demo_skis = demo_skis or []
         self.config = config
         self.acq: Acquisition | None = None
+        self.comparer: ComparisonProcess | None = None
         self.photocell_ids: tuple[str, ...] = ()
         # what the messages brought: the UI's own snapshots of the day
         self.results: dict[int, DescentResult] = {}
@@ -300,19 +302,22 @@ class StationApp(App):
         self._update_status()
         self.on_resize()
         if self.mode == "replay" and self.recorded is not None:
-            self.acq = self.recorded.start_replay(
-                PostingListener(self), speed=self.speed, compare=True
-            )
+            self.acq = self.recorded.start_replay(PostingListener(self), speed=self.speed)
         else:
             self.acq = Acquisition.open(
                 self.config,
                 PostingListener(self),
                 session_dir=self.session_dir,
                 date=self.date,
-                compare=True,
                 ski_rotation=self.demo_skis if self.mode == "demo" else (),
             )
         self.photocell_ids = tuple(self.acq.track.photocell_ids)
+        # the comparison: the UI's own, in a process of its own (station.ui.comparison)
+        self.comparer = ComparisonProcess(
+            self.acq.track,
+            post=lambda text: self.post_message(ComparisonUpdated(text)),
+            warn=lambda text: self.post_message(AcquisitionWarning(text)),
+        )
         if self.session_dir is not None:
             self.sub_title = f"{self.mode} · {self.session_dir}"
         elif self.source is not None:  # a replay names what it replays: the session's name
@@ -436,7 +441,9 @@ class StationApp(App):
         res = msg.result
         n = res.number
         # its speed curve (12 kB) only while it is shown: asked for again when selected
-        self.results[n] = replace(res, speed_x=None, speed_v=None)
+        self.results[n] = stored = replace(res, speed_x=None, speed_v=None)
+        if self.comparer is not None:
+            self.comparer.update(stored)  # noted; sent to the comparison's process off this thread
         table = self.main.query_one("#table", DataTable)
         key = str(n)
         values = self._cells(res)
@@ -492,16 +499,18 @@ class StationApp(App):
         takes seconds of a 2-core laptop): shown, it is brought up to date, and kept so."""
 
         def closed(_result: None) -> None:
-            if self.acq is not None:
-                self.acq.show_comparison(False)
+            if self.comparer is not None:
+                self.comparer.show(False)
 
         self.push_screen(ComparisonScreen(self.comparison_text), closed)
-        if self.acq is not None:
-            self.acq.show_comparison(True)
+        if self.comparer is not None:
+            self.comparer.show(True)
 
     def on_source_ended(self, msg: SourceEnded) -> None:
         self.connection = "replay finished"
         self._update_status()
+        if self.comparer is not None:  # the whole day's comparison, shown or not
+            self.comparer.source_ended()
         self.notify(msg.summary, title="replay finished", timeout=10)
 
     def _show(self, res: DescentResult) -> None:
@@ -705,5 +714,7 @@ class StationApp(App):
             self.sim.terminate()  # it ends while the day is closed, not after
         if self.acq is not None:
             self.acq.close()
+        if self.comparer is not None:
+            self.comparer.close()
         if self.sim is not None:
             self.sim.stop(timeout=0.05)
