@@ -218,11 +218,15 @@ async def run(
     return latency, cpu, app
 
 
-def measure(n: int, shown: bool, gap: float = 0.6) -> dict[str, Any]:
-    """Latency (ms) of each timed descent's fit on screen, and the comparisons computed."""
+def measure(n: int = 2000, shown: bool = True, gap: float = 0.6) -> dict[str, Any]:
+    """Latency (ms) of each timed descent's fit on screen, and the comparisons computed;
+    ``median_end_ms`` and ``max_end_ms``: the last window's (benchmarks/speed_table.py)."""
     start = time.perf_counter()
     latency, cpu, app = asyncio.run(run(n, shown, gap))
+    end = [latency[k] for k in windows(n)[-1]]
     return {
+        "median_end_ms": statistics.median(end),
+        "max_end_ms": max(end),
         "wall_s": time.perf_counter() - start,
         "latency_ms": latency,
         "cpu_ms": cpu,
