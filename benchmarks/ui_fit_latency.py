@@ -84,9 +84,10 @@ class TimedApp(StationApp):
         with self._lock:
             return self.shown_event.setdefault(n, threading.Event())
 
-    def on_descent_fitted(self, msg: DescentFitted) -> None:
-        super().on_descent_fitted(msg)
-        n = msg.result.number
+    # no on_descent_fitted here: Textual calls the handler of every class of the app's MRO,
+    # and one calling super() ran StationApp's twice (``hook_handlers`` wraps StationApp's instead)
+
+    def fitted(self, n: int) -> None:
         if n not in self.handled_at:
             self.handled_at[n] = time.perf_counter()
             self._waiting.append(n)
@@ -106,9 +107,23 @@ class TimedApp(StationApp):
                 keep.append(n)
         self._waiting = keep
 
-    def on_comparison_updated(self, msg: ComparisonUpdated) -> None:
-        super().on_comparison_updated(msg)
-        self.comparisons.append((time.perf_counter(), len(self.results)))
+
+def hook_handlers() -> None:
+    """StationApp's handlers, noting in a TimedApp when each ran."""
+    fitted, compared = StationApp.on_descent_fitted, StationApp.on_comparison_updated
+
+    def on_descent_fitted(app: StationApp, msg: DescentFitted) -> None:
+        fitted(app, msg)
+        if isinstance(app, TimedApp):
+            app.fitted(msg.result.number)
+
+    def on_comparison_updated(app: StationApp, msg: ComparisonUpdated) -> None:
+        compared(app, msg)
+        if isinstance(app, TimedApp):
+            app.comparisons.append((time.perf_counter(), len(app.results)))
+
+    StationApp.on_descent_fitted = on_descent_fitted  # type: ignore[method-assign]
+    StationApp.on_comparison_updated = on_comparison_updated  # type: ignore[method-assign]
 
 
 def descents(n: int) -> list[list[bytes]]:
@@ -147,6 +162,9 @@ async def run(
     lines = descents(n)
     timed = {k for w in windows(n) for k in w}
     Acquisition.start_serial = lambda self, serial=None: None  # type: ignore[method-assign]
+    if not hasattr(StationApp.on_descent_fitted, "timed"):
+        hook_handlers()
+        StationApp.on_descent_fitted.timed = True  # type: ignore[attr-defined]
     app = TimedApp(cfg, mode="live")
     drawn = ResultsTable.render_lines
 

@@ -465,6 +465,8 @@ class StationApp(App):
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
         if event.row_key is None or event.row_key.value is None:
             return
+        if event.cursor_row != event.data_table.cursor_row:
+            return  # the cursor moved on meanwhile (descents arriving in bulk): no panel for it
         n = int(event.row_key.value)
         res = self.results.get(n)
         if res is None:
