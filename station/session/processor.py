@@ -85,9 +85,12 @@ class Processor:
             if chunk.event == "disconnected":
                 self.assembler.disconnected(chunk.detail)
             return []
+        lines = self.framer.feed(chunk.data)
+        if len(lines) == 1:  # a live recording's every chunk
+            return self._line(lines[0], chunk.t)
         done: list[TimedDescent] = []
         t = chunk.t
-        for line in self.framer.feed(chunk.data):
+        for line in lines:
             ended = self._line(line, t)
             if ended:
                 done += ended
@@ -102,14 +105,17 @@ class Processor:
             if self.resolution_us is None and parsed.channel in self._photocell_channels:
                 self.resolution_us = parsed.resolution_us
             before = asm.count
-            now = None
-            if t is not None and self.offset_us is not None and t == t:
-                now = round(t * 1e6) + self.offset_us  # the device time now, by the host clock
-            done = asm.feed(parsed, self.lines, now)
-            if t is not None:
+            if t is None:  # a plain capture: no host clock
+                done = asm.feed(parsed, self.lines, None)
+            else:
+                host_us = round(t * 1e6)
+                offset = self.offset_us
+                # the device time now, by the host clock
+                now = host_us + offset if offset is not None and t == t else None
+                done = asm.feed(parsed, self.lines, now)
                 clock = asm.clock
                 if clock is not None:
-                    self.offset_us = clock - round(t * 1e6)
+                    self.offset_us = clock - host_us
             if asm.count > before:
                 self.start_host[asm.count] = t
                 self._started(asm.count)

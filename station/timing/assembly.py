@@ -385,7 +385,7 @@ class DescentAssembler:
             ch = self._channel_names[ch]  # the config's string, kept: not one per line
             if ch is not imp.channel:
                 imp = imp._replace(channel=ch)
-        done = []
+        done: list[TimedDescent] = []
         number = int(imp.bib) if imp.bib.isascii() and imp.bib.isdigit() else None
         prev_number, self._prev_number = self._prev_number, number
         if pc is None:
