@@ -16,7 +16,6 @@ from typing import TYPE_CHECKING, Any
 
 from station.cli.common import _date, _positive, _warn, open_output, output_path
 from station.errors import InputError
-from station.session import store as sessions
 
 if TYPE_CHECKING:
     from station.session.analysis import DescentResult
@@ -24,6 +23,7 @@ if TYPE_CHECKING:
 
 def cmd_record(args: argparse.Namespace) -> int:
     from station.cli.console import PrintListener, day_summary
+    from station.session import store as sessions
     from station.session.acquisition import record
     from station.session.configcheck import checked_config
     from station.session.ports import check_port
