@@ -19,7 +19,7 @@ from station.session.records import LineCounts
 from station.survey.track import Track
 from station.timing.assembly import DescentAssembler, ImpulseEvent, TimedDescent
 from station.timing.framing import LineFramer
-from station.timing.impulses import Edit, Impulse, Skip, Unparsed
+from station.timing.impulses import Edit, Impulse, Parsed, Skip, Unparsed
 from station.timing.wireformats import make_parser
 
 #: unparsed lines listed (line, reason, first 100 characters): a day of line noise stays within
@@ -86,19 +86,47 @@ class Processor:
                 self.assembler.disconnected(chunk.detail)
             return []
         lines = self.framer.feed(chunk.data)
-        if len(lines) == 1:  # a live recording's every chunk
-            return self._line(lines[0], chunk.t)
-        done: list[TimedDescent] = []
         t = chunk.t
+        if len(lines) == 1:  # a live recording's every chunk
+            return self._line(lines[0], t)
+        if t is None:
+            return self._capture_lines(lines)
+        done: list[TimedDescent] = []
         for line in lines:
             ended = self._line(line, t)
             if ended:
                 done += ended
         return done
 
+    def _capture_lines(self, lines: list[str]) -> list[TimedDescent]:
+        """:meth:`_line` for each line of a plain capture's chunk (no host clock), its common
+        impulse handled here: a replay of a capture is a hundred thousand of them."""
+        done: list[TimedDescent] = []
+        parse = self.parser.parse
+        asm = self.assembler
+        feed = asm.feed
+        for line in lines:
+            parsed = parse(line)
+            if type(parsed) is Impulse and self.resolution_us is not None:
+                self.lines += 1
+                self.impulses += 1
+                before = asm.count
+                ended = feed(parsed, self.lines, None)
+                if asm.count > before:
+                    self.start_host[asm.count] = None
+                    self._started(asm.count)
+            else:
+                ended = self._parsed(line, parsed, None)
+            if ended:
+                done += ended
+        return done
+
     def _line(self, line: str, t: float | None) -> list[TimedDescent]:
+        return self._parsed(line, self.parser.parse(line), t)
+
+    def _parsed(self, line: str, parsed: Parsed, t: float | None) -> list[TimedDescent]:
+        """One line and what the parser made of it."""
         self.lines += 1
-        parsed = self.parser.parse(line)
         if type(parsed) is Impulse:
             self.impulses += 1
             asm = self.assembler
