@@ -88,7 +88,8 @@ class Processor:
         lines = self.framer.feed(chunk.data)
         t = chunk.t
         if len(lines) == 1:  # a live recording's every chunk
-            return self._line(lines[0], t)
+            line = lines[0]
+            return self._parsed(line, self.parser.parse(line), t)
         if t is None:
             return self._capture_lines(lines)
         done: list[TimedDescent] = []
