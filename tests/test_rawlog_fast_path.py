@@ -25,6 +25,7 @@ def both_ways(path, monkeypatch) -> tuple[list, list[str], list, list[str]]:
     fast = list(read_rawlog(str(path), fast_w))
     with monkeypatch.context() as m:
         m.setattr(rawlog, "_COMMON", lambda _raw: None)
+        m.setattr(rawlog, "_ONE_LINE", lambda _raw: None)
         general_w: list[str] = []
         general = list(read_rawlog(str(path), general_w))
     return fast, fast_w, general, general_w
@@ -64,17 +65,23 @@ def test_the_fast_path_reads_the_common_records(tmp_path, monkeypatch):
     for i in range(200):
         w.write(1_767_600_000.0 + i * 0.3, b" 0001 C0  10:00:00.0000 00\r")
     w.close()
-    taken = []
-    real = rawlog._COMMON
+    w = RawLogWriter(str(path))
+    for i in range(50):  # a TAG line (CR LF), a line with a TAB
+        w.write(1_767_600_100.0 + i, b"TN  1 \t00AB\r\n")
+    w.close()
+    taken: dict[str, list[bool]] = {"_ONE_LINE": [], "_COMMON": []}
+    for name in taken:
+        real = getattr(rawlog, name)
 
-    def counted(raw: bytes):
-        m = real(raw)
-        taken.append(m is not None)
-        return m
+        def counted(raw: bytes, real=real, name=name):
+            m = real(raw)
+            taken[name].append(m is not None)
+            return m
 
-    monkeypatch.setattr(rawlog, "_COMMON", counted)
+        monkeypatch.setattr(rawlog, name, counted)
     chunks = list(read_rawlog(str(path)))
-    assert len(chunks) == 201 and sum(taken) == 200  # all but the session header
+    assert len(chunks) == 251  # all but the session header the fast way:
+    assert sum(taken["_ONE_LINE"]) == 200 and sum(taken["_COMMON"]) == 50
 
 
 NEAR_MISSES = [

@@ -131,16 +131,18 @@ def _replay_no_fit(args: argparse.Namespace, cfg: Any) -> int:
     for w in warnings:
         _warn(w)
     lines = []
-    for n in sorted(ended):
+    for n in sorted(ended):  # one f-string a descent: a long capture has thousands
         d = ended[n]
-        if d.times_us:
-            start = format_tod(d.times_us[0], 4)
-            went = f"{d.photocells[-1]} +{(d.times_us[-1] - d.times_us[0]) / 1e6:.4f} s"
-            what = f"{count(len(d.photocells), 'photocell')}, {d.photocells[0]} {start}, {went}"
+        times, pcs = d.times_us, d.photocells
+        if times:
+            what = (f"{count(len(pcs), 'photocell')}, {pcs[0]} {format_tod(times[0], 4)}, "
+                    f"{pcs[-1]} +{(times[-1] - times[0]) / 1e6:.4f} s")  # fmt: skip
         else:
             what = "no time left"
-        flags = f" · {'; '.join(d.flags)}" if d.flags else ""
-        lines.append(f"descent {n} · {d.status} · {what}{flags}")
+        if d.flags:
+            lines.append(f"descent {n} · {d.status} · {what} · {'; '.join(d.flags)}")
+        else:
+            lines.append(f"descent {n} · {d.status} · {what}")
     if lines and "-" not in (args.times, args.events):  # standard output is a CSV's
         print("\n".join(lines))
     by_status: dict[str, int] = {}

@@ -407,16 +407,17 @@ _decode = json.JSONDecoder().decode  # a str in: json.loads would sniff the byte
 _COMMON = re.compile(
     rb'\{"t":((?:0|[1-9][0-9]{0,9})(?:\.[0-9]{1,20})?),"rx":"((?:[ !#-\[\]-~]|\\[rnt])*)"\}\n'
 ).fullmatch
+#: its most common case: one line of printable ASCII and its CR (ALGE, Microgate)
+_ONE_LINE = re.compile(
+    rb'\{"t":((?:0|[1-9][0-9]{0,9})(?:\.[0-9]{1,20})?),"rx":"([ !#-\[\]-~]*)\\r"\}\n'
+).fullmatch
 _new_chunk = tuple.__new__
 
 
 def _unescape(rx: bytes) -> bytes:
     """The bytes of a common record's ``rx`` (JSON escapes of CR, LF and TAB only)."""
-    k = rx.find(b"\\")
-    if k < 0:
+    if b"\\" not in rx:
         return rx
-    if k == len(rx) - 2 and rx[-1] == 0x72:  # ``\r`` at the end only: a timer's line
-        return rx[:-2] + b"\r"
     return rx.replace(b"\\r", b"\r").replace(b"\\n", b"\n").replace(b"\\t", b"\t")
 
 
@@ -450,7 +451,11 @@ def read_rawlog(path: str, warnings: list[str] | None = None) -> Iterator[Chunk]
             if total > MAX_RAWLOG:  # grew while read
                 raise InputError(f"is larger than {_size(MAX_RAWLOG)}, the limit for a raw log",
                                  path=path)  # fmt: skip
-            common = _COMMON(raw)  # a whole line: never one cut at the limit
+            common = _ONE_LINE(raw)  # a whole line: never one cut at the limit
+            if common is not None:
+                yield _new_chunk(Chunk, (float(common[1]), common[2] + b"\r", "", ""))
+                continue
+            common = _COMMON(raw)
             if common is not None:
                 yield _new_chunk(Chunk, (float(common[1]), _unescape(common[2]), "", ""))
                 continue
