@@ -86,7 +86,7 @@ class Processor:
                 self.assembler.disconnected(chunk.detail)
             return []
         lines = self.framer.feed(chunk.data)
-        t = chunk.t
+        t: float | None = chunk.t  # None: a plain capture (replay_chunks)
         if len(lines) == 1:  # a live recording's every chunk
             line = lines[0]
             return self._parsed(line, self.parser.parse(line), t)
