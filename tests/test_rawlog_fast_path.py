@@ -143,3 +143,53 @@ def test_framing_does_not_depend_on_how_the_bytes_arrive(lines, ends, cuts):
     assert per_line == whole == frame(pieces)
     assert whole == [s for s in data.decode().replace("\r\n", "\n").replace("\r", "\n").split("\n")
                      ][: len(whole)]  # fmt: skip
+
+
+@pytest.mark.parametrize("name", ["ALGETdC8001-202002020841.dump", "ALGETdC8001-202002021133.dump"])
+def test_a_session_of_a_real_capture_replays_the_same_all_fast_or_all_general(
+    real, tmp_path, monkeypatch, name
+):
+    """The real capture's lines recorded one record each (as a recording writes them), then
+    replayed with every fast path (raw log, framing, parser, assembler) and with none: the
+    same events, descents and counts."""
+    import dataclasses
+
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.replay import replay_chunks
+    from station.survey.load import load_survey
+    from station.survey.track import build_track
+    from station.timing.assembly import DescentAssembler
+    from station.timing.wireformats import AlgeParser
+    from tests.timing_helpers import write_config
+
+    framer = LineFramer()
+    lines = framer.feed((real / "alge" / name).read_bytes()) + framer.flush()
+    session = tmp_path / "session"
+    session.mkdir()
+    w = RawLogWriter(str(session / "raw.jsonl"), header={"port": "loop://"})
+    for k, line in enumerate(lines):
+        w.write(1_580_630_000.0 + 0.25 * k, (line + "\r").encode("latin-1"))
+    w.close()
+    cfg = load_config(str(write_config(tmp_path, "loop://")))
+    track = build_track(load_survey(cfg.survey_path))
+    states = []
+    for fast in (True, False):
+        with monkeypatch.context() as m:
+            if not fast:
+                m.setattr(rawlog, "_COMMON", lambda _raw: None)
+                m.setattr(rawlog, "_ONE_LINE", lambda _raw: None)
+                m.setattr(AlgeParser, "parse", AlgeParser.parse_general)
+                m.setattr(DescentAssembler, "_next_photocell", lambda *_a: None)
+                m.setattr(DescentAssembler, "_start", lambda *_a: False)
+            proc = Processor(cfg, track)
+            for chunk in replay_chunks(str(session)):
+                proc.feed(chunk)
+            proc.finish()
+            asm = proc.assembler
+            states.append((
+                [tuple(e) for e in asm.events], [dataclasses.astuple(d) for d in asm.finished],
+                proc.unparsed, proc.line_counts(), proc.start_host, proc.offset_us,
+            ))  # fmt: skip
+    assert states[0] == states[1]
+    assert len(states[0][1]) > 20
