@@ -34,15 +34,14 @@ linearly in the number of descents; BLAS threads are capped at one (threadpoolct
 dense parts are tiny and a pool of threads on a shared 2-core machine costs far more than it
 saves (50 descents took 3.7 s instead of 0.19 s with the default pool).
 
-Uncertainty. The covariance of the global parameters is σ̂²·S⁻¹ (S the Schur complement: the
-fixed-effect block of the mixed-model equations' inverse). A comparison's interval uses
-Student's t with Satterthwaite's degrees of freedom, computed from how its variance moves with
-(log σ², γ) and their covariance from the REML expected information, and its variance adds the
-Kackar-Harville term (∂Δμ̂/∂γ)²·Var(γ̂), so the uncertainty of the estimated scatter widens the
-interval as much as it should (on the simulated ABBA days of benchmarks/compare_calibration.py
-the degrees of freedom come out at 45–52 of 52: each descent's nine times pin its own posture
-well, so the scatter's estimate costs little; on small days, 2 descents an item, it does not,
-and the scatter is often estimated at 0: benchmarks/compare_small_days.py).
+Uncertainty. Given the scatter γ, the global parameters are Student t around their
+estimate with the scale σ̂²·S⁻¹ (S the Schur complement: the fixed-effect block of the
+mixed-model equations' inverse). The scatter is itself estimated, and on small days poorly (2
+descents an item: at 0 on one day in ten at 0.5 % scatter), so every interval, P(a faster),
+P(best) and the items' covariance come from that t integrated over γ's posterior (its REML
+likelihood, a prior flat in the scatter): :class:`_Inference`. Where the day pins the scatter
+(ABBAABBA with nine photocells) this is the plug-in answer; where it does not, the answer keeps
+the scatters the day cannot rule out (benchmarks/compare_small_days.py).
 
 Goodness of fit. The residual standard deviation is compared with the timer's precision
 (χ² test of PRSS/σ_timer² on n − p degrees of freedom): a day whose residuals the timer cannot
@@ -147,7 +146,7 @@ class Comparison:
     ci90: tuple[float, float] | None  # None: no comparison possible (see note)
     p_a_faster: float | None  # P(μ_a < μ_b)
     delta_t_s: float  # time a takes minus time b takes over the run
-    dof: float | None = None  # Satterthwaite degrees of freedom of the interval
+    dof: float | None = None  # of the Student t the interval is equivalent to (sequential)
     note: str = ""
 
 
@@ -733,7 +732,7 @@ class _Inference:
     Jeffreys' prior for γ (from REML's expected information) gave 85.5 % at 2 a ski: it
     falls to 0 with γ as fast as γ itself and so keeps too much of the scatter-free answer;
     a prior flat in γ gave 90 %, but is known to over-widen where the day says little. The
-    integral is a sum over a grid in log γ: a coarse search for where the posterior lies,
+    integral is a sum over a grid in log γ: a walk out from γ̂ to where the posterior ends,
     then at least 41 points over it; each point is one linear solve of the day (no new model
     solves).
 
