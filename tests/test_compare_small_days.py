@@ -94,3 +94,13 @@ def test_two_descents_a_ski_with_little_scatter_hold_the_truth(demo_track):
         wrong += c.p_a_faster <= 0.05
     assert holds / n >= 0.85, holds
     assert wrong <= 1, wrong
+
+
+def test_the_readme_shows_the_warning_as_it_is_given(demo_track):
+    """README, "How small a day may be", quotes the small day's drift warning byte for byte."""
+    from pathlib import Path
+
+    res = joint_fit(demo_track, _day(demo_track, 3, 2, 0.015))
+    (warning,) = [w for w in res.warnings if w.startswith("drift:")]
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    assert f"\n{warning}\n" in readme
