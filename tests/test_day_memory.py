@@ -9,6 +9,7 @@ import threading
 import time
 
 import numpy as np
+import pytest
 
 import station.session.acquisition as acquisition
 from station.session.acquisition import Acquisition, Listener
@@ -115,3 +116,40 @@ def test_a_fit_never_waits_for_the_comparison(tmp_path, demo_track, monkeypatch)
     finally:
         release.set()
         acq.close()
+
+
+def test_a_recording_keeps_its_fits_in_the_session_store_not_in_memory(tmp_path, demo_track):
+    """A recording into a session keeps each descent's fit in ``fits.jsonl`` (4 kB a descent
+    in memory otherwise): the result reads it back, the same fit the listener was handed; a
+    store that lost it (the file removed) is no lost fit: it is computed again."""
+    cfg = load_config(str(write_config(tmp_path, "loop://")))
+    seen = Seen()
+    session = tmp_path / "session"
+    acq = Acquisition.open(cfg, seen, session_dir=str(session))
+    feed_like_a_reader(acq, descent_lines(demo_track, [36000, 36060, 36120]))
+    wait_fitted(seen, 3)
+    acq.close()
+    handed = {r.number: r for r in seen.results}
+    kept = acq.results()
+    assert [r.number for r in kept] == [1, 2, 3]
+    for r in kept:
+        assert r.kept_fit is None and r.stored is not None and r.has_fit
+        assert handed[r.number].kept_fit is not None  # the listener shows it at once
+        assert r.fit == handed[r.number].fit
+    # the rows the results CSV was written from are those of the fits read back
+    assert [r.row.mu for r in kept] == [r.fit.mu.value for r in kept]
+
+    (session / "fits.jsonl").unlink()
+    again = kept[1].fit
+    assert again is not None
+    assert again.mu.value == pytest.approx(handed[2].fit.mu.value, rel=1e-9)
+    assert again.mu.ci90 == pytest.approx(handed[2].fit.mu.ci90, rel=1e-6)
+
+    # without a session (no store) the fits stay in memory, as before
+    seen = Seen()
+    plain = Acquisition.open(cfg, seen)
+    feed_like_a_reader(plain, descent_lines(demo_track, [36000]))
+    wait_fitted(seen, 1)
+    plain.close()
+    (res,) = plain.results()
+    assert res.stored is None and res.kept_fit is not None and res.fit is res.kept_fit

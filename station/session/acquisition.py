@@ -163,9 +163,11 @@ class Acquisition:
         self.session_dir = session_dir
         self.rawlog = rawlog
         self.compare = compare
-        #: a replay in line keeps every descent's speed curve (the report draws them all); a
-        #: recording or the UI keeps it only in what it hands to the listener: 12 kB a
-        #: descent, half a 2000-descent day's memory (the UI asks again for the one it shows)
+        #: a replay in line keeps every descent's speed curve and fit (the report draws them
+        #: all); a recording or the UI keeps the curve only in what it hands to the listener
+        #: (12 kB a descent, half a 2000-descent day's memory: the UI asks again for the one it
+        #: shows), and the fit only in the session's fit store where it has one (4 kB a
+        #: descent: :attr:`DescentResult.fit` reads it back)
         self.keep_curves = not threaded
         #: likewise every impulse's fate (``replay --events`` lists them; the UI is told each)
         self.keep_events = not threaded
@@ -578,14 +580,15 @@ class Acquisition:
                 effect = _effect_now(day, a) if job.applied else day.annotate(a)
                 fit_jobs = [day.fit_job(day.results[n].descent) for n in effect.refit]
         fitted = [day.analyser.run(j) for j in fit_jobs]  # outside the lock: the reader goes on
-        kept = fitted if self.keep_curves else [_without_curve(r) for r in fitted]
+        kept = fitted if self.keep_curves else [r.lean() for r in fitted]
         with self.lock:
             views = [day.store(r) for r in kept] + [day.view(n) for n in effect.changed]
         if views:
             self._save_csv(views)
         for i, v in enumerate(views):
-            if i < len(fitted) and v.speed_x is None:  # the listener shows the new fit's curve
-                v = replace(v, speed_x=fitted[i].speed_x, speed_v=fitted[i].speed_v)
+            if i < len(fitted) and v is not fitted[i]:  # the listener shows the new fit whole
+                f = fitted[i]
+                v = replace(v, kept_fit=f.kept_fit, speed_x=f.speed_x, speed_v=f.speed_v)
             self._tell(self.listener.result, v)
         if views and self.compare:
             with self._cmp:
@@ -789,12 +792,6 @@ class Acquisition:
         from station.session.results import write_result_rows_to
 
         write_result_rows_to(fh, [r.row for r in self.results()], self._results_header())
-
-
-def _without_curve(res: DescentResult) -> DescentResult:
-    if res.speed_x is None and res.speed_v is None:
-        return res
-    return replace(res, speed_x=None, speed_v=None)
 
 
 def _effect_now(day: Day, a: Annotation) -> Effect:

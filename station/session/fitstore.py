@@ -320,6 +320,10 @@ class FitStore:
     def key(self, parts: dict[str, Any], survey_cov: np.ndarray | None) -> str:
         return fit_key(self.context, parts, survey_cov)
 
+    def has(self, key: str) -> bool:
+        """The fit is in the file (where :meth:`get` reads it back from), not only in memory."""
+        return key in self._where
+
     def get(self, key: str) -> FitResult | None:
         stored = self._fits.get(key)
         if stored is None:
