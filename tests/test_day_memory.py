@@ -153,3 +153,39 @@ def test_a_recording_keeps_its_fits_in_the_session_store_not_in_memory(tmp_path,
     plain.close()
     (res,) = plain.results()
     assert res.stored is None and res.kept_fit is not None and res.fit is res.kept_fit
+
+
+def test_a_long_day_keeps_one_copy_of_its_times_and_still_takes_edits(tmp_path, demo_track):
+    """The assembler keeps every descent (an edit at the timer may name any) and every kept
+    time (a repeat from the timer's memory is not doubled), compactly: a finished descent
+    shares the day's frozen copy of its times, older kept times move to a sorted array. A
+    repeat of the first descent's impulse after 70 more is still not doubled, and a time
+    cleared at the timer in descent 2 still leaves it, refitted."""
+    from station.session.rawlog import Chunk
+    from station.timing.assembly import SEEN_RECENT
+
+    cfg = load_config(str(write_config(tmp_path, "loop://")))
+    acq = Acquisition.open(cfg, threaded=False)
+    n = SEEN_RECENT + 6
+    lines = descent_lines(demo_track, [36000 + 60 * k for k in range(n)])
+    t = 1.7e9
+    for d in lines:
+        for line in d:
+            t += 1
+            acq.receive(Chunk(t, line.encode()))
+    asm = acq.day.processor.assembler
+    assert len(asm.finished) == n and asm._seen_old  # older times in the sorted arrays
+    first = acq.day.results[1].descent
+    assert asm.finished[0].times_us is first.times_us  # one copy: the day's
+
+    events = len(acq.day.processor.events)
+    acq.receive(Chunk(t + 1, ("m" + lines[0][1][1:]).encode()))  # descent 1's PC2 again
+    (ev,) = acq.day.processor.events[events:]
+    assert not ev.kept and "not doubled" in ev.reason
+    acq.receive(Chunk(t + 2, ("c" + lines[1][2][1:]).encode()))  # clear descent 2's PC3
+    acq.close()
+    second = acq.day.results[2]
+    assert "PC3" in second.descent.missing and len(second.descent.times_us) == 8
+    assert second.row.photocells_used == 8 and second.fit is not None
+    assert acq.day.results[1].descent.times_us == first.times_us
+    assert len(acq.results()) == n

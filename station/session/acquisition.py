@@ -402,6 +402,7 @@ class Acquisition:
             del proc.events[:]
         for d in done:
             times = DescentTimes.of(d)
+            d.settle(times)  # the assembler keeps the day's one copy of its times, not two
             if times.status != DescentStatus.ABORTED:
                 self.finished_descents += 1
             jobs.append(_Fit(times))

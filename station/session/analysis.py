@@ -50,7 +50,7 @@ class FitJob:
     problem: str = ""  # what makes the fit impossible (e.g. wind without a direction)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class DescentResult:
     """A descent with its fit and its row of the results: immutable, so it can be handed to the
     UI thread as it is (the speed arrays are read-only).
