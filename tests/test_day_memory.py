@@ -189,3 +189,17 @@ def test_a_long_day_keeps_one_copy_of_its_times_and_still_takes_edits(tmp_path, 
     assert second.row.photocells_used == 8 and second.fit is not None
     assert acq.day.results[1].descent.times_us == first.times_us
     assert len(acq.results()) == n
+
+
+def test_descents_with_the_same_metadata_share_one_record(tmp_path, demo_track):
+    """Metadata given "from descent 1 on" is overlaid on the config's for every descent: the
+    rows of a day share one record for equal metadata, not one each."""
+    cfg = load_config(str(write_config(tmp_path, "loop://")))
+    acq = Acquisition.open(cfg, threaded=False)
+    acq.add_metadata({"ski": "A", "wax": "blue"}, from_descent=1)
+    acq.add_metadata({"wax": "red"}, from_descent=3)
+    feed_like_a_reader(acq, descent_lines(demo_track, [36000, 36060, 36120, 36180]))
+    acq.close()
+    metas = [r.row.metadata for r in acq.results()]
+    assert [(m.ski, m.wax) for m in metas] == [("A", "blue")] * 2 + [("A", "red")] * 2
+    assert metas[0] is metas[1] and metas[2] is metas[3] and metas[1] is not metas[2]

@@ -9,6 +9,7 @@ as if nothing happened.
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Hashable
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
@@ -80,6 +81,15 @@ class DescentResult:
         """Fitted (a fit in memory or in the store): no read of the store."""
         return self.kept_fit is not None or self.stored is not None
 
+    @property
+    def fit_timer_precision_s(self) -> float | None:
+        """The SD of one crossing time the fit was judged against (the fit's
+        ``timer_precision_s``), without a read of the store: what the day's comparison takes
+        of each fit, with the row's values (a read of 2000 stored fits costs a second)."""
+        if self.kept_fit is not None:
+            return self.kept_fit.timer_precision_s
+        return self.stored.timer_precision_s if self.stored is not None else None
+
     def lean(self) -> DescentResult:
         """The same result without what it need not keep: its speed curve, and its fit where
         the store has it (what a recording keeps of each descent)."""
@@ -134,12 +144,12 @@ class StoredFit:
     inputs are the result's own (descent, row) and the timer's precision."""
 
     analyser: Analyser
-    key: str
+    handle: Hashable  # where the store keeps it (:meth:`FitCache.handle`)
     timer_precision_s: float
 
     def load(self, res: DescentResult) -> FitResult | None:
         fits = self.analyser.fits
-        fit = fits.get(self.key) if fits is not None else None
+        fit = fits.get(self.handle) if fits is not None else None
         if fit is not None:
             return fit
         row = res.row
@@ -157,11 +167,11 @@ class FitCache(Protocol):
 
     def key(self, parts: dict[str, Any], survey_cov: np.ndarray | None) -> str: ...
 
-    def get(self, key: str) -> FitResult | None: ...
+    def get(self, key: Hashable) -> FitResult | None: ...
 
     def put(self, key: str, fit: FitResult) -> None: ...
 
-    def has(self, key: str) -> bool: ...
+    def handle(self, key: str) -> Hashable | None: ...
 
 
 class Analyser:
@@ -234,8 +244,9 @@ class Analyser:
         curve = _speed_curve(run, fit, cond) if self.speed_curves else None
         speed_x, speed_v = curve if curve is not None else (None, None)
         stored = None
-        if key is not None and self.fits is not None and self.fits.has(key):
-            stored = StoredFit(self, key, job.timer_precision_s)
+        handle = self.fits.handle(key) if key is not None and self.fits is not None else None
+        if handle is not None:
+            stored = StoredFit(self, handle, job.timer_precision_s)
         return DescentResult(d, fit, row, speed_x, speed_v, stored)
 
     def speed_curve(self, res: DescentResult) -> tuple[np.ndarray, np.ndarray] | None:
