@@ -183,7 +183,8 @@ class Acquisition:
         self._csv_problem: str | None = None  # said once, not after every descent
         # what the session's results CSV holds (rows by descent, its size): a new descent is
         # appended to it; None: unknown (not written yet, or a write failed): rewritten in full
-        self._csv_rows: dict[int, ResultRow] | None = None
+        # (a list: descent n's row at n - 1, None where the file has none; 8 bytes a descent)
+        self._csv_rows: list[ResultRow | None] | None = None
         self._csv_size = 0
         self._csv_inode = 0
         self._header: dict[str, str] | None = None  # the CSV's header, made once
@@ -645,16 +646,17 @@ class Acquisition:
         rows = self._csv_rows
         new: dict[int, ResultRow] = {}
         if rows is not None:
-            last = max(rows, default=0)
+            last = len(rows)  # the last descent the file has (the list ends with its row)
             for r in sorted(results, key=lambda r: r.number):
-                old = rows.get(r.number)
+                n = r.number
+                old = rows[n - 1] if n <= last else None
                 if old is r.row or old == r.row:
-                    new.pop(r.number, None)  # unchanged (a later view may change it again)
-                elif r.number in rows or r.number < last:
+                    new.pop(n, None)  # unchanged (a later view may change it again)
+                elif old is not None or n < last:
                     rows = None  # an earlier row changed: the file is rewritten
                     break
                 else:
-                    new[r.number] = r.row
+                    new[n] = r.row
         if rows is not None and not new:
             return  # the file holds them already
         if rows is not None:
@@ -668,7 +670,10 @@ class Acquisition:
             except Exception:  # noqa: BLE001 - written in full below, which says what failed
                 self._csv_rows = None
             else:
-                rows.update(new)
+                for n, row in new.items():
+                    if n > len(rows):
+                        rows.extend([None] * (n - len(rows)))
+                    rows[n - 1] = row
                 return
         with self.lock:
             snapshot = self.day.snapshot()
@@ -686,7 +691,7 @@ class Acquisition:
             with contextlib.suppress(OSError):  # unknown size: the next write is in full
                 st = os.stat(path)
                 self._csv_size, self._csv_inode = st.st_size, st.st_ino
-                self._csv_rows = {r.number: r.row for r in snapshot}
+                self._csv_rows = _rows_by_number(snapshot)
         if problem is not None and problem != self._csv_problem:
             self._tell(self.listener.warning, problem)
         elif problem is None and self._csv_problem is not None:
@@ -806,6 +811,14 @@ def _effect_now(day: Day, a: Annotation) -> Effect:
     if isinstance(a, ModelChange):
         return Effect(refit=(a.descent,))
     return Effect(changed=(a.descent,))
+
+
+def _rows_by_number(results: Sequence[DescentResult]) -> list[ResultRow | None]:
+    """The rows of ``results``, descent n's at n - 1 (None for a number without one)."""
+    rows: list[ResultRow | None] = [None] * max((r.number for r in results), default=0)
+    for r in results:
+        rows[r.number - 1] = r.row
+    return rows
 
 
 def comparison_text(track: Track, results: Sequence[DescentResult]) -> str:

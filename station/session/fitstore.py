@@ -284,6 +284,7 @@ class FitStore:
         #: or ``~offset`` (negative) for a fit not asked for since the file was opened
         self._where: dict[Held, int] = {}
         self._records = 0
+        self._put: Held | None = None  # the key of the fit written last
         self.hits = 0
         self.misses = 0
         self._writable = True
@@ -350,6 +351,8 @@ class FitStore:
         None when it is not (only in memory, or not stored): the key as the store holds it,
         the very object, so that one who keeps it keeps no copy."""
         held = _held(key)
+        if held == self._put and held in self._where:  # just written (a recording's every fit)
+            return self._put
         at = self._where.pop(held, None)
         if at is None:
             return None
@@ -404,6 +407,7 @@ class FitStore:
             return
         if written == len(data):
             self._where[held] = end - len(data)
+            self._put = held
             self._fits.pop(key, None)
         else:  # a short write: the line is torn; keep the fit here
             self._fits[key] = form
