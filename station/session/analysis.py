@@ -57,24 +57,25 @@ class DescentResult:
     UI thread as it is (the speed arrays are read-only).
 
     The fit is :attr:`fit`. A recording keeps it in the session's fit store rather than in
-    memory (``kept_fit`` None, ``stored`` where it is): 4 kB a descent, two thirds of what a
-    2000-descent day kept (issue 18's target is 2 kB a descent); :attr:`fit` reads it back
-    (0.5 ms) for the view that asks (the UI's selected descent, a report)."""
+    memory (``kept_fit`` None; ``stored`` the store, ``handle`` where in it): 4 kB a descent,
+    two thirds of what a 2000-descent day kept (issue 18's target is 2 kB a descent);
+    :attr:`fit` reads it back (0.5 ms) for the view that asks (the UI's selected descent)."""
 
     descent: DescentTimes
     kept_fit: FitResult | None
     row: ResultRow
     speed_x: np.ndarray | None = None  # the fitted skier's speed along the run, for plots
     speed_v: np.ndarray | None = None
-    #: where the fit is stored with the session (None: not stored, or no fit)
+    #: the session's store that keeps the fit (None: not stored, or no fit), and where in it
     stored: StoredFit | None = None
+    handle: Hashable | None = None
 
     @property
     def fit(self) -> FitResult | None:
         """The fit (None: not fitted): the one in memory, else read back from the store."""
         if self.kept_fit is not None or self.stored is None:
             return self.kept_fit
-        return self.stored.load(self)
+        return self.stored.load(self, self.handle)
 
     @property
     def has_fit(self) -> bool:
@@ -139,17 +140,18 @@ def start_time(d: DescentTimes, host_t: float | None, date: dt.date | None) -> s
 
 @dataclass(frozen=True, slots=True)
 class StoredFit:
-    """A fit kept in the session's store, not in memory: its key, and what computes it again
-    if the store no longer has it (another process compacted it, the file went): the fit's
-    inputs are the result's own (descent, row) and the timer's precision."""
+    """Fits kept in the session's store, not in memory: the analyser that reads one back (by
+    the handle its result keeps, :meth:`FitCache.handle`) or computes it again if the store no
+    longer has it (another process compacted it, the file went), from the result's own inputs
+    (descent, row) and the timer's precision. One for all the fits of an analyser and a
+    precision, shared: a result keeps a reference and its handle."""
 
     analyser: Analyser
-    handle: Hashable  # where the store keeps it (:meth:`FitCache.handle`)
     timer_precision_s: float
 
-    def load(self, res: DescentResult) -> FitResult | None:
+    def load(self, res: DescentResult, handle: Hashable) -> FitResult | None:
         fits = self.analyser.fits
-        fit = fits.get(self.handle) if fits is not None else None
+        fit = fits.get(handle) if fits is not None else None
         if fit is not None:
             return fit
         row = res.row
@@ -192,6 +194,7 @@ class Analyser:
         self._survey_cov: dict[tuple[str, ...], np.ndarray] = {}
         #: fits stored with the session, when it has them: a fit found there is not computed
         self.fits: FitCache | None = None
+        self._stored: dict[float, StoredFit] = {}  # what a result keeps of it, by precision
         #: the fitted speed along the run of every descent (one model solve each), for the
         #: views that draw it (the UI, the report); off for those that only list results
         self.speed_curves = True
@@ -246,8 +249,12 @@ class Analyser:
         stored = None
         handle = self.fits.handle(key) if key is not None and self.fits is not None else None
         if handle is not None:
-            stored = StoredFit(self, handle, job.timer_precision_s)
-        return DescentResult(d, fit, row, speed_x, speed_v, stored)
+            stored = self._stored.get(job.timer_precision_s)
+            if stored is None:
+                stored = self._stored[job.timer_precision_s] = StoredFit(
+                    self, job.timer_precision_s
+                )
+        return DescentResult(d, fit, row, speed_x, speed_v, stored, handle)
 
     def speed_curve(self, res: DescentResult) -> tuple[np.ndarray, np.ndarray] | None:
         """The fitted skier's speed along the run of a result kept without it (a recording
