@@ -203,3 +203,27 @@ def test_descents_with_the_same_metadata_share_one_record(tmp_path, demo_track):
     metas = [r.row.metadata for r in acq.results()]
     assert [(m.ski, m.wax) for m in metas] == [("A", "blue")] * 2 + [("A", "red")] * 2
     assert metas[0] is metas[1] and metas[2] is metas[3] and metas[1] is not metas[2]
+
+
+def test_a_finish_cleared_in_the_same_chunk_leaves_the_descent_open_to_take_the_next(
+    tmp_path, demo_track
+):
+    """The chunk that finishes a descent also clears its finish at the timer: the descent is
+    open again (its times stay lists the assembler can change) and takes the real finish."""
+    from station.session.rawlog import Chunk
+    from station.timing.wireformats import format_alge
+
+    cfg = load_config(str(write_config(tmp_path, "loop://")))
+    acq = Acquisition.open(cfg, threaded=False)
+    (lines,) = descent_lines(demo_track, [36000])
+    false_finish = lines[-1]
+    h, m, sec = false_finish[10:23].split(":")
+    tod_us = (int(h) * 3600 + int(m) * 60) * 10**6 + round(float(sec) * 1e6)
+    real_finish = format_alge("C8", tod_us + 5000, 10) + "\r"  # 5 ms later
+    acq.receive(Chunk(1.7e9, "".join(lines + ["c" + false_finish[1:]]).encode()))
+    acq.receive(Chunk(1.7e9 + 1, real_finish.encode()))
+    acq.close()
+    (res,) = acq.results()
+    assert res.descent.status == "complete" and len(res.descent.times_us) == 9
+    assert res.descent.times_us[-1] % 86_400_000_000 == tod_us + 5000
+    assert any("cleared at the timer" in f for f in res.descent.flags)

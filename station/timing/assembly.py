@@ -92,7 +92,10 @@ class TimedDescent:
         :class:`station.session.records.DescentTimes`: the same values as tuples): it keeps
         those tuples in place of its lists, one copy of each for the day, not two (a day's
         descents stay in memory: edits may name any of them). The assembler makes them lists
-        again (:meth:`thaw`) before it changes the descent."""
+        again (:meth:`thaw`) before it changes the descent. A descent open again (its finish
+        cleared at the timer later in the same chunk) keeps its lists."""
+        if self.status == "open":
+            return
         for name in _LISTS:
             mine, theirs = getattr(self, name), getattr(kept, name)
             if type(theirs) is tuple and len(mine) == len(theirs) and tuple(mine) == theirs:
