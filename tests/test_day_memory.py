@@ -227,3 +227,48 @@ def test_a_finish_cleared_in_the_same_chunk_leaves_the_descent_open_to_take_the_
     assert res.descent.status == "complete" and len(res.descent.times_us) == 9
     assert res.descent.times_us[-1] % 86_400_000_000 == tod_us + 5000
     assert any("cleared at the timer" in f for f in res.descent.flags)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_settled_descents_and_sorted_kept_times_decide_as_before(seed, monkeypatch):
+    """A day assembled as a recording does it (every finished descent settled on its frozen
+    copy, older kept times moved to the sorted arrays) gives the same events and descents as
+    the assembler alone, on random days with several skiers, double triggers, repeats from
+    the timer's memory (of the day's first descents too) and clears and inserts at the timer
+    of times from any earlier descent."""
+    import dataclasses
+
+    import station.timing.assembly as assembly
+    from station.session.records import DescentTimes
+    from station.timing.assembly import DescentAssembler
+    from station.timing.impulses import DAY_US, Edit
+    from tests.test_assembly_fast_path import CHANNELS, PCS, POS, random_day
+
+    rng = np.random.default_rng(seed)
+    impulses = random_day(rng, "bib" if seed % 2 else "counter", n=80)
+    feed: list = []
+    for k, imp in enumerate(impulses):
+        feed.append(imp)
+        if k > 40 and rng.random() < 0.08:  # an edit of an earlier impulse
+            old = impulses[int(rng.integers(0, k))]
+            kind = "cleared" if rng.random() < 0.6 else "inserted"
+            tod = old.tod_us if kind == "cleared" else (old.tod_us + 40_000) % DAY_US
+            feed.append(Edit(kind, old.channel, tod, "c", old.bib))
+    feed += impulses[:10]  # the timer's memory from the start of the day
+    monkeypatch.setattr(assembly, "SEEN_RECENT", 4)
+
+    def run(settle: bool) -> tuple:
+        asm = DescentAssembler(PCS, CHANNELS, positions_m=POS, pairing="auto")
+        for i, x in enumerate(feed, start=1):
+            done = asm.edit(x, i) if isinstance(x, Edit) else asm.feed(x, i)
+            for d in done if settle else ():
+                d.settle(DescentTimes.of(d))
+        done = asm.close()
+        lists = [{k: list(v) if isinstance(v, tuple) else v
+                  for k, v in dataclasses.asdict(d).items()} for d in asm.finished]  # fmt: skip
+        return [tuple(e) for e in asm.events], lists, asm.count, bool(asm._seen_old)
+
+    settled, alone = run(True), run(False)
+    assert settled == alone
+    assert settled[3] and len(settled[1]) > 40
+    assert any("(refitted)" in str(e) for e in settled[0])  # edits changed finished descents
