@@ -8,6 +8,9 @@
       annotations.jsonl  what the engineer entered: metadata, invalid marks, refits
       fits.jsonl       every descent's fit, keyed by what it depends on (a cache:
                        station.session.fitstore), so a replay fits only what changed
+      results.state.json  what results.csv was computed from and where its rows are, so
+                       an annotate changes the rows it concerns without a replay
+                       (station.session.resultsstate)
       recording.lock   there while the session is recorded (:class:`RecordingLock`)
 
 Replaying a session (``station replay SESSION``) runs its own snapshot through the same
@@ -61,8 +64,10 @@ RESULTS = "results.csv"
 ANNOTATIONS = "annotations.jsonl"
 LOCK = "recording.lock"
 FITS = "fits.jsonl"
+#: what results.csv was computed from (station.session.resultsstate)
+RESULTS_STATE = "results.state.json"
 #: files made from the others (a replay makes them again): not part of what a session is
-DERIVED = (RESULTS, LOCK, FITS)
+DERIVED = (RESULTS, LOCK, FITS, RESULTS_STATE)
 
 
 def is_session(path: str) -> bool:

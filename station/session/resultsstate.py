@@ -1,0 +1,502 @@
+"""What a session's results CSV was computed from (``SESSION/results.state.json``), so that
+``station annotate`` can bring the CSV up to date without replaying the day when the
+annotation is all that changed.
+
+An annotate used to replay the whole raw log and rewrite every row: 0.95 s at 200 descents,
+4.6–8.8 s at 2000 (issue 19). Most annotations change a column or two of a few rows: an
+invalid or valid mark the ``status`` and ``invalid_reason`` of one row; ski, wax, notes,
+skier or the snow temperature the metadata columns of the descents they are for. Those rows
+are changed in place and the file written once; an annotation that changes a fit (mass, air,
+wind, a model) replays the day as before (its fits come from the fit store but that one).
+
+The state says, for one results CSV:
+
+- the SHA-256 of the CSV itself (a CSV damaged, cut or edited by hand is not trusted);
+- the raw log's SHA-256 (and its size and modification time), the SHA-256 of every other file
+  of the session but the annotations and what is made from the others (config, survey,
+  observations), and the code that computes results (its files' sizes and times, and the
+  version): results of another day, setup or station are not taken for this one's;
+- the SHA-256 of the annotations file the CSV shows;
+- where each row starts in the CSV (bytes), the descent of each row, the status of the fit of
+  each row marked invalid (the CSV says ``invalid`` there) and the bib of each descent whose
+  bib names an item in the config.
+
+When any of it does not hold, or the state is missing or cannot be read, the day is replayed
+as before, and the state written anew with the CSV. The state is written by the replay that
+writes the CSV, never by a recorder: the first annotate after a recording replays.
+
+The rows the fast path writes are those a replay writes, byte for byte: the metadata in force
+for a descent is found by the rules of :class:`station.session.day.Day` (mirrored here:
+importing the day imports the fit, 0.9 s of numpy and scipy), and the tests compare the result
+with a replay's for every kind of annotation.
+"""
+
+from __future__ import annotations
+
+import bisect
+import contextlib
+import hashlib
+import json
+import os
+import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+from station import __version__
+from station.errors import InputError
+from station.files import MAX_OBSERVATIONS, MAX_RAWLOG, read_bytes
+from station.session import store as sessions
+from station.session.config import StationConfig
+from station.session.records import (
+    METADATA_FIELDS,
+    Annotation,
+    InvalidMark,
+    Metadata,
+    MetadataAnnotation,
+    ResultRow,
+    ResultStatus,
+    ValidMark,
+    csv_record,
+)
+from station.session.results import (
+    COLUMNS,
+    MAX_RESULTS,
+    RowWriter,
+    cell_value,
+    parse_row,
+    results_lines,
+)
+
+STATE = sessions.RESULTS_STATE
+FORMAT = 1
+#: the metadata keys a fit depends on (Day.fit_job: mass, the air's density, the wind): an
+#: annotation that names one is fitted again, by a replay
+FIT_KEYS = frozenset(
+    {"mass_kg", "air_temperature_c", "pressure_hpa", "humidity_pct", "wind_ms", "wind_from_deg"}
+)
+#: the parts of the station whose code decides the results (not the commands, UI, reports)
+_NOT_RESULTS = ("cli", "ui", "store", "report")
+#: a state file is small (a few numbers a descent)
+MAX_STATE = 16 * 1024 * 1024
+_META_COLUMNS = tuple(f for f in METADATA_FIELDS if f.column)
+_STATUS = COLUMNS.index("status")
+_INVALID = COLUMNS.index("invalid_reason")
+
+
+@cache
+def code_stamp() -> str:
+    """The code that computes results, by its files' paths, sizes and modification times and
+    the version (read once a process: ~75 stat calls, not a read of every file)."""
+    root = Path(__file__).resolve().parents[1]
+    h = hashlib.sha256(__version__.encode())
+    for f in sorted(root.rglob("*.py")):
+        rel = f.relative_to(root)
+        if rel.parts[0] in _NOT_RESULTS:
+            continue
+        st = f.stat()
+        h.update(f"{rel.as_posix()}\0{st.st_size}\0{st.st_mtime_ns}\0".encode())
+    return h.hexdigest()
+
+
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _setup_names(session: str) -> list[str]:
+    """The session's files but the raw log, the annotations and what is made from the others
+    (results, fits, lock, this state; temporary files begin with a dot): its config, survey
+    and observations, by their paths inside it."""
+    skip = {sessions.RAW, sessions.ANNOTATIONS, *sessions.DERIVED}
+    out = []
+    for root, dirs, files in os.walk(session):
+        dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+        for name in files:
+            rel = os.path.relpath(os.path.join(root, name), session)
+            if rel not in skip and not name.startswith("."):
+                out.append(rel)
+    return sorted(out)
+
+
+def _setup_files(session: str, names: Sequence[str]) -> dict[str, str]:
+    return {
+        rel: _sha256(read_bytes(os.path.join(session, rel), MAX_OBSERVATIONS, "session file"))
+        for rel in names
+    }
+
+
+def annotations_digest(session: str) -> str | None:
+    """The SHA-256 of the annotations file as it is (of no bytes when there is none); None
+    when it cannot be read (then no state is written or trusted)."""
+    path = os.path.join(session, sessions.ANNOTATIONS)
+    if not os.path.lexists(path):
+        return _sha256(b"")
+    try:
+        return _sha256(read_bytes(path, sessions.MAX_ANNOTATIONS, "annotations file"))
+    except (InputError, OSError):
+        return None
+
+
+def _raw_stamp(session: str, known: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The raw log's size, modification time and SHA-256. A raw log of the size and time
+    ``known`` gives is taken to have its SHA-256 too, as make and git judge a file by its
+    size and time: a recorder never writes to a session again once it ended, and reading a
+    2000-descent day's log for its hash (1 MB) was a third of an annotate's time."""
+    path = os.path.join(session, sessions.RAW)
+    st = os.stat(path)
+    stamp: dict[str, Any] = {"size": st.st_size, "mtime_ns": st.st_mtime_ns}
+    if known is not None and all(known.get(k) == v for k, v in stamp.items()):
+        return {**stamp, "sha256": known.get("sha256")}
+    return {**stamp, "sha256": _sha256(read_bytes(path, MAX_RAWLOG, "raw log"))}
+
+
+@dataclass
+class ResultsState:
+    """What one results CSV was computed from, and where its rows are."""
+
+    code: str
+    files: dict[str, str]
+    raw: dict[str, Any]
+    annotations_sha256: str
+    results_sha256: str
+    descents: list[int]
+    offsets: list[int]  # where each row begins, then the end of the file
+    statuses: dict[int, str] = field(default_factory=dict)  # the fit's, of rows marked invalid
+    bibs: dict[int, str] = field(default_factory=dict)  # bibs that name an item of the config
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "format": FORMAT, "code": self.code, "files": self.files, "raw": self.raw,
+            "annotations_sha256": self.annotations_sha256,
+            "results_sha256": self.results_sha256, "descents": self.descents,
+            "offsets": self.offsets, "statuses": {str(k): v for k, v in self.statuses.items()},
+            "bibs": {str(k): v for k, v in self.bibs.items()},
+        }  # fmt: skip
+
+    @classmethod
+    def from_json(cls, rec: Any) -> ResultsState:
+        """The state from its JSON form; anything else is ``ValueError`` (not trusted)."""
+        if not isinstance(rec, dict) or rec.get("format") != FORMAT:
+            raise ValueError("not a results state of this version")
+        try:
+            state = cls(
+                code=_typed(rec["code"], str), files=_typed(rec["files"], dict),
+                raw=_typed(rec["raw"], dict),
+                annotations_sha256=_typed(rec["annotations_sha256"], str),
+                results_sha256=_typed(rec["results_sha256"], str),
+                descents=_ints(rec["descents"]),
+                offsets=_ints(rec["offsets"]),
+                statuses={int(k): _typed(v, str) for k, v in _typed(rec["statuses"], dict).items()},
+                bibs={int(k): _typed(v, str) for k, v in _typed(rec["bibs"], dict).items()},
+            )  # fmt: skip
+        except KeyError as exc:
+            raise ValueError(f"no {exc}") from None
+        if len(state.offsets) != len(state.descents) + 1:
+            raise ValueError("offsets and descents disagree")
+        if any(b <= a for a, b in zip(state.descents, state.descents[1:], strict=False)):
+            raise ValueError("descents out of order")
+        if any(b < a for a, b in zip(state.offsets, state.offsets[1:], strict=False)):
+            raise ValueError("offsets go backwards")
+        return state
+
+
+def _ints(value: Any) -> list[int]:
+    if not isinstance(value, list) or not set(map(type, value)) <= {int}:
+        raise ValueError("expected a list of whole numbers")
+    return value
+
+
+def _typed(value: Any, kind: type) -> Any:
+    if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+        raise ValueError(f"expected {kind.__name__}")
+    return value
+
+
+# ----------------------------------------------------------------------------- writing
+
+
+def write_results_with_state(
+    session: str,
+    rows: Sequence[ResultRow],
+    header: dict[str, str],
+    annotations_sha256: str | None,
+    config: StationConfig,
+    bibs: dict[int, str],
+) -> str:
+    """Write the results CSV of a replay (``rows`` as its results show them, the invalid
+    marks on them) and its state; ``annotations_sha256``: of the annotations file the replay
+    applied, taken before it read them. Returns the CSV's path. The CSV is written first: a
+    state that cannot be written leaves the old one, which no longer matches the CSV."""
+    head, lines = results_lines([csv_record(r) for r in rows], header)
+    statuses = {r.descent: r.status.value for r in rows if r.invalid_reason}
+    items = {n: b for n, b in bibs.items() if b in config.items}
+    encoded = [head.encode("utf-8")] + [x.encode("utf-8") for x in lines]
+    offsets = [len(encoded[0])]
+    for row in encoded[1:]:
+        offsets.append(offsets[-1] + len(row))
+    return _write(
+        session, b"".join(encoded), offsets, [r.descent for r in rows], annotations_sha256,
+        statuses, items, None,
+    )  # fmt: skip
+
+
+def _write(
+    session: str,
+    data: bytes,
+    offsets: list[int],
+    descents: list[int],
+    annotations_sha256: str | None,
+    statuses: dict[int, str],
+    bibs: dict[int, str],
+    known: tuple[dict[str, str], dict[str, Any]] | None,
+) -> str:
+    """Write the CSV ``data`` (its rows beginning at ``offsets``, the end last), then its
+    state (when the annotations it shows are known)."""
+    path = os.path.join(session, sessions.RESULTS)
+    # the CSV first: a state that is not written then is the old one, which does not hold
+    # for the new CSV (its SHA-256), so the next annotate replays
+    _replace(path, data)
+    if annotations_sha256 is None:
+        return path
+    try:
+        files, raw = known if known is not None else (
+            _setup_files(session, _setup_names(session)), _raw_stamp(session)
+        )  # fmt: skip
+        state = ResultsState(
+            code_stamp(), files, raw, annotations_sha256, _sha256(data), descents, offsets,
+            statuses, bibs,
+        )  # fmt: skip
+        text = json.dumps(state.to_json(), separators=(",", ":")).encode()
+        _replace(os.path.join(session, STATE), text)
+    except (OSError, InputError):
+        pass  # no state: the next annotate replays
+    return path
+
+
+def _replace(path: str, data: bytes) -> None:
+    """Write a file atomically (a temporary file beside it, renamed over it)."""
+    folder = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(path)}-", dir=folder)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # as open() would have made it, not mkstemp's 0600
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+# ----------------------------------------------------------------------------- reading
+
+
+@dataclass
+class Current:
+    """A results CSV its state says is current: its bytes and its state."""
+
+    data: bytes
+    state: ResultsState
+    files: dict[str, str]
+    raw: dict[str, Any]
+
+
+@cache
+def _parsed(text: bytes) -> ResultsState:
+    return ResultsState.from_json(json.loads(text))
+
+
+def read_state(session: str) -> ResultsState | None:
+    """The state as its file says (None: none, or not one of this version); parsed once a
+    process for the same bytes (``annotate`` looks at it for the descents, then to annotate)."""
+    try:
+        return _parsed(read_bytes(os.path.join(session, STATE), MAX_STATE, "results state"))
+    except (OSError, ValueError, RecursionError, InputError):  # not trusted: replayed
+        return None
+
+
+def current(session: str, annotations_sha256: str | None) -> Current | None:
+    """The results CSV and its state when the state holds for the session as it is, with the
+    annotations file whose SHA-256 is ``annotations_sha256``; None otherwise (replay)."""
+    state = read_state(session)
+    if state is None:
+        return None
+    if annotations_sha256 is None or state.annotations_sha256 != annotations_sha256:
+        return None
+    if state.code != code_stamp():
+        return None
+    try:
+        names = _setup_names(session)
+        if names != sorted(state.files):
+            return None
+        data = read_bytes(os.path.join(session, sessions.RESULTS), MAX_RESULTS, "results CSV")
+        if _sha256(data) != state.results_sha256 or state.offsets[-1] != len(data):
+            return None
+        files = _setup_files(session, names)
+        if files != state.files:
+            return None
+        raw = _raw_stamp(session, state.raw)
+        if raw["sha256"] != state.raw.get("sha256") or raw["size"] != state.raw.get("size"):
+            return None
+    except (OSError, InputError):
+        return None
+    return Current(data, state, files, raw)
+
+
+def descent_numbers(session: str) -> list[int] | None:
+    """The descents of the results CSV as its state lists them, when the state is of this CSV
+    (by its size: a check of what the engineer typed, not of the results); None otherwise."""
+    state = read_state(session)
+    try:
+        size = os.path.getsize(os.path.join(session, sessions.RESULTS))
+    except OSError:
+        return None
+    return state.descents if state is not None and size == state.offsets[-1] else None
+
+
+# ----------------------------------------------------------------------------- annotating
+
+
+class Marks:
+    """The annotations of a day as :class:`station.session.day.Day` applies them (its
+    ``annotate`` and ``metadata_for``), without its fits."""
+
+    def __init__(self, config: StationConfig, annotations: Sequence[Annotation]) -> None:
+        values: dict[str, object] = {"mass_kg": config.mass_kg, **config.metadata}
+        air = config.air
+        if air.measured:
+            values["pressure_hpa"] = air.pressure_hpa
+            values["air_temperature_c"] = air.temperature_c
+            values["humidity_pct"] = air.humidity_pct
+        self.config = config
+        self.base = Metadata.from_values(values)
+        self.changes: list[tuple[int, Metadata]] = []
+        self.listed: list[tuple[frozenset[int], Metadata]] = []
+        self.invalid: dict[int, str] = {}
+        for a in annotations:
+            if isinstance(a, MetadataAnnotation):
+                if a.descents is not None:
+                    self.listed.append((frozenset(a.descents), a.values))
+                else:
+                    self.changes.append((a.from_descent or 0, a.values))
+            elif isinstance(a, InvalidMark):
+                self.invalid[a.descent] = a.reason or "marked invalid"
+            elif isinstance(a, ValidMark):
+                self.invalid.pop(a.descent, None)
+
+    def metadata_for(self, number: int, bib: str | None) -> Metadata:
+        meta = self.base
+        for start, values in self.changes:
+            if start <= number:
+                meta = meta.overlay(values)
+        for descents, values in self.listed:
+            if number in descents:
+                meta = meta.overlay(values)
+        item = self.config.items.get(bib) if bib else None
+        if item:
+            meta = meta.overlay(Metadata.from_values(item, f"items.{bib}."))
+        return meta
+
+
+def in_place(
+    session: str,
+    config: StationConfig,
+    cur: Current,
+    new: Sequence[Annotation],
+    annotations_sha256: str | None,
+) -> str | None:
+    """Bring the CSV ``cur`` up to date with the annotations ``new`` appended after those it
+    shows, without a replay, when none of them changes a fit; write it and its state. Returns
+    the CSV's path, or None when a replay is needed (nothing written then)."""
+    touched: set[int] = set()
+    state = cur.state
+    have = state.descents
+    #: the invalid marks the new records leave (a row's earlier reason is in its cell)
+    reasons: dict[int, str] = {}
+    metadata = False
+    for a in new:
+        if isinstance(a, InvalidMark | ValidMark):
+            touched.add(a.descent)
+            reasons[a.descent] = (a.reason or "marked invalid") if isinstance(a, InvalidMark) \
+                else ""  # fmt: skip
+        elif isinstance(a, MetadataAnnotation):
+            metadata = True
+            if FIT_KEYS & a.values.values().keys():
+                return None  # the fit changes: replayed
+            if not any(f.column for f in METADATA_FIELDS if f.key in a.values.values()):
+                continue  # a key results.csv has no column for (grind, snow type …)
+            if a.descents is not None:
+                touched.update(a.descents)
+            else:
+                start = a.from_descent or 0
+                touched.update(n for n in have if n >= start)
+        else:
+            return None  # a model: fitted again, by a replay
+    marks = None
+    if metadata:  # what is in force for a descent follows from every annotation of the day
+        try:
+            marks = Marks(config, sessions.read_annotations(session))
+        except Exception:  # noqa: BLE001 - the replay says what is wrong
+            return None
+    data, offsets = cur.data, state.offsets
+
+    def row_of(n: int) -> int:  # the rows are in the order of their descents
+        k = bisect.bisect_left(have, n)
+        return k if k < len(have) and have[k] == n else -1
+
+    statuses = dict(state.statuses)
+    writer = RowWriter()
+    changed: list[tuple[int, bytes]] = []  # (row, its new bytes), in the file's order
+    for n in sorted(touched):
+        k = row_of(n)
+        if k < 0:
+            continue  # not a descent of the day (yet): nothing to show
+        try:
+            text = data[offsets[k] : offsets[k + 1]].decode("utf-8")
+            cells = parse_row(text)
+            if writer.text(cells) != text or cells[0] != n:
+                return None  # not written by this writer: replayed
+        except ValueError:
+            return None
+        if marks is not None:
+            meta = marks.metadata_for(n, state.bibs.get(n))
+            for f in _META_COLUMNS:
+                v = getattr(meta, f.key)
+                cells[COLUMNS.index(f.key)] = cell_value(f.key, ("" if v is None else v)
+                                                        if f.kind is str else v)  # fmt: skip
+        status = statuses.pop(n, None) or cells[_STATUS]
+        if status == ResultStatus.INVALID.value:
+            return None  # the fit's status is not known: replayed
+        if marks is not None:
+            cells[_INVALID] = cell_value("invalid_reason", marks.invalid.get(n, ""))
+        elif n in reasons:
+            cells[_INVALID] = cell_value("invalid_reason", reasons[n])
+        reason = cells[_INVALID]
+        cells[_STATUS] = ResultStatus.INVALID.value if reason else status
+        if reason:
+            statuses[n] = status
+        changed.append((k, writer.text(cells).encode("utf-8")))
+    # the file in pieces: the unchanged stretches as they are, the changed rows new (a row's
+    # new length moves the rows after it: their offsets move by as much)
+    pieces: list[bytes] = []
+    grown: dict[int, int] = {}
+    at = 0
+    for k, row in changed:
+        pieces += [data[at : offsets[k]], row]
+        at = offsets[k + 1]
+        grown[k] = len(row) - (offsets[k + 1] - offsets[k])
+    pieces.append(data[at:])
+    new_offsets = offsets
+    if any(grown.values()):
+        new_offsets, moved = [], 0
+        for j, off in enumerate(offsets):
+            new_offsets.append(off + moved)
+            moved += grown.get(j, 0)
+    return _write(
+        session, b"".join(pieces), new_offsets, list(have), annotations_sha256, statuses,
+        dict(state.bibs), (cur.files, cur.raw),
+    )  # fmt: skip
