@@ -97,8 +97,14 @@ KINDS: dict[str, list[tuple[list[Annotation], bool]]] = {
         ([MetadataAnnotation(Metadata(ski="pair C", notes=NOTES), from_descent=4, t=2.0)], True),
     ],
     "metadata for listed descents": [
-        ([MetadataAnnotation(Metadata(wax="red", snow_temperature_c=-4.5, skier="-B"),
-                             descents=(2, 5), t=2.0)], True),  # fmt: skip
+        (
+            [
+                MetadataAnnotation(
+                    Metadata(wax="red", snow_temperature_c=-4.5, skier="-B"), descents=(2, 5), t=2.0
+                )
+            ],
+            True,
+        ),  # fmt: skip
     ],
     "a listed descent keeps its metadata over a later change from N on": [
         ([MetadataAnnotation(Metadata(ski="pair X"), descents=(4,), t=2.0)], True),
