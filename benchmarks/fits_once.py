@@ -4,10 +4,15 @@ the same command with every fit computed again (the station before the store, an
 command after a recording).
 
 The sessions are made as tests/session_helpers.py makes them (the model's own times as ALGE
-lines in a raw log, two items). Each ``annotate`` marks one descent invalid (the results CSV is
-rewritten from a replay, as ``station export`` writes it). Figures in this process (the
-command's start-up not included; benchmarks/startup.py measures that), the median of
-``--repeats`` runs; the commands "as typed" are whole processes of the ``station`` command.
+lines in a raw log, two items). Each ``annotate`` marks one descent invalid. The first one
+after the day (no fits stored, no state of the results CSV) replays it and fits every descent;
+then the results CSV is changed in place, without a replay (its state says it is the replay's:
+station/session/resultsstate.py); "replayed" is the same annotate with that state removed
+first, i.e. the station before it (the whole day replayed from the stored fits and the CSV
+rewritten). Figures in this process (the command's start-up not included;
+benchmarks/startup.py measures that), the median of ``--repeats`` runs; the commands "as
+typed" are whole processes of the ``station`` command. Issue 19's target: annotate at 2000
+descents ≤ 1.5× its time at 200, as typed and in this process.
 
 Run: python benchmarks/fits_once.py [--sizes 200,2000] [--repeats 3]
 """
@@ -23,6 +28,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import typing
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -30,6 +36,7 @@ sys.path.insert(0, str(ROOT))
 
 from station.cli.main import main  # noqa: E402
 from station.session.fitstore import FITS  # noqa: E402
+from station.session.resultsstate import STATE  # noqa: E402
 from tests.session_helpers import make_session  # noqa: E402
 
 
@@ -49,26 +56,52 @@ def _process(*args: str) -> float:
     return time.perf_counter() - t0
 
 
-def _without_fits(session: str) -> None:
+def _without(session: str, name: str) -> None:
     with contextlib.suppress(FileNotFoundError):
-        os.unlink(os.path.join(session, FITS))
+        os.unlink(os.path.join(session, name))
+
+
+def _without_fits(session: str) -> None:
+    _without(session, FITS)
+
+
+def measure_annotate(n: int, repeats: int, session: str | None = None) -> dict[str, float]:
+    """The annotate figures of a day of ``n`` descents (made here unless given)."""
+    if session is None:
+        with tempfile.TemporaryDirectory() as tmp:
+            made = str(make_session(Path(tmp), order="AB" * (n // 2), interval_s=20.0))
+            return measure_annotate(n, repeats, made)
+    out: dict[str, float] = {}
+
+    def annotate(k: int) -> float:
+        return _run("annotate", session, "--descents", str(1 + k % n), "--invalid", f"r{k}")
+
+    def typed(k: int) -> float:
+        return _process("annotate", session, "--descents", str(2 + k % n), "--invalid", f"p{k}")
+
+    def replayed(run: typing.Callable[[int], float], k: int) -> float:
+        _without(session, STATE)
+        return run(k)
+
+    _without_fits(session)
+    out["annotate, every fit computed"] = annotate(0)  # also stores the fits
+    out["annotate, replayed, fits stored"] = statistics.median(
+        replayed(annotate, k) for k in range(1, repeats + 1)
+    )
+    annotate(0)  # the results CSV with its state again
+    out["annotate, in place"] = statistics.median(annotate(k) for k in range(1, 3 * repeats + 1))
+    out["annotate as typed, replayed"] = statistics.median(
+        replayed(typed, k) for k in range(repeats)
+    )
+    typed(0)
+    out["annotate as typed, in place"] = statistics.median(typed(k) for k in range(repeats))
+    return out
 
 
 def measure(n: int, repeats: int) -> dict[str, float]:
     with tempfile.TemporaryDirectory() as tmp:
         session = str(make_session(Path(tmp), order="AB" * (n // 2), interval_s=20.0))
-        out: dict[str, float] = {}
-
-        def annotate(k: int) -> float:
-            return _run("annotate", session, "--descents", str(1 + k % n), "--invalid", f"r{k}")
-
-        _without_fits(session)
-        out["annotate, every fit computed"] = annotate(0)  # also stores the fits
-        out["annotate, fits stored"] = statistics.median(annotate(k) for k in range(1, repeats + 1))
-        out["annotate as typed, fits stored"] = statistics.median(
-            _process("annotate", session, "--descents", "2", "--invalid", f"p{k}")
-            for k in range(repeats)
-        )
+        out = measure_annotate(n, repeats, session)
         _without_fits(session)
         out["compare, every fit computed"] = _run("compare", session)
         out["compare, fits stored"] = statistics.median(
@@ -87,17 +120,23 @@ def main_() -> None:
     sizes = [int(s) for s in args.sizes.split(",")]
     figures = {n: measure(n, args.repeats) for n in sizes}
     names = list(figures[sizes[0]])
-    print(f"{'':34}" + "".join(f"{n:>9d} desc" for n in sizes) + "   ratio last/first")
+    print(f"{'':34}" + "".join(f"{n:>10d} desc" for n in sizes) + "   ratio last/first")
     for name in names:
         row = [figures[n][name] for n in sizes]
         unit = "" if "kB" in name else " s"
-        cells = "".join(f"{v:>12.2f}{unit}" if unit else f"{v:>14.2f}" for v in row)
+        cells = "".join(f"{v:>12.3f}{unit}" if unit else f"{v:>14.2f}" for v in row)
         print(f"{name:34}{cells}   {row[-1] / row[0]:6.2f}×")
-    last = figures[sizes[-1]]
-    for what in ("annotate", "compare"):
-        before, after = last[f"{what}, every fit computed"], last[f"{what}, fits stored"]
+    last, first = figures[sizes[-1]], figures[sizes[0]]
+    for what, after_name in (
+        ("annotate", "annotate, in place"),
+        ("compare", "compare, fits stored"),
+    ):
+        before, after = last[f"{what}, every fit computed"], last[after_name]
         gain = before / after
-        print(f"{what} at {sizes[-1]}: {before:.2f} s -> {after:.2f} s ({gain:.1f}× faster)")
+        print(f"{what} at {sizes[-1]}: {before:.2f} s -> {after:.3f} s ({gain:.1f}× faster)")
+    for name in ("annotate, in place", "annotate as typed, in place"):
+        ratio = last[name] / first[name]
+        print(f"{name}: {sizes[-1]} / {sizes[0]} descents {ratio:.2f}× (target ≤ 1.5×)")
 
 
 if __name__ == "__main__":

@@ -117,14 +117,34 @@ KINDS: dict[str, list[tuple[list[Annotation], bool]]] = {
     "a descent still to come": [
         ([MetadataAnnotation(Metadata(wax="green"), from_descent=99, t=2.0)], True),
     ],
-    "a model change": [
+    "a model change (the descent alone fitted again)": [
         ([InvalidMark(3, "fell", 2.0)], True),
-        ([ModelChange(3, FitModel.VELOCITY, 3.0)], False),
+        ([ModelChange(3, FitModel.VELOCITY, 3.0)], True),
         ([ValidMark(3, 4.0)], True),
+        ([ModelChange(3, FitModel.CONSTANT, 5.0), InvalidMark(4, "gate", 5.0)], True),
     ],
-    "a mass, which changes the fit": [
-        ([MetadataAnnotation(Metadata(mass_kg=70.0, ski="light"), descents=(5,), t=2.0)], False),
+    "a model change of the first descent, whose fit hands the survey on": [
+        ([ModelChange(1, FitModel.VELOCITY, 2.0)], False),
+        ([InvalidMark(1, "gate", 3.0)], True),
+    ],
+    "a mass and a ski for listed descents": [
+        ([MetadataAnnotation(Metadata(mass_kg=70.0, ski="light"), descents=(5,), t=2.0)], True),
         ([InvalidMark(5, "too light", 3.0)], True),
+        (
+            [
+                MetadataAnnotation(
+                    Metadata(pressure_hpa=850.0, air_temperature_c=-8.0), descents=(2, 6), t=4.0
+                )
+            ],
+            True,
+        ),  # fmt: skip
+    ],
+    "a mass from a descent on": [
+        ([MetadataAnnotation(Metadata(mass_kg=80.0), from_descent=4, t=2.0)], False),
+        ([InvalidMark(5, "fell", 3.0)], True),
+    ],
+    "a wind without a direction for a listed descent (an error row)": [
+        ([MetadataAnnotation(Metadata(wind_ms=2.0), descents=(4,), t=2.0)], True),
     ],
 }
 

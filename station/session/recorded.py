@@ -327,8 +327,9 @@ class RecordedSession:
             header = sessions.results_header(acq.config, acq.track.name)
             bibs = {r.number: r.descent.bib for r in results if r.descent.bib}
             return resultsstate.write_results_with_state(
-                self.path, [r.row for r in results], header, digest, acq.config, bibs
-            )
+                self.path, [r.row for r in results], header, digest, acq.config, bibs,
+                _fitted(acq),
+            )  # fmt: skip
 
         path = self._saved(write)
         assert path is not None
@@ -370,6 +371,24 @@ class RecordedSession:
             self.track, self.results(), wind_limit_ms=wind_limit_ms, reference=reference,
             **options,
         )  # fmt: skip
+
+
+def _fitted(acq: Acquisition) -> resultsstate.Fitted:
+    """The replay's descents in the order it fitted them, and the descent on each set of
+    photocells whose fit handed the survey's covariance on to the later ones (the analyser's
+    rule: the first good fit with one)."""
+    day = acq.day
+    order = [day.results[n] for n in day.results]  # fitted once each, in this order
+    sources: dict[tuple[str, ...], tuple[int, Any]] = {}
+    for r in order:
+        fit = r.fit
+        if fit is not None and fit.status == "ok" and fit.survey_time_cov is not None:
+            sources.setdefault(r.descent.photocells, (r.number, fit.survey_time_cov))
+    return resultsstate.Fitted(
+        [r.descent for r in order],
+        [(ids, n, cov) for ids, (n, cov) in sources.items()],
+        day.timer_precision_s(),
+    )
 
 
 def _text(value: Any) -> str:

@@ -67,10 +67,12 @@ from station.session.results import (
     RowWriter,
     cell_value,
     parse_row,
+    results_frame,
     results_lines,
 )
 
 STATE = sessions.RESULTS_STATE
+DESCENTS = sessions.RESULTS_DESCENTS
 FORMAT = 1
 #: the metadata keys a fit depends on (Day.fit_job: mass, the air's density, the wind): an
 #: annotation that names one is fitted again, by a replay
@@ -165,6 +167,9 @@ class ResultsState:
     offsets: list[int]  # where each row begins, then the end of the file
     statuses: dict[int, str] = field(default_factory=dict)  # the fit's, of rows marked invalid
     bibs: dict[int, str] = field(default_factory=dict)  # bibs that name an item of the config
+    #: what a refit of one descent needs: the SHA-256 of the descents file (DESCENTS) and the
+    #: timer's precision the day's fits were judged by; None: refits replay the day
+    fits: dict[str, Any] | None = None
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -172,7 +177,7 @@ class ResultsState:
             "annotations_sha256": self.annotations_sha256,
             "results_sha256": self.results_sha256, "descents": self.descents,
             "offsets": self.offsets, "statuses": {str(k): v for k, v in self.statuses.items()},
-            "bibs": {str(k): v for k, v in self.bibs.items()},
+            "bibs": {str(k): v for k, v in self.bibs.items()}, "fits": self.fits,
         }  # fmt: skip
 
     @classmethod
@@ -190,6 +195,7 @@ class ResultsState:
                 offsets=_ints(rec["offsets"]),
                 statuses={int(k): _typed(v, str) for k, v in _typed(rec["statuses"], dict).items()},
                 bibs={int(k): _typed(v, str) for k, v in _typed(rec["bibs"], dict).items()},
+                fits=None if rec.get("fits") is None else _typed(rec["fits"], dict),
             )  # fmt: skip
         except KeyError as exc:
             raise ValueError(f"no {exc}") from None
@@ -224,11 +230,13 @@ def write_results_with_state(
     annotations_sha256: str | None,
     config: StationConfig,
     bibs: dict[int, str],
+    fitted: Fitted | None = None,
 ) -> str:
     """Write the results CSV of a replay (``rows`` as its results show them, the invalid
     marks on them) and its state; ``annotations_sha256``: of the annotations file the replay
-    applied, taken before it read them. Returns the CSV's path. The CSV is written first: a
-    state that cannot be written leaves the old one, which no longer matches the CSV."""
+    applied, taken before it read them; ``fitted``: the replay's descents as it fitted them,
+    for a later refit of one. Returns the CSV's path. The CSV is written first: a state that
+    cannot be written leaves the old one, which no longer matches the CSV."""
     head, lines = results_lines([csv_record(r) for r in rows], header)
     statuses = {r.descent: r.status.value for r in rows if r.invalid_reason}
     items = {n: b for n, b in bibs.items() if b in config.items}
@@ -236,10 +244,41 @@ def write_results_with_state(
     offsets = [len(encoded[0])]
     for row in encoded[1:]:
         offsets.append(offsets[-1] + len(row))
+    fits = None
+    if fitted is not None:
+        try:
+            fits = _write_descents(session, fitted)
+        except (OSError, ValueError, TypeError):
+            fits = None  # refits replay the day
     return _write(
         session, b"".join(encoded), offsets, [r.descent for r in rows], annotations_sha256,
-        statuses, items, None,
+        statuses, items, None, fits,
     )  # fmt: skip
+
+
+@dataclass
+class Fitted:
+    """A replay's descents as it fitted them: in the order it fitted them (the crossing times,
+    :class:`DescentTimes`), the survey covariance of each set of photocells and the descent
+    whose fit handed it on (the first good fit on them: the later ones use it), and the
+    timer's precision. A descent after that one on its photocells can be fitted again alone
+    and gets the fit the replay would give it."""
+
+    order: list[Any]  # DescentTimes
+    sources: list[tuple[tuple[str, ...], int, Any]]  # photocells, descent, covariance
+    timer_precision_s: float
+
+
+def _write_descents(session: str, fitted: Fitted) -> dict[str, Any]:
+    from station.session.fitstore import to_json
+
+    rec = {
+        "order": [to_json(d) for d in fitted.order],
+        "sources": [[list(ids), n, to_json(cov)] for ids, n, cov in fitted.sources],
+    }
+    data = json.dumps(rec, separators=(",", ":")).encode()
+    _replace(os.path.join(session, DESCENTS), data)
+    return {"sha256": _sha256(data), "timer_precision_s": fitted.timer_precision_s}
 
 
 def _write(
@@ -251,6 +290,7 @@ def _write(
     statuses: dict[int, str],
     bibs: dict[int, str],
     known: tuple[dict[str, str], dict[str, Any]] | None,
+    fits: dict[str, Any] | None,
 ) -> str:
     """Write the CSV ``data`` (its rows beginning at ``offsets``, the end last), then its
     state (when the annotations it shows are known)."""
@@ -266,7 +306,7 @@ def _write(
         )  # fmt: skip
         state = ResultsState(
             code_stamp(), files, raw, annotations_sha256, _sha256(data), descents, offsets,
-            statuses, bibs,
+            statuses, bibs, fits,
         )  # fmt: skip
         text = json.dumps(state.to_json(), separators=(",", ":")).encode()
         _replace(os.path.join(session, STATE), text)
@@ -418,6 +458,7 @@ def in_place(
     #: the invalid marks the new records leave (a row's earlier reason is in its cell)
     reasons: dict[int, str] = {}
     metadata = False
+    refit: set[int] = set()  # descents whose fit changes: fitted again
     for a in new:
         if isinstance(a, InvalidMark | ValidMark):
             touched.add(a.descent)
@@ -426,7 +467,10 @@ def in_place(
         elif isinstance(a, MetadataAnnotation):
             metadata = True
             if FIT_KEYS & a.values.values().keys():
-                return None  # the fit changes: replayed
+                if a.descents is None:
+                    return None  # from N on: most of the day fitted again, by a replay
+                refit.update(a.descents)
+                continue
             if not any(f.column for f in METADATA_FIELDS if f.key in a.values.values()):
                 continue  # a key results.csv has no column for (grind, snow type …)
             if a.descents is not None:
@@ -434,27 +478,48 @@ def in_place(
             else:
                 start = a.from_descent or 0
                 touched.update(n for n in have if n >= start)
-        else:
-            return None  # a model: fitted again, by a replay
-    marks = None
-    if metadata:  # what is in force for a descent follows from every annotation of the day
-        try:
-            marks = Marks(config, sessions.read_annotations(session))
-        except Exception:  # noqa: BLE001 - the replay says what is wrong
-            return None
+        else:  # a model change
+            refit.add(a.descent)
     data, offsets = cur.data, state.offsets
 
     def row_of(n: int) -> int:  # the rows are in the order of their descents
         k = bisect.bisect_left(have, n)
         return k if k < len(have) and have[k] == n else -1
 
+    refit = {n for n in refit if row_of(n) >= 0}
+    refitted: dict[int, tuple[bytes, str]] = {}
+    if refit:
+        starts: dict[int, str] = {}
+        for n in refit:
+            k = row_of(n)
+            try:
+                starts[n] = parse_row(data[offsets[k] : offsets[k + 1]].decode("utf-8"))[1]
+            except ValueError:
+                return None
+        got = _refit(session, config, state, starts)
+        if got is None:
+            return None
+        refitted = got
+    marks = None
+    if metadata:  # what is in force for a descent follows from every annotation of the day
+        try:
+            marks = Marks(config, sessions.read_annotations(session))
+        except Exception:  # noqa: BLE001 - the replay says what is wrong
+            return None
     statuses = dict(state.statuses)
     writer = RowWriter()
     changed: list[tuple[int, bytes]] = []  # (row, its new bytes), in the file's order
-    for n in sorted(touched):
+    for n in sorted(touched | refit):
         k = row_of(n)
         if k < 0:
             continue  # not a descent of the day (yet): nothing to show
+        if n in refitted:
+            row, status = refitted[n]
+            statuses.pop(n, None)
+            if parse_row(row.decode("utf-8"))[_INVALID]:
+                statuses[n] = status
+            changed.append((k, row))
+            continue
         try:
             text = data[offsets[k] : offsets[k + 1]].decode("utf-8")
             cells = parse_row(text)
@@ -498,5 +563,87 @@ def in_place(
             moved += grown.get(j, 0)
     return _write(
         session, b"".join(pieces), new_offsets, list(have), annotations_sha256, statuses,
-        dict(state.bibs), (cur.files, cur.raw),
+        dict(state.bibs), (cur.files, cur.raw), state.fits,
     )  # fmt: skip
+
+
+def _refit(
+    session: str, config: StationConfig, state: ResultsState, start_times: dict[int, str]
+) -> dict[int, tuple[bytes, str]] | None:
+    """The rows of the descents ``start_times`` names (with their start times as the CSV has
+    them) fitted again as a replay would fit them now, with the session's annotations: each
+    one's new row and its fit's status; None when one of them cannot be fitted alone (the
+    first good fit on its photocells, or one before it, hands the survey covariance on to the
+    later ones: a replay then). Loads the fit (numpy, scipy): only here."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from station.session.analysis import Analyser, FitJob
+    from station.session.day import Day
+    from station.session.fitstore import FitStore, from_json
+    from station.session.records import DescentTimes, FitModel
+    from station.survey.load import load_survey
+    from station.survey.track import build_track
+
+    info = state.fits
+    if info is None:
+        return None
+    try:
+        data = read_bytes(os.path.join(session, DESCENTS), MAX_STATE * 8, "descents file")
+        if _sha256(data) != info.get("sha256"):
+            return None
+        rec = json.loads(data)
+        precision = _typed(info.get("timer_precision_s"), float)
+        order = rec["order"]
+        where = {d["number"]: i for i, d in enumerate(order)}
+        sources = {tuple(ids): (n, cov) for ids, n, cov in rec["sources"]}
+        track = build_track(load_survey(config.survey_path))
+        analyser = Analyser(config, track)
+        analyser.speed_curves = False
+        analyser.fits = FitStore.for_session(session, config)
+        day = Day(config, track, None, analyser)  # type: ignore[arg-type]  # fits, no impulses
+        for a in sessions.read_annotations(session):
+            day.annotate(a)
+    except Exception:  # noqa: BLE001 - anything amiss: the replay says what is wrong
+        return None
+    out: dict[int, tuple[bytes, str]] = {}
+    writer = RowWriter()
+    for n, started in start_times.items():
+        i = where.get(n)
+        if i is None:
+            return None
+        try:
+            d = from_json(DescentTimes, order[i])
+        except Exception:  # noqa: BLE001 - not this version's: replayed
+            return None
+        source = sources.get(d.photocells)
+        if source is None or source[0] in start_times or where.get(source[0], i) >= i:
+            return None  # its fit hands the survey's covariance on, or is handed it: replayed
+        try:
+            cov = from_json(np.ndarray, source[1])
+        except Exception:  # noqa: BLE001
+            return None
+        analyser._survey_cov[d.photocells] = cov  # noqa: SLF001 - as the replay hands it on
+        # Day.fit_job, with the start time of the CSV and the day's timer precision (the
+        # replay's processor knows both; here there is none)
+        meta = day.metadata_for(n)
+        item = config.items.get(d.bib) if d.bib else None
+        if item:
+            meta = meta.overlay(Metadata.from_values(item, f"items.{d.bib}."))
+        try:
+            wind, problem = day.wind_for(meta), ""
+        except InputError as exc:
+            wind, problem = 0.0, str(exc)
+        job = FitJob(
+            descent=d, start_time=started, metadata=meta,
+            model=day.models.get(n, FitModel(config.model)),
+            mass_kg=float(meta.mass_kg if meta.mass_kg is not None else config.mass_kg),
+            air_density=day.density_for(meta), wind_ms=wind, timer_precision_s=precision,
+            problem=problem,
+        )  # fmt: skip
+        res = analyser.run(job)
+        row = replace(res.row, invalid_reason=day.invalid.get(n, ""))
+        text = writer.text(results_frame([csv_record(row)])[0])
+        out[n] = (text.encode("utf-8"), res.row.status.value)
+    return out

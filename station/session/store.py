@@ -9,8 +9,9 @@
       fits.jsonl       every descent's fit, keyed by what it depends on (a cache:
                        station.session.fitstore), so a replay fits only what changed
       results.state.json  what results.csv was computed from and where its rows are, so
-                       an annotate changes the rows it concerns without a replay
-                       (station.session.resultsstate)
+      results.descents.json  an annotate changes the rows it concerns without a replay
+                       (station.session.resultsstate), and refits only the descents it
+                       concerns (their crossing times, in the order they were fitted)
       recording.lock   there while the session is recorded (:class:`RecordingLock`)
 
 Replaying a session (``station replay SESSION``) runs its own snapshot through the same
@@ -66,8 +67,10 @@ LOCK = "recording.lock"
 FITS = "fits.jsonl"
 #: what results.csv was computed from (station.session.resultsstate)
 RESULTS_STATE = "results.state.json"
+#: the descents' crossing times as the results CSV's replay fitted them (the same module)
+RESULTS_DESCENTS = "results.descents.json"
 #: files made from the others (a replay makes them again): not part of what a session is
-DERIVED = (RESULTS, LOCK, FITS, RESULTS_STATE)
+DERIVED = (RESULTS, LOCK, FITS, RESULTS_STATE, RESULTS_DESCENTS)
 
 
 def is_session(path: str) -> bool:
