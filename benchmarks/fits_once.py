@@ -98,10 +98,12 @@ def measure_annotate(n: int, repeats: int, session: str | None = None) -> dict[s
     return out
 
 
-def measure(n: int, repeats: int) -> dict[str, float]:
+def measure(n: int, repeats: int, compare: bool = True) -> dict[str, float]:
     with tempfile.TemporaryDirectory() as tmp:
         session = str(make_session(Path(tmp), order="AB" * (n // 2), interval_s=20.0))
         out = measure_annotate(n, repeats, session)
+        if not compare:
+            return out
         _without_fits(session)
         out["compare, every fit computed"] = _run("compare", session)
         out["compare, fits stored"] = statistics.median(
@@ -116,9 +118,10 @@ def main_() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", default="200,2000")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--no-compare", action="store_true", help="annotate only")
     args = ap.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
-    figures = {n: measure(n, args.repeats) for n in sizes}
+    figures = {n: measure(n, args.repeats, not args.no_compare) for n in sizes}
     names = list(figures[sizes[0]])
     print(f"{'':34}" + "".join(f"{n:>10d} desc" for n in sizes) + "   ratio last/first")
     for name in names:
@@ -131,6 +134,8 @@ def main_() -> None:
         ("annotate", "annotate, in place"),
         ("compare", "compare, fits stored"),
     ):
+        if f"{what}, every fit computed" not in last:
+            continue
         before, after = last[f"{what}, every fit computed"], last[after_name]
         gain = before / after
         print(f"{what} at {sizes[-1]}: {before:.2f} s -> {after:.3f} s ({gain:.1f}× faster)")

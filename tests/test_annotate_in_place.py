@@ -281,3 +281,17 @@ def test_station_annotate_that_fits_nothing_imports_no_numerics(session):
                          check=True)  # fmt: skip
     assert out.stdout.strip() == "[]", out.stderr
     assert csv_of(session) == from_scratch(session)
+
+
+def test_a_state_that_is_a_fifo_or_a_folder_costs_a_replay_not_a_hang(session, replays):
+    state = session / STATE
+    for make in (os.mkfifo, os.mkdir):
+        if state.is_dir():
+            os.rmdir(state)
+        else:
+            os.unlink(state)  # the state the last replay wrote, or the FIFO
+        make(state)
+        replays.clear()
+        RecordedSession(str(session)).annotate([InvalidMark(2, make.__name__, 9.0)])
+        assert replays
+        assert csv_of(session) == from_scratch(session)
