@@ -295,3 +295,16 @@ def test_a_state_that_is_a_fifo_or_a_folder_costs_a_replay_not_a_hang(session, r
         RecordedSession(str(session)).annotate([InvalidMark(2, make.__name__, 9.0)])
         assert replays
         assert csv_of(session) == from_scratch(session)
+
+
+def test_a_failure_in_place_replays_and_says_so(session, replays, monkeypatch):
+    from station.session import resultsstate
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("a bug")
+
+    monkeypatch.setattr(resultsstate, "in_place", broken)
+    s = RecordedSession(str(session))
+    s.annotate([InvalidMark(2, "fell", 9.0)])
+    assert replays and any("a bug" in w for w in s.warnings)
+    assert csv_of(session) == from_scratch(session)

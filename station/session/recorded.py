@@ -311,7 +311,16 @@ class RecordedSession:
         except InputError:
             return None  # the replay says why
         after = resultsstate.annotations_digest(self.path)
-        return self._saved(lambda: resultsstate.in_place(self.path, config, cur, records, after))
+        try:
+            return self._saved(
+                lambda: resultsstate.in_place(self.path, config, cur, records, after)
+            )
+        except InputError:
+            raise  # the CSV cannot be written: a replay would not write it either
+        except Exception as exc:  # noqa: BLE001 - a bug here must not lose the annotation
+            self.warnings.append(f"results.csv not changed in place ({type(exc).__name__}: "
+                                 f"{exc}); the day is replayed")  # fmt: skip
+            return None
 
     def rewrite_results(self) -> str:
         """Rewrite the results CSV from the raw log and the annotations, as ``station export``
