@@ -308,3 +308,18 @@ def test_a_failure_in_place_replays_and_says_so(session, replays, monkeypatch):
     s.annotate([InvalidMark(2, "fell", 9.0)])
     assert replays and any("a bug" in w for w in s.warnings)
     assert csv_of(session) == from_scratch(session)
+
+
+def test_metadata_on_a_day_whose_config_names_items_by_bib_is_replayed(tmp_path, replays):
+    """A bib's item (ski, wax …) overrides what the annotations say; the state does not keep
+    the bibs, so such a day's metadata is replayed (its marks are still changed in place)."""
+    session = make_session(tmp_path, order="ABBA", config_extra='items:\n  "1": {wax: red}\n')
+    RecordedSession(str(session)).annotate([InvalidMark(1, "gate", 1.0)])  # replayed: no state
+    replays.clear()
+    RecordedSession(str(session)).annotate([InvalidMark(2, "fell", 2.0)])
+    assert replays == []
+    RecordedSession(str(session)).annotate(
+        [MetadataAnnotation(Metadata(wax="green"), descents=(3,), t=3.0)]
+    )
+    assert replays
+    assert csv_of(session) == from_scratch(session)

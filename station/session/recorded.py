@@ -236,7 +236,7 @@ class RecordedSession:
             n = n if isinstance(n, int) else 0
             ski, wax, invalid = r.get("ski"), r.get("wax"), r.get("invalid_reason")
             if day is not None:
-                meta = day.metadata_for(n, None)
+                meta = day.metadata_for(n)
                 ski, wax, invalid = meta.ski, meta.wax, day.invalid.get(n, "")
             out.append(SessionRow(n, _text(r.get("descent_status")), _text(r.get("status")),
                                   _text(ski), _text(wax), _text(invalid)))  # fmt: skip
@@ -334,11 +334,9 @@ class RecordedSession:
             acq = self.run()
             results = acq.results()
             header = sessions.results_header(acq.config, acq.track.name)
-            bibs = {r.number: r.descent.bib for r in results if r.descent.bib}
             return resultsstate.write_results_with_state(
-                self.path, [r.row for r in results], header, digest, acq.config, bibs,
-                _fitted(acq),
-            )  # fmt: skip
+                self.path, [r.row for r in results], header, digest, _fitted(acq)
+            )
 
         path = self._saved(write)
         assert path is not None

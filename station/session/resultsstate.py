@@ -18,8 +18,7 @@ The state says, for one results CSV:
   version): results of another day, setup or station are not taken for this one's;
 - the SHA-256 of the annotations file the CSV shows;
 - where each row starts in the CSV (bytes), the descent of each row, the status of the fit of
-  each row marked invalid (the CSV says ``invalid`` there) and the bib of each descent whose
-  bib names an item in the config.
+  each row marked invalid (the CSV says ``invalid`` there).
 
 When any of it does not hold, or the state is missing or cannot be read, the day is replayed
 as before, and the state written anew with the CSV. The state is written by the replay that
@@ -182,7 +181,6 @@ class ResultsState:
     head: int
     lengths: array.array[int]
     statuses: dict[int, str] = field(default_factory=dict)  # the fit's, of rows marked invalid
-    bibs: dict[int, str] = field(default_factory=dict)  # bibs that name an item of the config
     #: what a refit of one descent needs: the SHA-256 of the descents file (DESCENTS) and the
     #: timer's precision the day's fits were judged by; None: refits replay the day
     fits: dict[str, Any] | None = None
@@ -222,7 +220,7 @@ class ResultsState:
             "results_sha256": self.results_sha256, "runs": self.runs, "head": self.head,
             "lengths": _packed(self.lengths),
             "statuses": {str(k): v for k, v in self.statuses.items()},
-            "bibs": {str(k): v for k, v in self.bibs.items()}, "fits": self.fits,
+            "fits": self.fits,
         }  # fmt: skip
 
     @classmethod
@@ -240,7 +238,6 @@ class ResultsState:
                 head=_typed(rec["head"], int),
                 lengths=_unpacked(_typed(rec["lengths"], str)),
                 statuses={int(k): _typed(v, str) for k, v in _typed(rec["statuses"], dict).items()},
-                bibs={int(k): _typed(v, str) for k, v in _typed(rec["bibs"], dict).items()},
                 fits=None if rec.get("fits") is None else _typed(rec["fits"], dict),
             )  # fmt: skip
         except KeyError as exc:
@@ -309,8 +306,6 @@ def write_results_with_state(
     rows: Sequence[ResultRow],
     header: dict[str, str],
     annotations_sha256: str | None,
-    config: StationConfig,
-    bibs: dict[int, str],
     fitted: Fitted | None = None,
 ) -> str:
     """Write the results CSV of a replay (``rows`` as its results show them, the invalid
@@ -320,7 +315,6 @@ def write_results_with_state(
     cannot be written leaves the old one, which no longer matches the CSV."""
     head, lines = results_lines([csv_record(r) for r in rows], header)
     statuses = {r.descent: r.status.value for r in rows if r.invalid_reason}
-    items = {n: b for n, b in bibs.items() if b in config.items}
     encoded = [head.encode("utf-8")] + [x.encode("utf-8") for x in lines]
     lengths = array.array("I", [len(row) for row in encoded[1:]])
     fits = None
@@ -331,7 +325,7 @@ def write_results_with_state(
             fits = None  # refits replay the day
     return _write(
         session, encoded, len(encoded[0]), lengths, runs_of([r.descent for r in rows]),
-        annotations_sha256, statuses, items, None, fits,
+        annotations_sha256, statuses, None, fits,
     )  # fmt: skip
 
 
@@ -368,7 +362,6 @@ def _write(
     runs: list[tuple[int, int]],
     annotations_sha256: str | None,
     statuses: dict[int, str],
-    bibs: dict[int, str],
     known: tuple[dict[str, str], dict[str, Any]] | None,
     fits: dict[str, Any] | None,
 ) -> str:
@@ -386,7 +379,7 @@ def _write(
         )  # fmt: skip
         state = ResultsState(
             code_stamp(), files, raw, annotations_sha256, digest, runs, head, lengths,
-            statuses, bibs, fits,
+            statuses, fits,
         )  # fmt: skip
         text = json.dumps(state.to_json(), separators=(",", ":")).encode()
         # written over the old one, not renamed: a state cut short is no JSON, and the old
@@ -516,7 +509,7 @@ class Marks:
             elif isinstance(a, ValidMark):
                 self.invalid.pop(a.descent, None)
 
-    def metadata_for(self, number: int, bib: str | None) -> Metadata:
+    def metadata_for(self, number: int) -> Metadata:
         meta = self.base
         for start, values in self.changes:
             if start <= number:
@@ -524,9 +517,6 @@ class Marks:
         for descents, values in self.listed:
             if number in descents:
                 meta = meta.overlay(values)
-        item = self.config.items.get(bib) if bib else None
-        if item:
-            meta = meta.overlay(Metadata.from_values(item, f"items.{bib}."))
         return meta
 
 
@@ -567,6 +557,10 @@ def in_place(
                 touched.update(n for n in state.descents if n >= start)
         else:  # a model change
             refit.add(a.descent)
+    if (metadata or refit) and config.items:
+        # the bib of a descent names an item (ski, wax …) over what the annotations say: not
+        # known here; such a day is replayed
+        return None
     data = cur.data
     rows = {n: k for n in touched | refit if (k := state.row_of(n)) >= 0}
     span = state.spans(list(rows.values()))
@@ -610,7 +604,7 @@ def in_place(
         except ValueError:
             return None
         if marks is not None:
-            meta = marks.metadata_for(n, state.bibs.get(n))
+            meta = marks.metadata_for(n)
             for f in _META_COLUMNS:
                 v = getattr(meta, f.key)
                 cells[COLUMNS.index(f.key)] = cell_value(f.key, ("" if v is None else v)
@@ -639,7 +633,7 @@ def in_place(
     pieces.append(whole[at:])
     return _write(
         session, pieces, state.head, lengths, state.runs, annotations_sha256,
-        statuses, dict(state.bibs), (cur.files, cur.raw), state.fits,
+        statuses, (cur.files, cur.raw), state.fits,
     )  # fmt: skip
 
 
@@ -703,10 +697,7 @@ def _refit(
         analyser._survey_cov[d.photocells] = cov  # noqa: SLF001 - as the replay hands it on
         # Day.fit_job, with the start time of the CSV and the day's timer precision (the
         # replay's processor knows both; here there is none)
-        meta = day.metadata_for(n)
-        item = config.items.get(d.bib) if d.bib else None
-        if item:
-            meta = meta.overlay(Metadata.from_values(item, f"items.{d.bib}."))
+        meta = day.metadata_for(n)  # (no items: see in_place)
         try:
             wind, problem = day.wind_for(meta), ""
         except InputError as exc:
