@@ -6,28 +6,35 @@ An annotate used to replay the whole raw log and rewrite every row: 0.95 s at 20
 4.6–8.8 s at 2000 (issue 19). Most annotations change a column or two of a few rows: an
 invalid or valid mark the ``status`` and ``invalid_reason`` of one row; ski, wax, notes,
 skier or the snow temperature the metadata columns of the descents they are for. Those rows
-are changed in place and the file written once; an annotation that changes a fit (mass, air,
-wind, a model) replays the day as before (its fits come from the fit store but that one).
+are changed in place and the file written once. An annotation that changes a fit (a model; a
+mass, air or wind for listed descents) fits those descents alone, with their crossing times
+from ``SESSION/results.descents.json`` (the replay's descents in the order it fitted them, and
+the survey covariance the first good fit on a set of photocells hands on to the later ones),
+when none of them is that first fit or comes before it; otherwise, and for such a change from
+descent N on, the day is replayed as before (its fits from the fit store but those changed).
 
 The state says, for one results CSV:
 
 - the SHA-256 of the CSV itself (a CSV damaged, cut or edited by hand is not trusted);
-- the raw log's SHA-256 (and its size and modification time), the SHA-256 of every other file
-  of the session but the annotations and what is made from the others (config, survey,
-  observations), and the code that computes results (its files' sizes and times, and the
-  version): results of another day, setup or station are not taken for this one's;
+- the raw log's SHA-256, size and modification time (read for its hash again only when the
+  size or time changed), the SHA-256 of every other file of the session but the annotations
+  and what is made from the others (config, survey, observations), and the code that
+  computes results (its files' sizes and times, and the version): results of another day,
+  setup or station are not taken for this one's;
 - the SHA-256 of the annotations file the CSV shows;
-- where each row starts in the CSV (bytes), the descent of each row, the status of the fit of
-  each row marked invalid (the CSV says ``invalid`` there).
+- where its rows are (the bytes of its head, then of each row), the descent of each row, the
+  status of the fit of each row marked invalid (the CSV says ``invalid`` there), and the
+  SHA-256 of the descents file with the timer precision the fits were judged by.
 
 When any of it does not hold, or the state is missing or cannot be read, the day is replayed
 as before, and the state written anew with the CSV. The state is written by the replay that
 writes the CSV, never by a recorder: the first annotate after a recording replays.
 
 The rows the fast path writes are those a replay writes, byte for byte: the metadata in force
-for a descent is found by the rules of :class:`station.session.day.Day` (mirrored here:
-importing the day imports the fit, 0.9 s of numpy and scipy), and the tests compare the result
-with a replay's for every kind of annotation.
+for a descent is found by the rules of :class:`station.session.day.Day` (mirrored in
+:class:`Marks`: importing the day imports the fit, 0.9 s of numpy and scipy), a refit runs
+the day's own analyser, and the tests compare the result with a replay's from scratch for
+every kind of annotation (tests/test_annotate_in_place.py).
 """
 
 from __future__ import annotations
