@@ -108,13 +108,10 @@ def test_annotate_refits_one_descent_and_an_invalid_mark_none(session):
     s.annotate([InvalidMark(2, "fell", 1.0)])
     fits = s.run().day.analyser.fits
     assert isinstance(fits, FitStore) and (fits.hits, fits.misses) == (6, 0)
-    stored = len((session / FITS).read_text().splitlines())
     s = RecordedSession(str(session))
     s.annotate([MetadataAnnotation(Metadata(mass_kg=70.0), descents=(5,), t=2.0)])
-    # descent 5 alone fitted again, by the annotate (in place: station/session/resultsstate.py)
-    assert len((session / FITS).read_text().splitlines()) == stored + 1
     fits = s.run().day.analyser.fits
-    assert isinstance(fits, FitStore) and (fits.hits, fits.misses) == (6, 0)
+    assert isinstance(fits, FitStore) and (fits.hits, fits.misses) == (5, 1)
     assert (session / store.RESULTS).read_text() == every_fit_computed(session)
 
 
