@@ -1103,12 +1103,13 @@ def collect(results: Iterable[Any], wind_limit_ms: float = 1.0) -> DayInputs:
     excluded: list[tuple[int, str]] = []
     windy: list[int] = []
     for res in results:
-        row, d, f = res.row, res.descent, res.fit
+        # the fit's values are the row's: a fit kept in the session's store is not read back
+        row, d = res.row, res.descent
         n = row.descent
         if row.invalid_reason:
             excluded.append((n, f"marked invalid: {row.invalid_reason}"))
             continue
-        if f is None:
+        if not res.has_fit:
             why = "; ".join(row.flags[-1:]) if row.status == "error" else ""
             excluded.append((n, f"{row.status}: {why}" if why else str(row.status)))
             continue
@@ -1121,7 +1122,7 @@ def collect(results: Iterable[Any], wind_limit_ms: float = 1.0) -> DayInputs:
         wind = float(row.wind_ms or 0.0)
         if abs(wind) > wind_limit_ms:
             windy.append(n)
-        guess = (f.cda.value or 0.25, f.mu.value or 0.02, f.v0.value or 3.0)
+        guess = (row.cda or 0.25, row.mu or 0.02, row.v0 or 3.0)
         data.append(
             DescentData(
                 number=n,
@@ -1134,7 +1135,7 @@ def collect(results: Iterable[Any], wind_limit_ms: float = 1.0) -> DayInputs:
                 air_density=float(row.air_density),
                 wind_ms=wind,
                 start_guess=(float(guess[0]), float(guess[1]), float(guess[2])),
-                timer_sd_s=f.timer_precision_s or TIMER_PRECISION_S,
+                timer_sd_s=res.fit_timer_precision_s or TIMER_PRECISION_S,
                 gravity_ms2=float(row.gravity) if row.gravity else G_STANDARD,
             )
         )
