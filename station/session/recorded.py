@@ -388,9 +388,11 @@ def _fitted(acq: Acquisition) -> resultsstate.Fitted:
     order = [day.results[n] for n in day.results]  # fitted once each, in this order
     sources: dict[tuple[str, ...], tuple[int, Any]] = {}
     for r in order:
+        if r.descent.photocells in sources:
+            continue  # found: the fit is not read (a recording keeps it in the store only)
         fit = r.fit
         if fit is not None and fit.status == "ok" and fit.survey_time_cov is not None:
-            sources.setdefault(r.descent.photocells, (r.number, fit.survey_time_cov))
+            sources[r.descent.photocells] = (r.number, fit.survey_time_cov)
     return resultsstate.Fitted(
         [r.descent for r in order],
         [(ids, n, cov) for ids, (n, cov) in sources.items()],
