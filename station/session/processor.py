@@ -10,6 +10,8 @@ the time-out) need no clock at all.
 
 from __future__ import annotations
 
+import math
+from array import array
 from collections import Counter
 
 from station.errors import InputError
@@ -25,6 +27,34 @@ from station.timing.wireformats import make_parser
 #: unparsed lines listed (line, reason, first 100 characters): a day of line noise stays within
 #: tens of MB; beyond it one entry says that more were not listed
 MAX_UNPARSED = 100_000
+
+
+class StartHosts:
+    """The host clock at each descent's start, by descent number (they count from 1), or
+    None: 8 bytes a descent in an array, not a dict entry and a float (a day keeps them all:
+    a refit after an annotation dates its descent again)."""
+
+    def __init__(self) -> None:
+        self._t = array("d")  # NaN: none known
+        self._nan: set[int] = set()  # those whose host time was NaN itself
+
+    def __setitem__(self, number: int, t: float | None) -> None:
+        if number < 1:
+            raise IndexError(number)
+        gap = number - len(self._t)
+        if gap > 0:
+            self._t.extend([math.nan] * gap)
+        self._t[number - 1] = math.nan if t is None else t
+        if t is not None and t != t:
+            self._nan.add(number)
+        else:
+            self._nan.discard(number)
+
+    def get(self, number: int) -> float | None:
+        if not 1 <= number <= len(self._t):
+            return None
+        t = self._t[number - 1]
+        return t if t == t or number in self._nan else None
 
 
 class Processor:
@@ -59,7 +89,7 @@ class Processor:
         self.unparsed: list[tuple[int, str, str]] = []  # line number, reason, text (first 100)
         self.connection: list[tuple[float, str, str]] = []
         self.offset_us: int | None = None  # device clock − host clock
-        self.start_host: dict[int, float | None] = {}
+        self.start_host = StartHosts()
         self._latest_start: tuple[int, int] | None = None  # (device µs, descent): the last start
         #: the resolution (µs) the timer states in its first impulse from a photocell (not a
         #: keypad's 1/100 s): the default of the timer's precision (station.model.timer); fixed

@@ -43,9 +43,11 @@ Every impulse and edit comes out once in ``events`` with whether it was kept and
 
 from __future__ import annotations
 
+from array import array
+from bisect import bisect_left
 from collections import deque
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from station.timing.impulses import DAMAGED_FLAG, DAY_US, Edit, Impulse, format_tod
 
@@ -61,9 +63,10 @@ SPEED_RATIO = 2.5
 HOST_TOLERANCE_US = 30_000_000
 
 
-@dataclass
+@dataclass(slots=True)
 class TimedDescent:
-    """One skier's pass: the kept time at each photocell (µs, unwrapped across midnight)."""
+    """One skier's pass: the kept time at each photocell (µs, unwrapped across midnight).
+    Every descent of a day is kept (edits may name any): slots."""
 
     number: int
     photocells: list[str]  # the photocells with a time, in order down the run
@@ -84,6 +87,34 @@ class TimedDescent:
     @property
     def start_us(self) -> int:
         return self.times_us[0] if self.times_us else (self.first_us or 0)
+
+    def settle(self, kept: Any) -> None:
+        """The caller took a frozen copy of this finished descent (``kept``, a
+        :class:`station.session.records.DescentTimes`: the same values as tuples): it keeps
+        those tuples in place of its lists, one copy of each for the day, not two (a day's
+        descents stay in memory: edits may name any of them). The assembler makes them lists
+        again (:meth:`thaw`) before it changes the descent. A descent open again (its finish
+        cleared at the timer later in the same chunk) keeps its lists."""
+        if self.status == "open":
+            return
+        for name in _LISTS:
+            mine, theirs = getattr(self, name), getattr(kept, name)
+            if type(theirs) is tuple and len(mine) == len(theirs) and tuple(mine) == theirs:
+                setattr(self, name, theirs)
+
+    def thaw(self) -> None:
+        """Lists again where :meth:`settle` left tuples: before any change to the descent."""
+        for name in _LISTS:
+            v = getattr(self, name)
+            if type(v) is tuple:
+                setattr(self, name, list(v))
+
+
+#: the fields of a descent that are lists while the assembler may change them
+_LISTS = ("photocells", "times_us", "flags", "missing", "channels")
+#: kept times a channel holds in its set before the older ones move to its sorted array
+#: (8 bytes a time, not ~70): a repeat of any kept impulse is found all day
+SEEN_RECENT = 64
 
 
 @dataclass
@@ -213,6 +244,9 @@ class DescentAssembler:
         # kept impulses by channel and device time (unwrapped): a repeat of one (the timer's
         # memory sent again) is not doubled, while the same time of day a day later is new
         self._seen: dict[str, set[int]] = {}  # channel -> its kept times
+        # the older ones, sorted (moved there as descents end), and the latest of them all
+        self._seen_old: dict[str, array[int]] = {}
+        self._old_max = -1
         self._damaged: list[_Damage] = []  # unread lines that may have been a start
 
     @property
@@ -349,8 +383,8 @@ class DescentAssembler:
         if not -jump <= t - clock <= jump:
             return False
         seen = self._seen.get(ch)
-        if seen is not None and t in seen:
-            return False
+        if (seen is not None and t in seen) or t <= self._old_max:
+            return False  # (a time as old as the sorted kept ones: the general path looks)
         last_done = self._last_done
         if (
             last_done is not None
@@ -392,7 +426,7 @@ class DescentAssembler:
             self._event(imp, line, None, False, f"channel {ch} is not a photocell")
             return done
         t = self.unwrap(imp)
-        if t in self._seen.get(ch, ()):
+        if t in self._seen.get(ch, ()) or (t <= self._old_max and self._kept_before(ch, t)):
             self._event(imp, line, pc, False, "repeats an impulse already kept (from the "
                         "timer's memory?); not doubled")  # fmt: skip
             return done
@@ -448,8 +482,8 @@ class DescentAssembler:
         if self.order[photocells[-1]] != j:
             return None
         seen = self._seen.get(ch)
-        if seen is not None and t in seen:
-            return None
+        if (seen is not None and t in seen) or t <= self._old_max:
+            return None  # (a time as old as the sorted kept ones: the general path looks)
         last_done = self._last_done
         if (
             last_done is not None
@@ -524,6 +558,7 @@ class DescentAssembler:
                 continue
             gap = t - d.times_us[-1]
             if 0 <= gap <= self.debounce_us:
+                d.thaw()
                 d.flags.append(f"double trigger at {pc} collapsed (+{gap / 1e6:.3f} s)")
                 self._event(imp, line, pc, False, "double trigger within the debounce window",
                             d.number)  # fmt: skip
@@ -715,9 +750,40 @@ class DescentAssembler:
         for d in self.open:
             d.flags.append("timer disconnected" + (f" ({detail})" if detail else ""))
 
+    def _kept_before(self, channel: str, t: int) -> bool:
+        """``t`` is among the channel's older kept times (sorted)."""
+        old = self._seen_old.get(channel)
+        if not old:
+            return False
+        i = bisect_left(old, t)
+        return i < len(old) and old[i] == t
+
+    def _settle_seen(self) -> None:
+        """Move each channel's kept times older than the clock's jump window from its set to
+        its sorted array, once the set holds SEEN_RECENT of them."""
+        if self._clock is None:
+            return
+        before = self._clock - self.jump_us
+        for ch, seen in self._seen.items():
+            if len(seen) < SEEN_RECENT:
+                continue
+            older = sorted(x for x in seen if x < before)
+            if not older:
+                continue
+            self._seen[ch] = {x for x in seen if x >= before}
+            old = self._seen_old.get(ch)
+            if old is None:
+                old = self._seen_old[ch] = array("q")
+            if old and older[0] <= old[-1]:  # not after them all (rare): merged
+                old = self._seen_old[ch] = array("q", sorted({*old, *older}))
+            else:
+                old.extend(older)
+            self._old_max = max(self._old_max, old[-1])
+
     def _done(self, d: TimedDescent) -> None:
         self.finished.append(d)
         self._last_done = d
+        self._settle_seen()
         if d.status == "complete":
             typical, order, stale = self._typical, self.order, self._stale
             times = d.times_us
@@ -812,6 +878,7 @@ class DescentAssembler:
             )
             return [], False  # fmt: skip
         d, i = found
+        d.thaw()
         for lst in (d.photocells, d.times_us, d.channels):
             del lst[i]
         d.flags.append(f"{pc} {when} {e.kind} at the timer")
@@ -890,6 +957,7 @@ class DescentAssembler:
                         f"{pc} {when} into; nothing changed")  # fmt: skip
             return []
         d = target
+        d.thaw()
         what = "entered"
         if pc in d.photocells:
             i = d.photocells.index(pc)
