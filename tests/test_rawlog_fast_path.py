@@ -189,7 +189,8 @@ def test_a_session_of_a_real_capture_replays_the_same_all_fast_or_all_general(
             asm = proc.assembler
             states.append((
                 [tuple(e) for e in asm.events], [dataclasses.astuple(d) for d in asm.finished],
-                proc.unparsed, proc.line_counts(), proc.start_host, proc.offset_us,
+                proc.unparsed, proc.line_counts(), proc.offset_us,
+                [proc.start_host.get(n) for n in range(1, asm.count + 1)],
             ))  # fmt: skip
     assert states[0] == states[1]
     assert len(states[0][1]) > 20
