@@ -440,8 +440,9 @@ class StationApp(App):
     def on_descent_fitted(self, msg: DescentFitted) -> None:
         res = msg.result
         n = res.number
-        # its speed curve (12 kB) only while it is shown: asked for again when selected
-        self.results[n] = stored = replace(res, speed_x=None, speed_v=None)
+        # its speed curve (12 kB) only while it is shown, its fit (4 kB) in the session's
+        # fit store where it has one: read back, drawn again when selected (DescentResult.lean)
+        self.results[n] = stored = res.lean()
         if self.comparer is not None:
             self.comparer.update(stored)  # noted; sent to the comparison's process off this thread
         table = self.main.query_one("#table", DataTable)

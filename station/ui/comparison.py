@@ -23,6 +23,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from typing import BinaryIO
 
 from station.session.analysis import DescentResult
@@ -74,6 +75,15 @@ def main() -> None:
     channel = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)
     serve(sys.stdin.buffer, channel)
+
+
+def portable(res: DescentResult) -> DescentResult:
+    """A result as the comparison's process needs it: its fit in it (read back here, on the
+    comparison's thread, where a recording keeps it in the session's fit store), no speed
+    curve."""
+    if res.stored is None and res.speed_x is None and res.speed_v is None:
+        return res
+    return replace(res, kept_fit=res.fit, stored=None, handle=None, speed_x=None, speed_v=None)
 
 
 class ComparisonProcess:
@@ -174,6 +184,7 @@ class ComparisonProcess:
 
     def _ask(self, batch: list[DescentResult]) -> tuple[str, str]:
         """Send what changed, get the text: the thread waits on the pipe, not on the lock."""
+        batch = [portable(res) for res in batch]
         for res in batch:
             self._sent[res.number] = res
         proc = self._proc
