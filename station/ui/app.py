@@ -282,6 +282,7 @@ class StationApp(App):
         self._resid_width = 0  # the residual plot's width (the panel's layout follows it)
         self._panel_of: DescentResult | None = None  # the snapshot the panel shows (or will)
         self._panel_due: DescentResult | None = None  # to show when the dialog on top closes
+        self._comparison_due = False  # a comparison arrived as a fit was due: drawn after it
         self.comparison_text = (
             "no comparison yet: it needs fitted descents with ski or wax entered (m)"
         )
@@ -436,6 +437,8 @@ class StationApp(App):
         self.main.query_one("#progress", Static).update(text, layout=False)  # 2 lines, fixed
         if isinstance(self.screen, MetadataScreen):  # a descent started while it is open
             self.screen.set_next(p.next_number)
+        if self._comparison_due and not self._fit_imminent():  # no fit came (aborted)
+            self._show_comparison()
 
     def on_descent_fitted(self, msg: DescentFitted) -> None:
         res = msg.result
@@ -459,6 +462,8 @@ class StationApp(App):
             if following:
                 table.move_cursor(row=table.row_count - 1, scroll=True)
         self.latest = n
+        if self._comparison_due:  # the comparison that waited for this fit, after its frame
+            self.call_after_refresh(self._show_comparison)
         # the panel shows the selected row, and only it: "the descent" is one descent
         if self._cursor_number() == n:
             self._show(res)
@@ -488,8 +493,25 @@ class StationApp(App):
 
     def on_comparison_updated(self, msg: ComparisonUpdated) -> None:
         self.comparison_text = msg.text
+        if self._fit_imminent():  # drawn after the fit: the long text's layout waits
+            self._comparison_due = True
+            return
+        self._show_comparison()
+
+    def _show_comparison(self) -> None:
+        self._comparison_due = False
         if isinstance(self.screen, ComparisonScreen):
-            self.screen.update(msg.text)
+            self.screen.update(self.comparison_text)
+
+    def _fit_imminent(self) -> bool:
+        """The open descent has passed all but its last photocell: its fit is due any moment,
+        and nothing else (the comparison's text) is drawn before it."""
+        p = self.progress
+        return (
+            p is not None
+            and p.number is not None
+            and len(p.passed) >= max(1, len(self.photocell_ids) - 1)
+        )
 
     def on_acquisition_warning(self, msg: AcquisitionWarning) -> None:
         self.problem = msg.text

@@ -72,6 +72,9 @@ def serve(inp: BinaryIO, out: BinaryIO) -> None:
 def main() -> None:
     """``python -m station.ui.comparison``: stdin and stdout are the pipe to the UI; whatever
     else would go to stdout (a library's print) goes to stderr."""
+    # the fit and the UI's drawing of it come first where the two share the cores
+    with contextlib.suppress(OSError):
+        os.nice(10)
     channel = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)
     serve(sys.stdin.buffer, channel)
