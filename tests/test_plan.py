@@ -124,7 +124,7 @@ def test_station_plan_prints_the_plan_and_its_json(run_station, tmp_path):
     [
         (["--posture-scatter", "1.5", "--delta-mu", "0.001"], "is a fraction of CdA"),
         (["--posture-scatter", "0.01"], "one of the arguments --delta-mu --delta-ms is required"),
-        (["--delta-mu", "0.001"], "--posture-scatter --from is required"),
+        (["--delta-mu", "0.001"], "(--posture-scatter) or a past session (--from)"),
         (["--posture-scatter", "0.01", "--delta-mu", "0.001", "--power", "1.5"], "between 0.5"),
         (["--posture-scatter", "0.01", "--delta-mu", "-1"], "--delta-mu"),
         (["--from", "nowhere", "--delta-mu", "0.001"], "not a session directory"),
@@ -137,17 +137,56 @@ def test_station_plan_refuses_bad_input_in_one_line(run_station, args, expect):
     assert expect in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
 
 
-def test_station_plan_takes_the_scatter_from_a_past_session(run_station, tmp_path):
+def test_station_plan_from_a_session_without_scatter_falls_back_to_the_default(
+    run_station, tmp_path
+):
+    """A session whose joint fit puts the posture scatter at 0 (these simulated descents have
+    none, and eight descents cannot tell a small one from the timing) is no promise of a steady
+    tuck: the plan takes the stated default, 1 %, and says so on stderr; a scatter given wins."""
     from tests.session_helpers import make_session
 
     session = make_session(tmp_path)
-    r = run_station("plan", "--survey", "surveys/demo_run.yaml", "--mass", "88",
-                    "--from", str(session), "--delta-mu", "0.001", "--air-density", "1.079",
-                    "--json")  # fmt: skip
+    base = ["plan", "--survey", "surveys/demo_run.yaml", "--mass", "88", "--from", str(session),
+            "--delta-mu", "0.001", "--air-density", "1.079", "--json"]  # fmt: skip
+    r = run_station(*base)
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
-    assert out["assumptions"]["posture_source"].startswith(f"estimated from {session}")
-    assert out["assumptions"]["posture_scatter_pct"] < 0.5  # the session has none
+    assert out["assumptions"]["posture_scatter_pct"] == pytest.approx(1.0)
+    assert out["assumptions"]["posture_source"].startswith("the default")
+    (line,) = r.stderr.strip().splitlines()
+    assert line.startswith(f"warning: --from {session}: the session's posture scatter is "
+                           "estimated at 0.00 %") and "planning with 1.0 %" in line  # fmt: skip
+    r = run_station(*base, "--posture-scatter", "0.02")
+    assert r.returncode == 0 and r.stderr == "", r.stderr
+    out = json.loads(r.stdout)
+    assert out["assumptions"]["posture_scatter_pct"] == pytest.approx(2.0)
+    assert out["assumptions"]["posture_source"] == "given"
+
+
+def test_station_plan_from_a_session_takes_its_drift(run_station, tmp_path):
+    """The drift per hour is the session's, as `station compare` estimates it (not the
+    default 0), unless --drift-per-hour is given."""
+    from tests.session_helpers import make_session
+
+    session = make_session(tmp_path, drift_per_hour=0.004)
+    r = run_station("compare", str(session), "--json")
+    assert r.returncode == 0, r.stderr
+    drift = json.loads(r.stdout)["drift"]["mu_per_hour"]
+    assert drift == pytest.approx(0.004, abs=0.001)
+    base = ["plan", "--survey", "surveys/demo_run.yaml", "--mass", "88", "--from", str(session),
+            "--delta-mu", "0.001", "--json"]  # fmt: skip
+    r = run_station(*base)
+    assert r.returncode == 0, r.stderr
+    a = json.loads(r.stdout)["assumptions"]
+    assert a["drift_per_hour"] == pytest.approx(drift, rel=1e-9)
+    assert a["drift_source"] == f"estimated from {session}"
+    r = run_station(*base, "--drift-per-hour", "0")
+    assert r.returncode == 0, r.stderr
+    a = json.loads(r.stdout)["assumptions"]
+    assert a["drift_per_hour"] == 0 and a["drift_source"] == "given"
+    r = run_station(*base[:-1])
+    assert r.returncode == 0, r.stderr
+    assert f"drift {drift:g} per hour (estimated from {session})" in r.stdout
 
 
 def test_station_plan_from_a_session_plans_in_its_air(run_station, tmp_path):
