@@ -81,12 +81,20 @@ def network_figure(days: Sequence[Any], colours: dict[str, str]) -> str:
     for (a, b), k in met.items():
         (xa, ya), (xb, yb) = pos[a], pos[b]
         ax.plot([xa, xb], [ya, yb], color="#888", lw=0.8 + 4.0 * k / most, zorder=1)
-        ax.text((xa + xb) / 2, (ya + yb) / 2, str(k), fontsize=7, color="#444")
+        # the count 40 % of the way along its line, on a white patch: at the midpoint the
+        # diagonals of four items all wrote theirs on the centre, over each other
+        ax.text(xa + 0.4 * (xb - xa), ya + 0.4 * (yb - ya), str(k), fontsize=7, color="#444",
+                ha="center", va="center", zorder=3,
+                bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none"})  # fmt: skip
     for it, (x, y) in pos.items():
         ax.scatter([x], [y], s=120, color=colours.get(it, "#333"), zorder=2)
-        ax.text(x * 1.12, y * 1.12, _plain(it), fontsize=8, ha="center", va="center")
-    ax.set_xlim(-1.5, 1.5)
-    ax.set_ylim(-1.3, 1.3)
+        # the name outside its node, leaning away from the circle (centred, a long name on the
+        # left or right of the circle was written over its node)
+        ha = "left" if x > 0.3 else "right" if x < -0.3 else "center"
+        va = "bottom" if y > 0.3 else "top" if y < -0.3 else "center"
+        ax.text(x * 1.1, y * 1.1, _plain(it), fontsize=8, ha=ha, va=va)
+    ax.set_xlim(-2.2, 2.2)
+    ax.set_ylim(-1.45, 1.45)
     ax.set_aspect("equal")
     ax.axis("off")
     return _png(fig)
