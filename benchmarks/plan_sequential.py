@@ -61,7 +61,10 @@ def looks_of_day(args: tuple[str, float, float, int]) -> list[Look]:
     for k in range(4, len(data) + 1):
         c = joint_fit(track(setup), data[:k]).comparisons[0]
         assert c.ci90 is not None and c.dof is not None
-        out.append((c.delta_mu, standard_error(c.ci90, c.dof), c.dof))
+        # the comparison's first item is the reference, the item skied most so far: B at
+        # the looks where it leads (ABBAABB)
+        sign = 1.0 if c.a == "A" else -1.0
+        out.append((sign * c.delta_mu, standard_error(c.ci90, c.dof), c.dof))
     return out
 
 
