@@ -93,6 +93,8 @@ def main() -> int:
     ap.add_argument("--days", type=int, default=100, help="simulated days per cell and n")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--setup", choices=["demo", "sparse", "both"], default="both")
+    ap.add_argument("--delta", type=float, action="append", help="only this Δμ (repeatable)")
+    ap.add_argument("--scatter", type=float, action="append", help="only this scatter")
     args = ap.parse_args()
     setups = ["demo", "sparse"] if args.setup == "both" else [args.setup]
     print(f"machine: {os.cpu_count()} cores; {args.days} days per cell, {args.jobs} processes")
@@ -107,8 +109,8 @@ def main() -> int:
             print(f"{'Δμ':>7} | {'scatter':>7} | {'n/item':>6} | {'stated':>6} | "
                   f"{'simulated':>9} | {'n−1: stated':>11} | {'n−1: sim':>8} | "
                   f"{'smallest n (sim)':>16} | verdict")  # fmt: skip
-            for delta in DELTAS:
-                for scatter in SCATTERS:
+            for delta in args.delta or DELTAS:
+                for scatter in args.scatter or SCATTERS:
                     p = plan_day(tr, delta, assumptions(setup, scatter))
                     n = p.descents_per_item
                     seed0 = int(1e6 * delta) * 1000 + int(scatter * 1000) * 10

@@ -104,7 +104,7 @@ def test_station_plan_prints_the_plan_and_its_json(run_station, tmp_path):
                     "--posture-scatter", "0,015", "--delta-mu", "0,0005", "--air-density",
                     "1.079", "--timer-ms", "0.5", "--drift-per-hour", "0.02")  # fmt: skip
     assert r.returncode == 0, r.stderr
-    assert "2 descents per item, 4 in all, in this order: ABBA" in r.stdout
+    assert "3 descents per item, 6 in all, in this order: ABBAAB" in r.stdout  # the least planned
     assert "posture scatter 1.50 % (given)" in r.stdout
     r = run_station("plan", "--survey", "surveys/demo_run.yaml", "--mass", "88",
                     "--posture-scatter", "0.015", "--delta-ms", "5", "--items", "3",
