@@ -12,8 +12,11 @@ on the fit worker), the next descent once the last one is fitted. Two figures:
    garbage collected, per descent in between (target ≤ 2 kB per descent).
 
 At the end the live ``results.csv`` is compared byte for byte with the replay of the session.
+``--where N`` also says where the memory goes: the N source lines whose allocations grew most
+from descent 200 to the last (tracemalloc, bytes a descent; the day then runs slower, and
+its resident memory includes tracemalloc's own: take the memory figure from a run without).
 
-Run: python benchmarks/day_2000.py [--descents N]
+Run: python benchmarks/day_2000.py [--descents N] [--where N]
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import sys
 import tempfile
 import threading
 import time
+import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -59,7 +63,9 @@ def descent_lines(times: np.ndarray, n: int, rng: np.random.Generator) -> list[b
     ]
 
 
-def run_day(descents: int, folder: str) -> tuple[dict[int, float], tuple[int, int]]:
+def run_day(
+    descents: int, folder: str, where: int = 0
+) -> tuple[dict[int, float], tuple[int, int], list[str]]:
     cfg, track = demo_station()
     xs = np.array([pc.x for pc in track.photocells])
     times = (
@@ -86,6 +92,9 @@ def run_day(descents: int, folder: str) -> tuple[dict[int, float], tuple[int, in
 
     acq._save_csv = write  # type: ignore[method-assign]
     mem = [0, 0]
+    traced: list[tracemalloc.Snapshot] = []
+    if where:
+        tracemalloc.start()
     host = 1.7e9
     for n in range(1, descents + 1):
         before = len(timed)
@@ -98,21 +107,35 @@ def run_day(descents: int, folder: str) -> tuple[dict[int, float], tuple[int, in
         if n == 200:
             gc.collect()
             mem[0] = rss_kb()
+            if where:
+                traced.append(tracemalloc.take_snapshot())
     gc.collect()
     mem[1] = rss_kb()
+    lines = []
+    if where and traced:
+        stats = tracemalloc.take_snapshot().compare_to(traced[0], "lineno")
+        tracemalloc.stop()
+        n = max(1, descents - 200)
+        total = sum(s.size_diff for s in stats) / n
+        lines.append(f"  where (tracemalloc, descents 200 to {descents}): {total:.0f} B a descent")
+        for s in stats[:where]:
+            frame = s.traceback[0]
+            name = os.path.relpath(frame.filename, ROOT) if frame.filename.startswith(
+                str(ROOT)) else frame.filename  # fmt: skip
+            lines.append(f"    {s.size_diff / n:7.0f} B  {name}:{frame.lineno}")
     acq.close()
     assert len(acq.results()) == descents, len(acq.results())
-    return csv_ms, (mem[0], mem[1])
+    return csv_ms, (mem[0], mem[1]), lines
 
 
-def measure(descents: int = 2000) -> dict:
+def measure(descents: int = 2000, where: int = 0) -> dict:
     """The figures: results CSV ms after descents 1, 400, 2000 (those the day has), memory kB
     per descent, the whole day's wall time and CSV time, and whether replay gives the CSV."""
     tmp = tempfile.mkdtemp(prefix="station-day-")
     folder = os.path.join(tmp, "session")
     try:
         start = time.perf_counter()
-        csv_ms, (m200, mend) = run_day(descents, folder)
+        csv_ms, (m200, mend), lines = run_day(descents, folder, where)
         wall = time.perf_counter() - start
 
         def at(n: int) -> float:
@@ -131,6 +154,7 @@ def measure(descents: int = 2000) -> dict:
             "mem_mib": (m200 / 1024, mend / 1024),
             "kb_per_descent": (mend - m200) / max(1, descents - 200),
             "replay_same": Path(out).read_bytes() == live,
+            "where": lines,
         }
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -139,8 +163,10 @@ def measure(descents: int = 2000) -> dict:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--descents", type=int, default=2000)
+    ap.add_argument("--where", type=int, default=0, metavar="N",
+                    help="the N source lines whose memory grew most (tracemalloc)")  # fmt: skip
     args = ap.parse_args()
-    f = measure(args.descents)
+    f = measure(args.descents, args.where)
     first = f["csv_ms"][1]
     print(f"{f['descents']} descents recorded in {f['wall_s']:.1f} s")
     for m, ms in f["csv_ms"].items():
@@ -153,6 +179,8 @@ def main() -> int:
           f"{f['kb_per_descent'] / 2:.2f}× the target)")  # fmt: skip
     print(f"  replay of the session gives the live results.csv byte for byte: "
           f"{f['replay_same']}")  # fmt: skip
+    for line in f["where"]:
+        print(line)
     return 0 if f["replay_same"] else 1
 
 

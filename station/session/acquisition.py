@@ -163,9 +163,11 @@ class Acquisition:
         self.session_dir = session_dir
         self.rawlog = rawlog
         self.compare = compare
-        #: a replay in line keeps every descent's speed curve (the report draws them all); a
-        #: recording or the UI keeps it only in what it hands to the listener: 12 kB a
-        #: descent, half a 2000-descent day's memory (the UI asks again for the one it shows)
+        #: a replay in line keeps every descent's speed curve and fit (the report draws them
+        #: all); a recording or the UI keeps the curve only in what it hands to the listener
+        #: (12 kB a descent, half a 2000-descent day's memory: the UI asks again for the one it
+        #: shows), and the fit only in the session's fit store where it has one (4 kB a
+        #: descent: :attr:`DescentResult.fit` reads it back)
         self.keep_curves = not threaded
         #: likewise every impulse's fate (``replay --events`` lists them; the UI is told each)
         self.keep_events = not threaded
@@ -181,7 +183,8 @@ class Acquisition:
         self._csv_problem: str | None = None  # said once, not after every descent
         # what the session's results CSV holds (rows by descent, its size): a new descent is
         # appended to it; None: unknown (not written yet, or a write failed): rewritten in full
-        self._csv_rows: dict[int, ResultRow] | None = None
+        # (a list: descent n's row at n - 1, None where the file has none; 8 bytes a descent)
+        self._csv_rows: list[ResultRow | None] | None = None
         self._csv_size = 0
         self._csv_inode = 0
         self._header: dict[str, str] | None = None  # the CSV's header, made once
@@ -400,6 +403,7 @@ class Acquisition:
             del proc.events[:]
         for d in done:
             times = DescentTimes.of(d)
+            d.settle(times)  # the assembler keeps the day's one copy of its times, not two
             if times.status != DescentStatus.ABORTED:
                 self.finished_descents += 1
             jobs.append(_Fit(times))
@@ -578,14 +582,15 @@ class Acquisition:
                 effect = _effect_now(day, a) if job.applied else day.annotate(a)
                 fit_jobs = [day.fit_job(day.results[n].descent) for n in effect.refit]
         fitted = [day.analyser.run(j) for j in fit_jobs]  # outside the lock: the reader goes on
-        kept = fitted if self.keep_curves else [_without_curve(r) for r in fitted]
+        kept = fitted if self.keep_curves else [r.lean() for r in fitted]
         with self.lock:
             views = [day.store(r) for r in kept] + [day.view(n) for n in effect.changed]
         if views:
             self._save_csv(views)
         for i, v in enumerate(views):
-            if i < len(fitted) and v.speed_x is None:  # the listener shows the new fit's curve
-                v = replace(v, speed_x=fitted[i].speed_x, speed_v=fitted[i].speed_v)
+            if i < len(fitted) and v is not fitted[i]:  # the listener shows the new fit whole
+                f = fitted[i]
+                v = replace(v, kept_fit=f.kept_fit, speed_x=f.speed_x, speed_v=f.speed_v)
             self._tell(self.listener.result, v)
         if views and self.compare:
             with self._cmp:
@@ -641,16 +646,17 @@ class Acquisition:
         rows = self._csv_rows
         new: dict[int, ResultRow] = {}
         if rows is not None:
-            last = max(rows, default=0)
+            last = len(rows)  # the last descent the file has (the list ends with its row)
             for r in sorted(results, key=lambda r: r.number):
-                old = rows.get(r.number)
+                n = r.number
+                old = rows[n - 1] if n <= last else None
                 if old is r.row or old == r.row:
-                    new.pop(r.number, None)  # unchanged (a later view may change it again)
-                elif r.number in rows or r.number < last:
+                    new.pop(n, None)  # unchanged (a later view may change it again)
+                elif old is not None or n < last:
                     rows = None  # an earlier row changed: the file is rewritten
                     break
                 else:
-                    new[r.number] = r.row
+                    new[n] = r.row
         if rows is not None and not new:
             return  # the file holds them already
         if rows is not None:
@@ -664,7 +670,10 @@ class Acquisition:
             except Exception:  # noqa: BLE001 - written in full below, which says what failed
                 self._csv_rows = None
             else:
-                rows.update(new)
+                for n, row in new.items():
+                    if n > len(rows):
+                        rows.extend([None] * (n - len(rows)))
+                    rows[n - 1] = row
                 return
         with self.lock:
             snapshot = self.day.snapshot()
@@ -682,7 +691,7 @@ class Acquisition:
             with contextlib.suppress(OSError):  # unknown size: the next write is in full
                 st = os.stat(path)
                 self._csv_size, self._csv_inode = st.st_size, st.st_ino
-                self._csv_rows = {r.number: r.row for r in snapshot}
+                self._csv_rows = _rows_by_number(snapshot)
         if problem is not None and problem != self._csv_problem:
             self._tell(self.listener.warning, problem)
         elif problem is None and self._csv_problem is not None:
@@ -791,12 +800,6 @@ class Acquisition:
         write_result_rows_to(fh, [r.row for r in self.results()], self._results_header())
 
 
-def _without_curve(res: DescentResult) -> DescentResult:
-    if res.speed_x is None and res.speed_v is None:
-        return res
-    return replace(res, speed_x=None, speed_v=None)
-
-
 def _effect_now(day: Day, a: Annotation) -> Effect:
     """What an annotation the day already has calls for, now: the descents it concerns that
     are fitted by now (one fitted meanwhile was fitted before it, or with it: fitted again)."""
@@ -808,6 +811,14 @@ def _effect_now(day: Day, a: Annotation) -> Effect:
     if isinstance(a, ModelChange):
         return Effect(refit=(a.descent,))
     return Effect(changed=(a.descent,))
+
+
+def _rows_by_number(results: Sequence[DescentResult]) -> list[ResultRow | None]:
+    """The rows of ``results``, descent n's at n - 1 (None for a number without one)."""
+    rows: list[ResultRow | None] = [None] * max((r.number for r in results), default=0)
+    for r in results:
+        rows[r.number - 1] = r.row
+    return rows
 
 
 def comparison_text(track: Track, results: Sequence[DescentResult]) -> str:

@@ -9,6 +9,7 @@ as if nothing happened.
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Hashable
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
@@ -50,16 +51,54 @@ class FitJob:
     problem: str = ""  # what makes the fit impossible (e.g. wind without a direction)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class DescentResult:
     """A descent with its fit and its row of the results: immutable, so it can be handed to the
-    UI thread as it is (the speed arrays are read-only)."""
+    UI thread as it is (the speed arrays are read-only).
+
+    The fit is :attr:`fit`. A recording keeps it in the session's fit store rather than in
+    memory (``kept_fit`` None; ``stored`` the store, ``handle`` where in it): 4 kB a descent,
+    two thirds of what a 2000-descent day kept (issue 18's target is 2 kB a descent);
+    :attr:`fit` reads it back (0.5 ms) for the view that asks (the UI's selected descent)."""
 
     descent: DescentTimes
-    fit: FitResult | None
+    kept_fit: FitResult | None
     row: ResultRow
     speed_x: np.ndarray | None = None  # the fitted skier's speed along the run, for plots
     speed_v: np.ndarray | None = None
+    #: the session's store that keeps the fit (None: not stored, or no fit), and where in it
+    stored: StoredFit | None = None
+    handle: Hashable | None = None
+
+    @property
+    def fit(self) -> FitResult | None:
+        """The fit (None: not fitted): the one in memory, else read back from the store."""
+        if self.kept_fit is not None or self.stored is None:
+            return self.kept_fit
+        return self.stored.load(self, self.handle)
+
+    @property
+    def has_fit(self) -> bool:
+        """Fitted (a fit in memory or in the store): no read of the store."""
+        return self.kept_fit is not None or self.stored is not None
+
+    @property
+    def fit_timer_precision_s(self) -> float | None:
+        """The SD of one crossing time the fit was judged against (the fit's
+        ``timer_precision_s``), without a read of the store: what the day's comparison takes
+        of each fit, with the row's values (a read of 2000 stored fits costs a second)."""
+        if self.kept_fit is not None:
+            return self.kept_fit.timer_precision_s
+        return self.stored.timer_precision_s if self.stored is not None else None
+
+    def lean(self) -> DescentResult:
+        """The same result without what it need not keep: its speed curve, and its fit where
+        the store has it (what a recording keeps of each descent)."""
+        curve = self.speed_x is not None or self.speed_v is not None
+        if not curve and (self.kept_fit is None or self.stored is None):
+            return self
+        fit = None if self.stored is not None else self.kept_fit
+        return replace(self, kept_fit=fit, speed_x=None, speed_v=None)
 
     @property
     def number(self) -> int:
@@ -99,15 +138,42 @@ def start_time(d: DescentTimes, host_t: float | None, date: dt.date | None) -> s
     return dt.datetime.combine(date + dt.timedelta(days=days), t).astimezone().isoformat()
 
 
+@dataclass(frozen=True, slots=True)
+class StoredFit:
+    """Fits kept in the session's store, not in memory: the analyser that reads one back (by
+    the handle its result keeps, :meth:`FitCache.handle`) or computes it again if the store no
+    longer has it (another process compacted it, the file went), from the result's own inputs
+    (descent, row) and the timer's precision. One for all the fits of an analyser and a
+    precision, shared: a result keeps a reference and its handle."""
+
+    analyser: Analyser
+    timer_precision_s: float
+
+    def load(self, res: DescentResult, handle: Hashable) -> FitResult | None:
+        fits = self.analyser.fits
+        fit = fits.get(handle) if fits is not None else None
+        if fit is not None:
+            return fit
+        row = res.row
+        job = FitJob(
+            descent=res.descent, start_time=row.start_time, metadata=row.metadata,
+            model=row.model, mass_kg=row.mass_kg, air_density=row.air_density,
+            wind_ms=row.wind_ms, gravity=row.gravity, timer_precision_s=self.timer_precision_s,
+        )  # fmt: skip
+        return self.analyser.run(job).kept_fit
+
+
 class FitCache(Protocol):
     """Fits stored with the session (:class:`station.session.fitstore.FitStore`): the analyser
     asks for a fit by the key of what it is computed from before it computes it."""
 
     def key(self, parts: dict[str, Any], survey_cov: np.ndarray | None) -> str: ...
 
-    def get(self, key: str) -> FitResult | None: ...
+    def get(self, key: Hashable) -> FitResult | None: ...
 
     def put(self, key: str, fit: FitResult) -> None: ...
+
+    def handle(self, key: str) -> Hashable | None: ...
 
 
 class Analyser:
@@ -128,6 +194,7 @@ class Analyser:
         self._survey_cov: dict[tuple[str, ...], np.ndarray] = {}
         #: fits stored with the session, when it has them: a fit found there is not computed
         self.fits: FitCache | None = None
+        self._stored: dict[float, StoredFit] = {}  # what a result keeps of it, by precision
         #: the fitted speed along the run of every descent (one model solve each), for the
         #: views that draw it (the UI, the report); off for those that only list results
         self.speed_curves = True
@@ -156,7 +223,8 @@ class Analyser:
             run = self._runs[ids] = StraightRun(self.track.profile, xs)
         t = (np.array(d.times_us) - d.times_us[0]) / 1e6
         cov = self._survey_cov.get(ids)
-        key = fit = None
+        key: str | None = None
+        fit: FitResult | None = None
         if self.fits is not None:  # everything the fit below depends on but the session's files
             parts = {
                 "times_us": list(d.times_us), "photocells": list(ids), "model": job.model.value,
@@ -178,13 +246,22 @@ class Analyser:
         row = result_row(job, fit)
         curve = _speed_curve(run, fit, cond) if self.speed_curves else None
         speed_x, speed_v = curve if curve is not None else (None, None)
-        return DescentResult(d, fit, row, speed_x, speed_v)
+        stored = None
+        handle = self.fits.handle(key) if key is not None and self.fits is not None else None
+        if handle is not None:
+            stored = self._stored.get(job.timer_precision_s)
+            if stored is None:
+                stored = self._stored[job.timer_precision_s] = StoredFit(
+                    self, job.timer_precision_s
+                )
+        return DescentResult(d, fit, row, speed_x, speed_v, stored, handle)
 
     def speed_curve(self, res: DescentResult) -> tuple[np.ndarray, np.ndarray] | None:
         """The fitted skier's speed along the run of a result kept without it (a recording
         keeps a descent's ~12 kB curve only where it is shown: the UI asks for the one it
         shows). The same solve as the fit's own; None where there is no fit to draw."""
-        if res.fit is None:
+        fit = res.fit
+        if fit is None:
             return None
         ids = res.descent.photocells
         run = self._runs.get(ids)
@@ -193,7 +270,7 @@ class Analyser:
             run = self._runs[ids] = StraightRun(self.track.profile, xs)
         row = res.row
         cond = Conditions(row.mass_kg, row.air_density, row.wind_ms, g=row.gravity)
-        return _speed_curve(run, res.fit, cond)
+        return _speed_curve(run, fit, cond)
 
 
 def _speed_curve(

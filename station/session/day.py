@@ -52,6 +52,10 @@ def along_track_wind(speed_ms: float, from_deg: float | None, track_azimuth_deg:
     return speed_ms * math.cos(toward)
 
 
+#: distinct metadata a day shares among its descents (beyond: each its own, as before)
+MAX_METADATA = 4096
+
+
 @dataclass(frozen=True)
 class Effect:
     """What an annotation changed: descents to fit again, and results whose mark changed."""
@@ -75,6 +79,9 @@ class Day:
     invalid: dict[int, str] = field(default_factory=dict)
     models: dict[int, FitModel] = field(default_factory=dict)
     _base: Metadata | None = field(default=None, repr=False)  # the config's, built once
+    #: the metadata of the descents fitted, one object for equal ones: a change "from descent
+    #: N on" made a new one for every later descent, each kept with its row all day
+    _metas: dict[Metadata, Metadata] = field(default_factory=dict, repr=False)
 
     @classmethod
     def start(cls, config: StationConfig, track: Track, date: dt.date | None = None) -> Day:
@@ -165,6 +172,10 @@ class Day:
         item = self.config.items.get(d.bib) if d.bib else None
         if item:
             meta = meta.overlay(Metadata.from_values(item, f"items.{d.bib}."))
+        same = self._metas.get(meta)
+        if same is None and len(self._metas) < MAX_METADATA:
+            self._metas[meta] = meta
+        meta = same or meta
         try:
             wind, problem = self.wind_for(meta), ""
         except InputError as exc:  # the descent gets status error with the reason, the day goes on

@@ -27,6 +27,7 @@ import os
 import stat
 import types
 import typing
+from collections.abc import Hashable
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -238,6 +239,28 @@ def session_context(config: StationConfig) -> str:
     return "|".join([*digests, code_digest()])
 
 
+#: a key as the store holds it in memory (:func:`_held`)
+Held = bytes | str
+
+
+def _held(key: str) -> Held:
+    """A key as the store holds it: a SHA-256 in hex (what :func:`fit_key` makes) as its 32
+    bytes, 65 bytes of memory, not the hex string's 113 (a day holds 2000); any other string
+    as it is."""
+    if len(key) == 64:
+        try:
+            digest = bytes.fromhex(key)
+        except ValueError:
+            return key
+        if digest.hex() == key:
+            return digest
+    return key
+
+
+def _key(held: Held) -> str:
+    return held if isinstance(held, str) else held.hex()
+
+
 #: the longest line a stored fit takes (a fit of 64 photocells is some 25 kB)
 MAX_LINE = 1 << 20
 
@@ -257,10 +280,11 @@ class FitStore:
         self.context = context
         #: fits that could not be written (a read-only copy, a full disk): their JSON form
         self._fits: dict[str, Any] = {}
-        #: fits in the file: the offset of their line
-        self._where: dict[str, int] = {}
+        #: fits in the file, by the key as held (:func:`_held`): the offset of their line,
+        #: or ``~offset`` (negative) for a fit not asked for since the file was opened
+        self._where: dict[Held, int] = {}
         self._records = 0
-        self.used: set[str] = set()
+        self._put: Held | None = None  # the key of the fit written last
         self.hits = 0
         self.misses = 0
         self._writable = True
@@ -295,12 +319,14 @@ class FitStore:
             except ValueError:
                 continue
             if isinstance(rec, dict) and isinstance(rec.get("key"), str) and "fit" in rec:
-                self._where[rec["key"]] = at
+                self._where[_held(rec["key"])] = ~at  # not used yet
 
     def _load(self, key: str) -> Any:
         """The JSON form of a fit from its line in the file; None when that line is not the
         fit's any more (the file was compacted or cut since) or cannot be read."""
-        at = self._where.get(key)
+        at = self._where.get(_held(key))
+        if at is not None and at < 0:
+            at = ~at
         if at is None:
             return None
         try:
@@ -320,28 +346,49 @@ class FitStore:
     def key(self, parts: dict[str, Any], survey_cov: np.ndarray | None) -> str:
         return fit_key(self.context, parts, survey_cov)
 
-    def get(self, key: str) -> FitResult | None:
+    def handle(self, key: str) -> Held | None:
+        """Where the fit is kept when it is in the file (:meth:`get` takes it for the key),
+        None when it is not (only in memory, or not stored): the key as the store holds it,
+        the very object, so that one who keeps it keeps no copy."""
+        held = _held(key)
+        if held == self._put and held in self._where:  # just written (a recording's every fit)
+            return self._put
+        at = self._where.pop(held, None)
+        if at is None:
+            return None
+        self._where[held] = at  # the index now holds this very object
+        return held
+
+    def _forget(self, key: str) -> None:
+        self._where.pop(_held(key), None)
+
+    def get(self, key: Hashable) -> FitResult | None:
+        """The fit of a key, or of what :meth:`handle` gave; None when the store has none."""
+        key = key.hex() if isinstance(key, bytes) else str(key)
         stored = self._fits.get(key)
         if stored is None:
             stored = self._load(key)
         if stored is None:
-            self._where.pop(key, None)
+            self._forget(key)
             self.misses += 1
             return None
         try:
             fit = fit_from_json(stored)
         except (_Bad, TypeError, ValueError, OverflowError):
             self._fits.pop(key, None)
-            self._where.pop(key, None)
+            self._forget(key)
             self.misses += 1
             return None
-        self.used.add(key)
+        held = _held(key)
+        at = self._where.get(held)
+        if at is not None and at < 0:
+            self._where[held] = ~at  # used
         self.hits += 1
         return fit
 
     def put(self, key: str, fit: FitResult) -> None:
         form = to_json(fit)
-        self.used.add(key)
+        held = _held(key)
         if not self._writable:
             self._fits[key] = form
             return
@@ -359,33 +406,41 @@ class FitStore:
             self._fits[key] = form
             return
         if written == len(data):
-            self._where[key] = end - len(data)
+            self._where[held] = end - len(data)
+            self._put = held
             self._fits.pop(key, None)
         else:  # a short write: the line is torn; keep the fit here
             self._fits[key] = form
 
+    @property
+    def used(self) -> set[str]:
+        """The keys of the fits asked for or made since the store was opened."""
+        made = {_key(h) for h, at in self._where.items() if at >= 0}
+        return made | self._fits.keys()
+
     def compact(self) -> None:
         """Rewrite the file with the fits used since it was opened, when most records are not
         (every annotation leaves the fits it replaced behind)."""
-        if not self._writable or self._records <= 2 * len(self.used) + 100:
+        used = self.used
+        if not self._writable or self._records <= 2 * len(used) + 100:
             return
         tmp = f"{self.path}.{os.getpid()}.tmp"
         try:
             with open(tmp, "wb") as fh:
-                where: dict[str, int] = {}
-                for key in sorted(self.used):
+                where: dict[Held, int] = {}
+                for key in sorted(used):
                     form = self._fits.get(key)
                     if form is None:
                         form = self._load(key)
                     if form is not None:
-                        where[key] = fh.tell()
+                        where[_held(key)] = fh.tell()
                         line = json.dumps({"key": key, "fit": form}, separators=(",", ":"))
                         fh.write(line.encode() + b"\n")
             os.replace(tmp, self.path)
-            self._records = len(self.used)
+            self._records = len(used)
             self._where = where
-            for key in where:
-                self._fits.pop(key, None)
+            for held in where:
+                self._fits.pop(_key(held), None)
         except OSError:
             if os.path.exists(tmp):
                 os.unlink(tmp)

@@ -10,6 +10,8 @@ the time-out) need no clock at all.
 
 from __future__ import annotations
 
+import math
+from array import array
 from collections import Counter
 
 from station.errors import InputError
@@ -19,12 +21,40 @@ from station.session.records import LineCounts
 from station.survey.track import Track
 from station.timing.assembly import DescentAssembler, ImpulseEvent, TimedDescent
 from station.timing.framing import LineFramer
-from station.timing.impulses import Edit, Impulse, Skip, Unparsed
+from station.timing.impulses import Edit, Impulse, Parsed, Skip, Unparsed
 from station.timing.wireformats import make_parser
 
 #: unparsed lines listed (line, reason, first 100 characters): a day of line noise stays within
 #: tens of MB; beyond it one entry says that more were not listed
 MAX_UNPARSED = 100_000
+
+
+class StartHosts:
+    """The host clock at each descent's start, by descent number (they count from 1), or
+    None: 8 bytes a descent in an array, not a dict entry and a float (a day keeps them all:
+    a refit after an annotation dates its descent again)."""
+
+    def __init__(self) -> None:
+        self._t = array("d")  # NaN: none known
+        self._nan: set[int] = set()  # those whose host time was NaN itself
+
+    def __setitem__(self, number: int, t: float | None) -> None:
+        if number < 1:
+            raise IndexError(number)
+        gap = number - len(self._t)
+        if gap > 0:
+            self._t.extend([math.nan] * gap)
+        self._t[number - 1] = math.nan if t is None else t
+        if t is not None and t != t:
+            self._nan.add(number)
+        else:
+            self._nan.discard(number)
+
+    def get(self, number: int) -> float | None:
+        if not 1 <= number <= len(self._t):
+            return None
+        t = self._t[number - 1]
+        return t if t == t or number in self._nan else None
 
 
 class Processor:
@@ -59,7 +89,7 @@ class Processor:
         self.unparsed: list[tuple[int, str, str]] = []  # line number, reason, text (first 100)
         self.connection: list[tuple[float, str, str]] = []
         self.offset_us: int | None = None  # device clock − host clock
-        self.start_host: dict[int, float | None] = {}
+        self.start_host = StartHosts()
         self._latest_start: tuple[int, int] | None = None  # (device µs, descent): the last start
         #: the resolution (µs) the timer states in its first impulse from a photocell (not a
         #: keypad's 1/100 s): the default of the timer's precision (station.model.timer); fixed
@@ -85,31 +115,66 @@ class Processor:
             if chunk.event == "disconnected":
                 self.assembler.disconnected(chunk.detail)
             return []
+        lines = self.framer.feed(chunk.data)
+        t: float | None = chunk.t  # None: a plain capture (replay_chunks)
+        if len(lines) == 1:  # a live recording's every chunk
+            line = lines[0]
+            return self._parsed(line, self.parser.parse(line), t)
+        if t is None:
+            return self._capture_lines(lines)
         done: list[TimedDescent] = []
-        t = chunk.t
-        for line in self.framer.feed(chunk.data):
+        for line in lines:
             ended = self._line(line, t)
             if ended:
                 done += ended
         return done
 
+    def _capture_lines(self, lines: list[str]) -> list[TimedDescent]:
+        """:meth:`_line` for each line of a plain capture's chunk (no host clock), its common
+        impulse handled here: a replay of a capture is a hundred thousand of them."""
+        done: list[TimedDescent] = []
+        parse = self.parser.parse
+        asm = self.assembler
+        feed = asm.feed
+        for line in lines:
+            parsed = parse(line)
+            if type(parsed) is Impulse and self.resolution_us is not None:
+                self.lines += 1
+                self.impulses += 1
+                before = asm.count
+                ended = feed(parsed, self.lines, None)
+                if asm.count > before:
+                    self.start_host[asm.count] = None
+                    self._started(asm.count)
+            else:
+                ended = self._parsed(line, parsed, None)
+            if ended:
+                done += ended
+        return done
+
     def _line(self, line: str, t: float | None) -> list[TimedDescent]:
+        return self._parsed(line, self.parser.parse(line), t)
+
+    def _parsed(self, line: str, parsed: Parsed, t: float | None) -> list[TimedDescent]:
+        """One line and what the parser made of it."""
         self.lines += 1
-        parsed = self.parser.parse(line)
         if type(parsed) is Impulse:
             self.impulses += 1
             asm = self.assembler
             if self.resolution_us is None and parsed.channel in self._photocell_channels:
                 self.resolution_us = parsed.resolution_us
             before = asm.count
-            now = None
-            if t is not None and self.offset_us is not None and t == t:
-                now = round(t * 1e6) + self.offset_us  # the device time now, by the host clock
-            done = asm.feed(parsed, self.lines, now)
-            if t is not None:
+            if t is None:  # a plain capture: no host clock
+                done = asm.feed(parsed, self.lines, None)
+            else:
+                host_us = round(t * 1e6)
+                offset = self.offset_us
+                # the device time now, by the host clock
+                now = host_us + offset if offset is not None and t == t else None
+                done = asm.feed(parsed, self.lines, now)
                 clock = asm.clock
                 if clock is not None:
-                    self.offset_us = clock - round(t * 1e6)
+                    self.offset_us = clock - host_us
             if asm.count > before:
                 self.start_host[asm.count] = t
                 self._started(asm.count)

@@ -346,10 +346,28 @@ MAX_DESCENT = 1_000_000
 # ----------------------------------------------------------------------------- descents
 
 
-@dataclass(frozen=True)
+#: tuples that most descents of a day have alike (the photocells, the channels): one object
+#: for them all, not one each (a 2000-descent day's results are kept in memory); bounded
+_SHARED: dict[tuple[str, ...], tuple[str, ...]] = {}
+_MAX_SHARED = 4096
+
+
+def shared(items: list[str] | tuple[str, ...]) -> tuple[str, ...]:
+    """``items`` as a tuple, the same object as an equal one made before."""
+    t = tuple(items)
+    same = _SHARED.get(t)
+    if same is not None:
+        return same
+    if len(_SHARED) < _MAX_SHARED:
+        _SHARED[t] = t
+    return t
+
+
+@dataclass(frozen=True, slots=True)
 class DescentTimes:
     """A finished descent as the fit and the results see it: a frozen copy of the assembler's
-    :class:`TimedDescent`, so nothing the UI holds can change under it."""
+    :class:`TimedDescent`, so nothing the UI holds can change under it. Kept for every descent
+    of the day: slots, and the photocells and channels shared among descents."""
 
     number: int
     photocells: tuple[str, ...]
@@ -366,13 +384,13 @@ class DescentTimes:
     def of(cls, d: TimedDescent) -> DescentTimes:
         return cls(
             d.number,
-            tuple(d.photocells),
+            shared(d.photocells),
             tuple(d.times_us),
             DescentStatus(d.status),
             tuple(d.flags),
-            tuple(d.missing),
+            shared(d.missing),
             d.bib,
-            tuple(d.channels),
+            shared(d.channels),
             d.day,
             d.first_us,
         )
@@ -408,9 +426,10 @@ class Progress:
 # ----------------------------------------------------------------------------- results row
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class ResultRow:
-    """One descent in the results: the row of the results CSV, read by attribute."""
+    """One descent in the results: the row of the results CSV, read by attribute (kept for
+    every descent of the day: slots)."""
 
     descent: int
     start_time: str

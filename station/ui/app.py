@@ -425,8 +425,9 @@ class StationApp(App):
     def on_descent_fitted(self, msg: DescentFitted) -> None:
         res = msg.result
         n = res.number
-        # its speed curve (12 kB) only while it is shown: asked for again when selected
-        self.results[n] = replace(res, speed_x=None, speed_v=None)
+        # its speed curve (12 kB) only while it is shown, its fit (4 kB) in the session's
+        # fit store where it has one: read back, drawn again when selected (DescentResult.lean)
+        self.results[n] = res.lean()
         table = self.main.query_one("#table", DataTable)
         key = str(n)
         values = self._cells(res)
