@@ -101,6 +101,7 @@ def main() -> int:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--setup", choices=["demo", "sparse", "both"], default="demo")
     ap.add_argument("--cache", type=Path, help="JSON file of the looks, read and extended")
+    ap.add_argument("--scatter", type=float, action="append", help="only this scatter")
     args = ap.parse_args()
     setups = ["demo", "sparse"] if args.setup == "both" else [args.setup]
     cache: dict[str, list[Look]] = {}
@@ -131,7 +132,7 @@ def main() -> int:
                   f"{'naive 90 % rule':>15} | {'SD(z) mid/last':>14} | "
                   f"{'Δμ 0.001: wrong ski':>19} | {'decided':>7} | "
                   f"{'descents/item at decision':>25}")  # fmt: skip
-            for scatter in SCATTERS:
+            for scatter in args.scatter or SCATTERS:
                 seed0 = 7000 + int(scatter * 1000) * 1000
                 eq_looks = days(pool, setup, 0.0, scatter, args.days, seed0)
                 df_looks = days(pool, setup, 0.001, scatter, args.days_diff, seed0 + 500)
