@@ -1,8 +1,10 @@
-"""The assembler's fast path (the one open descent reaching its next photocell) decides exactly
-as the general path: the same events, the same descents, on random days full of what the
-general path is for (several skiers on the run, bibs and counters, double triggers, missed
-photocells, repeats from the timer's memory, corrupted times, midnight) and on the real
-captures. ``_next_photocell`` returning None sends every impulse down the general path."""
+"""The assembler's fast paths (the one open descent reaching its next photocell; the next
+start with no descent open) decide exactly as the general path: the same events, the same
+descents, on random days full of what the general path is for (several skiers on the run, bibs
+and counters, double triggers, missed photocells, repeats from the timer's memory, corrupted
+times, midnight) and on the real captures, where the parsers' fast paths are compared with
+their general paths too. ``_next_photocell`` returning None and ``_start`` returning False
+send every impulse down the general path."""
 
 from __future__ import annotations
 
@@ -19,6 +21,7 @@ from station.survey.load import load_survey
 from station.survey.track import build_track
 from station.timing.assembly import DescentAssembler
 from station.timing.impulses import DAY_US, Impulse
+from station.timing.wireformats import AlgeParser
 from tests.timing_helpers import write_config
 
 PCS = ["PC1", "PC2", "PC3", "PC4", "PC5", "PC6"]
@@ -59,10 +62,16 @@ def random_day(rng: np.random.Generator, numbering: str, n: int = 60) -> list[Im
     return impulses + impulses[-8:]
 
 
+def general_only(m: pytest.MonkeyPatch) -> None:
+    """Every impulse down the assembler's general path."""
+    m.setattr(DescentAssembler, "_next_photocell", lambda *_a: None)
+    m.setattr(DescentAssembler, "_start", lambda *_a: False)
+
+
 def assemble(impulses: list[Impulse], pairing: str, fast: bool, monkeypatch) -> DescentAssembler:
     with monkeypatch.context() as m:
         if not fast:
-            m.setattr(DescentAssembler, "_next_photocell", lambda *_a: None)
+            general_only(m)
         asm = DescentAssembler(PCS, CHANNELS, positions_m=POS, pairing=pairing)
         for i, imp in enumerate(impulses, start=1):
             asm.feed(imp, i)
@@ -94,16 +103,23 @@ def test_the_fast_path_decides_as_the_general_path(seed, numbering, pairing, mon
 
 
 def test_the_fast_path_takes_the_common_case(monkeypatch):
-    """On a clean day every impulse but the starts goes the fast way."""
-    calls = {"fast": 0}
-    real = DescentAssembler._next_photocell
+    """On a clean day every impulse goes the fast way, but the first start and the impulse
+    that decides the pairing."""
+    calls = {"fast": 0, "start": 0}
+    real, real_start = DescentAssembler._next_photocell, DescentAssembler._start
 
     def counted(self, *args):
         done = real(self, *args)
         calls["fast"] += done is not None
         return done
 
+    def counted_start(self, *args):
+        started = real_start(self, *args)
+        calls["start"] += started
+        return started
+
     monkeypatch.setattr(DescentAssembler, "_next_photocell", counted)
+    monkeypatch.setattr(DescentAssembler, "_start", counted_start)
     asm = DescentAssembler(PCS, CHANNELS, positions_m=POS, pairing="auto")
     n = 0
     for k in range(20):
@@ -114,6 +130,7 @@ def test_the_fast_path_takes_the_common_case(monkeypatch):
     assert len(asm.finished) == 20 and all(d.status == "complete" for d in asm.finished)
     # the first descent's second impulse decides the pairing (a counter) the general way
     assert calls["fast"] == 20 * (len(POS) - 1) - 1
+    assert calls["start"] == 20 - 1
 
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "fixtures" / "real" / "alge"
@@ -130,8 +147,9 @@ def test_the_real_captures_give_the_same_either_way(tmp_path, name, monkeypatch)
     results = []
     for fast in (True, False):
         with monkeypatch.context() as m:
-            if not fast:
-                m.setattr(DescentAssembler, "_next_photocell", lambda *_a: None)
+            if not fast:  # the parser's general path too, for every line
+                general_only(m)
+                m.setattr(AlgeParser, "parse", AlgeParser.parse_general)
             proc = Processor(cfg, track)
             for k in range(0, len(data), 512):
                 proc.feed(Chunk(None, data[k : k + 512]))  # type: ignore[arg-type]

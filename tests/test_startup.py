@@ -7,6 +7,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 from tests.conftest import ROOT
 
 #: README.md, "Worked example", step 3
@@ -182,3 +184,50 @@ def test_the_parser_of_one_command_is_the_parser_of_that_command():
     for name, group in COMMANDS.items():
         assert name in commands(build_parser(name))
         assert set(commands(build_parser(name))) == {c for c, g in COMMANDS.items() if g == group}
+
+
+def test_help_and_a_wrong_command_load_no_config_survey_or_numerics():
+    """``station --help`` imports every command's module to list them: their sessions, configs,
+    surveys and numerics are imported inside the commands, not at the top."""
+    for argv in (["--help"], ["no-such-command"]):
+        loaded = subprocess.run(
+            [sys.executable, "-c", SCRIPT, json.dumps(argv),
+             json.dumps(["yaml", "numpy", "scipy", "station.survey.load",
+                         "station.session.config", *HEAVY[:-1]])],
+            cwd=ROOT, capture_output=True, text=True, check=True,
+        )  # fmt: skip
+        found = json.loads(loaded.stdout)
+        assert found["status"] in (0, 2)
+        assert [m for m, was in found.items() if m != "status" and was] == [], argv
+
+
+def test_the_fit_runs_without_the_garbage_collector_and_gives_it_back():
+    """The fit (mostly importing numpy and scipy) runs with the collector off; a caller in the
+    same process has it on again afterwards, also when the command failed."""
+    import contextlib
+    import gc
+    import io
+
+    from station.cli.main import main
+
+    seen = []
+    import station.cli.survey as survey_cli
+
+    real = survey_cli.cmd_fit
+
+    def spy(args):
+        seen.append(gc.isenabled())
+        return real(args)
+
+    assert gc.isenabled()
+    try:
+        survey_cli.cmd_fit = spy
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            assert main(FIT) == 0
+            with pytest.raises(SystemExit):  # a usage error: argparse exits
+                main([*FIT[:-2], "--humidity-pct", "300"])
+            assert gc.isenabled()
+            assert main([*FIT[:2], "no-such-survey.yaml", *FIT[3:]]) == 2
+    finally:
+        survey_cli.cmd_fit = real
+    assert seen == [False, False] and gc.isenabled()

@@ -16,11 +16,12 @@ import sys
 from typing import Any
 
 from station.cli.common import EXIT_BAD_INPUT
-from station.session.configcheck import check_config
 
 
 def cmd_check(args: argparse.Namespace) -> int:
+    # here, not at the top: the survey, numpy and scipy (``station --help`` imports this module)
     from station.report.text import count
+    from station.session.configcheck import check_config
 
     result = check_config(args.config)
     for note in result.notes:

@@ -9,7 +9,6 @@ import sys
 from typing import Any
 
 from station.cli.common import _positive, open_output, output_dir, unique_prefix
-from station.session import store as sessions
 
 
 def cmd_report(args: argparse.Namespace) -> int:
@@ -17,6 +16,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     from station.cli.console import day_summary, replayed
     from station.report.day_report import DayData, build_day_report, descent_views
     from station.report.text import count
+    from station.session import store as sessions
     from station.session.comparison import compared_items
     from station.session.recorded import RecordedSession
 

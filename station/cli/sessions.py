@@ -26,7 +26,6 @@ from typing import Any
 from station.cli.common import EXIT_BAD_INPUT, _print_json
 from station.errors import InputError
 from station.files import MAX_RAWLOG, check_regular
-from station.session import store as sessions
 
 
 class SessionStatus(StrEnum):
@@ -65,6 +64,8 @@ def session_status(session: Any, has_results: bool) -> SessionStatus:
     ``interrupted`` when its recorder died (killed, crashed) without ending it, so its
     results CSV may lack the last descent; ``finished`` when it was ended (or is older than
     the lock)."""
+    from station.session import store as sessions  # here: yaml (``station --help``)
+
     state = session.recording_state()
     if state is sessions.RecordingStatus.NOW:
         return SessionStatus.RECORDING
@@ -80,6 +81,7 @@ def session_status(session: Any, has_results: bool) -> SessionStatus:
 def summarise(path: str) -> SessionSummary:
     """One session's line; a session that cannot be read raises :class:`InputError`."""
     from station.model.compare import item_name  # here: numpy, see recording.py's note
+    from station.session import store as sessions
     from station.session.recorded import RecordedSession
 
     check_regular(os.path.join(path, sessions.RAW), MAX_RAWLOG, "raw log")
@@ -108,6 +110,8 @@ def broken(path: str, why: str) -> SessionSummary:
 
 def find_sessions(folder: str) -> list[str]:
     """Sessions in ``folder`` (or ``folder`` itself when it is one), oldest first."""
+    from station.session import store as sessions
+
     if not os.path.exists(folder):
         raise InputError("no such folder", path=folder)
     if not os.path.isdir(folder):

@@ -11,15 +11,14 @@ from importlib.resources import files
 from typing import Any
 
 from station.cli.common import _positive
-from station.session import store as sessions
-from station.session.config import load_config
-from station.session.ports import check_port
 
 
 def cmd_live(args: argparse.Namespace) -> int:
     # here, not at the top: the UI, numpy and scipy (see station/cli/tui.py and recording.py)
     from station.cli.tui import require_terminal, run_ui
+    from station.session import store as sessions
     from station.session.configcheck import checked_config
+    from station.session.ports import check_port
     from station.ui.app import StationApp
 
     cfg = checked_config(args.config)  # config, survey and photocells, as station check does
@@ -46,6 +45,8 @@ def demo_config_path() -> str:
 def cmd_demo(args: argparse.Namespace) -> int:
     # here, not at the top: the UI, numpy and scipy (see station/cli/tui.py and recording.py)
     from station.cli.tui import require_terminal, run_ui
+    from station.session import store as sessions
+    from station.session.config import load_config
     from station.ui.app import StationApp
 
     cfg = load_config(demo_config_path())

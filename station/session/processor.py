@@ -21,7 +21,7 @@ from station.session.records import LineCounts
 from station.survey.track import Track
 from station.timing.assembly import DescentAssembler, ImpulseEvent, TimedDescent
 from station.timing.framing import LineFramer
-from station.timing.impulses import Edit, Impulse, Skip, Unparsed
+from station.timing.impulses import Edit, Impulse, Parsed, Skip, Unparsed
 from station.timing.wireformats import make_parser
 
 #: unparsed lines listed (line, reason, first 100 characters): a day of line noise stays within
@@ -115,31 +115,66 @@ class Processor:
             if chunk.event == "disconnected":
                 self.assembler.disconnected(chunk.detail)
             return []
+        lines = self.framer.feed(chunk.data)
+        t: float | None = chunk.t  # None: a plain capture (replay_chunks)
+        if len(lines) == 1:  # a live recording's every chunk
+            line = lines[0]
+            return self._parsed(line, self.parser.parse(line), t)
+        if t is None:
+            return self._capture_lines(lines)
         done: list[TimedDescent] = []
-        t = chunk.t
-        for line in self.framer.feed(chunk.data):
+        for line in lines:
             ended = self._line(line, t)
             if ended:
                 done += ended
         return done
 
+    def _capture_lines(self, lines: list[str]) -> list[TimedDescent]:
+        """:meth:`_line` for each line of a plain capture's chunk (no host clock), its common
+        impulse handled here: a replay of a capture is a hundred thousand of them."""
+        done: list[TimedDescent] = []
+        parse = self.parser.parse
+        asm = self.assembler
+        feed = asm.feed
+        for line in lines:
+            parsed = parse(line)
+            if type(parsed) is Impulse and self.resolution_us is not None:
+                self.lines += 1
+                self.impulses += 1
+                before = asm.count
+                ended = feed(parsed, self.lines, None)
+                if asm.count > before:
+                    self.start_host[asm.count] = None
+                    self._started(asm.count)
+            else:
+                ended = self._parsed(line, parsed, None)
+            if ended:
+                done += ended
+        return done
+
     def _line(self, line: str, t: float | None) -> list[TimedDescent]:
+        return self._parsed(line, self.parser.parse(line), t)
+
+    def _parsed(self, line: str, parsed: Parsed, t: float | None) -> list[TimedDescent]:
+        """One line and what the parser made of it."""
         self.lines += 1
-        parsed = self.parser.parse(line)
         if type(parsed) is Impulse:
             self.impulses += 1
             asm = self.assembler
             if self.resolution_us is None and parsed.channel in self._photocell_channels:
                 self.resolution_us = parsed.resolution_us
             before = asm.count
-            now = None
-            if t is not None and self.offset_us is not None and t == t:
-                now = round(t * 1e6) + self.offset_us  # the device time now, by the host clock
-            done = asm.feed(parsed, self.lines, now)
-            if t is not None:
+            if t is None:  # a plain capture: no host clock
+                done = asm.feed(parsed, self.lines, None)
+            else:
+                host_us = round(t * 1e6)
+                offset = self.offset_us
+                # the device time now, by the host clock
+                now = host_us + offset if offset is not None and t == t else None
+                done = asm.feed(parsed, self.lines, now)
                 clock = asm.clock
                 if clock is not None:
-                    self.offset_us = clock - round(t * 1e6)
+                    self.offset_us = clock - host_us
             if asm.count > before:
                 self.start_host[asm.count] = t
                 self._started(asm.count)

@@ -35,11 +35,12 @@ import errno
 import json
 import math
 import os
+import re
 import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from typing import NamedTuple
 
 from station.errors import InputError
 from station.files import MAX_RAWLOG, MiB, open_regular
@@ -59,9 +60,10 @@ MAX_T = 1e10
 MAX_NAMED = 10
 
 
-@dataclass(frozen=True)
-class Chunk:
-    """Bytes as they arrived, or a connection event (``data`` empty, ``event`` set)."""
+class Chunk(NamedTuple):
+    """Bytes as they arrived, or a connection event (``data`` empty, ``event`` set). A
+    NamedTuple, not a frozen dataclass: a replay of a session makes one per record, and a
+    frozen dataclass's ``__init__`` cost a fifth of reading the record."""
 
     t: float
     data: bytes = b""
@@ -397,6 +399,27 @@ def _check(rec: object) -> str | None:
 
 _decode = json.JSONDecoder().decode  # a str in: json.loads would sniff the bytes' encoding
 
+#: the common record exactly as :class:`RawLogWriter` writes it: a host time in plain decimal
+#: (below 1e10, so within ``MAX_T``), then bytes that are printable ASCII or one of the
+#: escapes ``\r`` ``\n`` ``\t``. Such a line is a valid record by construction (what
+#: :func:`_check` asks of one), so it is read without the JSON decoder and the check; any
+#: other line, valid or not, goes the general way.
+_COMMON = re.compile(
+    rb'\{"t":((?:0|[1-9][0-9]{0,9})(?:\.[0-9]{1,20})?),"rx":"((?:[ !#-\[\]-~]|\\[rnt])*)"\}\n'
+).fullmatch
+#: its most common case: one line of printable ASCII and its CR (ALGE, Microgate)
+_ONE_LINE = re.compile(
+    rb'\{"t":((?:0|[1-9][0-9]{0,9})(?:\.[0-9]{1,20})?),"rx":"([ !#-\[\]-~]*)\\r"\}\n'
+).fullmatch
+_new_chunk = tuple.__new__
+
+
+def _unescape(rx: bytes) -> bytes:
+    """The bytes of a common record's ``rx`` (JSON escapes of CR, LF and TAB only)."""
+    if b"\\" not in rx:
+        return rx
+    return rx.replace(b"\\r", b"\r").replace(b"\\n", b"\n").replace(b"\\t", b"\t")
+
 
 def read_rawlog(path: str, warnings: list[str] | None = None) -> Iterator[Chunk]:
     """The chunks of a raw log in order, read in one pass. A torn last line (killed
@@ -413,11 +436,12 @@ def read_rawlog(path: str, warnings: list[str] | None = None) -> Iterator[Chunk]
         if warnings is not None and bad <= MAX_NAMED:
             warnings.append(f"{path}:{i}: {why}; passed over")
 
+    readline, limit = fh.readline, MAX_RECORD + 1
     with fh:
         i = 0
         while True:
             try:
-                raw = fh.readline(MAX_RECORD + 1)
+                raw = readline(limit)
             except OSError as exc:
                 raise InputError(f"cannot read raw log: {_why(exc)}", path=path) from None
             if not raw:
@@ -427,6 +451,14 @@ def read_rawlog(path: str, warnings: list[str] | None = None) -> Iterator[Chunk]
             if total > MAX_RAWLOG:  # grew while read
                 raise InputError(f"is larger than {_size(MAX_RAWLOG)}, the limit for a raw log",
                                  path=path)  # fmt: skip
+            common = _ONE_LINE(raw)  # a whole line: never one cut at the limit
+            if common is not None:
+                yield _new_chunk(Chunk, (float(common[1]), common[2] + b"\r", "", ""))
+                continue
+            common = _COMMON(raw)
+            if common is not None:
+                yield _new_chunk(Chunk, (float(common[1]), _unescape(common[2]), "", ""))
+                continue
             if len(raw) > MAX_RECORD and not raw.endswith(b"\n"):
                 while raw and not raw.endswith(b"\n"):  # the rest of the line, unread
                     raw = fh.readline(MiB)

@@ -50,6 +50,9 @@ def replay_chunks(
     has no host times: its chunks come with ``t = None``."""
     if sessions.is_session(source):
         chunks: Iterator[Chunk] = read_rawlog(os.path.join(source, sessions.RAW), warnings)
+        if not speed and stop is None:  # a raw log's records all have host times
+            yield from chunks
+            return
     else:
         chunks = capture_chunks(source)
     first_t = None

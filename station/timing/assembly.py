@@ -45,6 +45,7 @@ from __future__ import annotations
 
 from array import array
 from bisect import bisect_left
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -216,6 +217,15 @@ class DescentAssembler:
         )
         self.pairing = pairing
         self.mode: str | None = None if pairing == "auto" else pairing
+        #: channel -> (the config's string for it, photocell, its index, the distance from the
+        #: photocell before, m): what the fast path needs of an impulse's channel, in one look-up
+        self._fast_channels: dict[str, tuple[str, str, int, float | None]] = {
+            ch: (ch, pc, k, None if k == 0 or self.positions is None
+                 else self.positions[k] - self.positions[k - 1])
+            for ch, pc in self.channels.items()
+            if (k := self.order.get(pc)) is not None
+        }  # fmt: skip
+        self._last_k = n - 1
         self.open: list[TimedDescent] = []
         self.finished: list[TimedDescent] = []
         self.count = 0
@@ -224,9 +234,12 @@ class DescentAssembler:
         self._clock: int | None = None  # unwrapped time of the latest kept impulse
         self._pending: tuple[Impulse, int, int] | None = None
         self._prev_number: int | None = None
-        self._typical: dict[int, list[int]] = {}  # photocell index -> recent t_k - t_0
-        # their medians, kept as the history changes (not recomputed for every impulse)
+        # photocell index -> the last 10 complete descents' t_k - t_0
+        self._typical: dict[int, deque[int]] = {}
+        # their medians, computed when asked for after the history changed (``_stale``): a
+        # replay ends thousands of descents and asks for few of them
         self._typical_mid: dict[int, float] = {}
+        self._stale: set[int] = set()
         self._last_done: TimedDescent | None = None
         # kept impulses by channel and device time (unwrapped): a repeat of one (the timer's
         # memory sent again) is not doubled, while the same time of day a day later is new
@@ -287,7 +300,7 @@ class DescentAssembler:
             dist = self.positions[k] - self.positions[0]
             shortest = round(dist / self.max_speed * 1e6)
             longest = round(dist / self.min_speed * 1e6)
-        mid = self._typical_mid.get(k)
+        mid = self._mid(k)
         if mid is not None:
             shortest = max(shortest, round(mid / SPEED_RATIO))
             longest = min(longest, round(mid * SPEED_RATIO))
@@ -340,18 +353,73 @@ class DescentAssembler:
     def feed(self, imp: Impulse, line: int = 0, now_us: int | None = None) -> list[TimedDescent]:
         """One impulse in; the descents it finished out. ``now_us``: the device time now as the
         host clock estimates it, where known (it confirms a jump of the device clock)."""
+        # the common cases first: the one open descent reaching its next photocell, and the
+        # next skier's start with no descent open
+        fast = self._fast_channels.get(imp.channel)
+        if fast is not None and self._pending is None:
+            n_open = len(self.open)
+            if n_open == 1:
+                done = self._next_photocell(imp, line, fast)
+                if done is not None:
+                    return done
+            elif n_open == 0 and fast[2] == 0 and self._start(imp, line, fast):
+                return []
+        return self._feed(imp, line, now_us)
+
+    def _start(self, imp: Impulse, line: int, fast: tuple[str, str, int, float | None]) -> bool:
+        """The fast path of a start with no descent open (the pairing decided, the time near
+        the clock, no repeat, no double trigger of the descent that just ended): the descent
+        starts, as :meth:`_accept` starts it. False, having changed nothing, otherwise."""
+        mode = self.mode
+        clock = self._clock
+        if mode is None or clock is None or imp.day is not None:
+            return False
+        ch, pc, _k, _step = fast
+        tod = imp.tod_us
+        t = self._day_offset * DAY_US + tod  # the one unwrap (see _time)
+        if t < clock - HALF_DAY_US:
+            t += DAY_US
+        jump = self.jump_us
+        if not -jump <= t - clock <= jump:
+            return False
+        seen = self._seen.get(ch)
+        if (seen is not None and t in seen) or t <= self._old_max:
+            return False  # (a time as old as the sorted kept ones: the general path looks)
+        last_done = self._last_done
+        if (
+            last_done is not None
+            and last_done.photocells
+            and last_done.photocells[-1] == pc
+            and 0 <= t - last_done.times_us[-1] <= self.debounce_us
+        ):
+            return False  # a double trigger of the descent that just ended
+        flag = imp.flag
+        bib = "" if mode == "order" or flag == "?" else imp.bib.strip().lstrip("0")
+        self.count += 1
+        d = TimedDescent(self.count, [pc], [t], first_line=line, channels=[ch], bib=bib)
+        self.open.append(d)
+        if self._damaged:
+            self._move_clock(t)
+        else:
+            self._clock = t
+            self._day_offset = t // DAY_US
+        if seen is None:
+            seen = self._seen[ch] = set()
+        seen.add(t)
+        self.events.append(_new_event(ImpulseEvent, (line, ch, pc, tod, flag, True, "", d.number)))
+        if flag == DAMAGED_FLAG:
+            _flag_damaged(d, imp, line)
+        return True
+
+    def _feed(self, imp: Impulse, line: int, now_us: int | None) -> list[TimedDescent]:
+        """:meth:`feed`'s general path: every impulse the fast path does not take."""
         ch = imp.channel
         pc = self.channels.get(ch)
         if pc is not None:
             ch = self._channel_names[ch]  # the config's string, kept: not one per line
-            # the common case first: the one open descent reaching its next photocell
-            if self._pending is None and len(self.open) == 1:
-                done = self._next_photocell(imp, line, ch, pc)
-                if done is not None:
-                    return done
             if ch is not imp.channel:
                 imp = imp._replace(channel=ch)
-        done = []
+        done: list[TimedDescent] = []
         number = int(imp.bib) if imp.bib.isascii() and imp.bib.isdigit() else None
         prev_number, self._prev_number = self._prev_number, number
         if pc is None:
@@ -382,35 +450,39 @@ class DescentAssembler:
         return done + self._accept(imp, line, t, prev_number)
 
     def _next_photocell(
-        self, imp: Impulse, line: int, ch: str, pc: str
+        self, imp: Impulse, line: int, fast: tuple[str, str, int, float | None]
     ) -> list[TimedDescent] | None:
         """The fast path of :meth:`feed` (a replay's every impulse but the starts): the one open
         descent takes the impulse at its next photocell. It decides as the general path would
         (:meth:`_accept` and :meth:`_choose` with one candidate) and returns None, having
         changed nothing, wherever that needs more than this: the pairing still undecided, a
         bib of another descent, a photocell skipped, a time far from the clock, a repeat, a
-        double trigger of the descent that just ended, or a reason to reject it."""
+        double trigger of the descent that just ended, or a reason to reject it. One unwrap,
+        no list copied, no closure, the event a plain tuple."""
+        _chn, tod, _res, flag, bib, day, _text = imp
         mode = self.mode
         d = self.open[0]
         if mode == "bib":
-            if imp.flag == "?" or imp.bib.strip().lstrip("0") != d.bib or not d.bib:
+            if flag == "?" or not d.bib or bib.strip().lstrip("0") != d.bib:
                 return None
         elif mode != "order":
             return None
         clock = self._clock
-        if clock is None or imp.day is not None:
+        if clock is None or day is not None:
             return None
-        t = self._day_offset * DAY_US + imp.tod_us  # the one unwrap (see _time)
+        ch, pc, k, step_m = fast
+        t = self._day_offset * DAY_US + tod  # the one unwrap (see _time)
         if t < clock - HALF_DAY_US:
             t += DAY_US
-        if abs(t - clock) > self.jump_us:
+        jump = self.jump_us
+        if not -jump <= t - clock <= jump:
             return None
-        order = self.order
-        k = order[pc]
         photocells = d.photocells
-        j = order[photocells[-1]]
+        j = k - 1
+        if self.order[photocells[-1]] != j:
+            return None
         seen = self._seen.get(ch)
-        if k != j + 1 or (seen is not None and t in seen) or t <= self._old_max:
+        if (seen is not None and t in seen) or t <= self._old_max:
             return None  # (a time as old as the sorted kept ones: the general path looks)
         last_done = self._last_done
         if (
@@ -423,15 +495,17 @@ class DescentAssembler:
         # what _why_not checks for the next photocell, in its words (no call: every impulse)
         times = d.times_us
         last = times[-1]
-        if t <= last or t - last > self.timeout_us[j]:
+        gap = t - last
+        if gap <= 0 or gap > self.timeout_us[j]:
             return None
-        pos = self.positions
-        if pos is not None:
-            v = (pos[k] - pos[j]) / ((t - last) / 1e6)
+        if step_m is not None:
+            v = step_m / (gap / 1e6)
             if v > self.max_speed:
                 return None
             if mode == "order" and len(photocells) >= 2:
-                i = order[photocells[-2]]
+                pos = self.positions
+                assert pos is not None
+                i = self.order[photocells[-2]]
                 dt = (last - times[-2]) / 1e6
                 if dt > 0:
                     v_before = (pos[j] - pos[i]) / dt
@@ -440,20 +514,19 @@ class DescentAssembler:
         photocells.append(pc)
         times.append(t)
         d.channels.append(ch)
-        self._clock = t
-        self._day_offset = t // DAY_US
         if self._damaged:
             self._move_clock(t)
+        else:
+            self._clock = t
+            self._day_offset = t // DAY_US
         if seen is None:
             seen = self._seen[ch] = set()
         seen.add(t)
-        self.events.append(
-            _new_event(ImpulseEvent, (line, ch, pc, imp.tod_us, imp.flag, True, "", d.number))
-        )
-        if k != len(self.photocells) - 1:
+        self.events.append(_new_event(ImpulseEvent, (line, ch, pc, tod, flag, True, "", d.number)))
+        if k != self._last_k:
             return []  # the descent goes on; it was updated now, so nothing times out
         self.open.clear()
-        d.status = "complete" if d.photocells[0] == self.photocells[0] else "incomplete"
+        d.status = "complete" if photocells[0] == self.photocells[0] else "incomplete"
         self._done(d)
         return [d]
 
@@ -594,7 +667,7 @@ class DescentAssembler:
         """(expected time at photocell k, from when) for the order pairing's choice: from the
         earlier descents' typical times where there are some, else at the last speed."""
         j = self.order[d.photocells[-1]]
-        mid_k, mid_j = self._typical_mid.get(k), self._typical_mid.get(j)
+        mid_k, mid_j = self._mid(k), self._mid(j)
         if mid_k is not None and (j == 0 or mid_j is not None):
             ahead = mid_k - (mid_j if j and mid_j is not None else 0)
             if ahead > 0:
@@ -712,11 +785,23 @@ class DescentAssembler:
         self._last_done = d
         self._settle_seen()
         if d.status == "complete":
-            for pc, ti in zip(d.photocells[1:], d.times_us[1:], strict=True):
-                hist = self._typical.setdefault(self.order[pc], [])
-                hist.append(ti - d.times_us[0])
-                del hist[:-10]
-                self._typical_mid[self.order[pc]] = _median(hist)
+            typical, order, stale = self._typical, self.order, self._stale
+            times = d.times_us
+            t0 = times[0]
+            for i in range(1, len(times)):
+                k = order[d.photocells[i]]
+                hist = typical.get(k)
+                if hist is None:
+                    hist = typical[k] = deque(maxlen=10)
+                hist.append(times[i] - t0)
+                stale.add(k)
+
+    def _mid(self, k: int) -> float | None:
+        """The median of the last complete descents' times to photocell k (None: none yet)."""
+        if k in self._stale:
+            self._stale.discard(k)
+            self._typical_mid[k] = _median(list(self._typical[k]))
+        return self._typical_mid.get(k)
 
     def _finish(self, d: TimedDescent, why: str) -> list[TimedDescent]:
         self.open.remove(d)

@@ -24,6 +24,10 @@ class LineFramer:
         if self._after_cr and text.startswith("\n"):
             text = text[1:]  # the LF of a CR LF split across two reads
         self._after_cr = text.endswith("\r")
+        # one whole line and its CR (a live recording's every read): that line, at once
+        if self._after_cr and not self._tail and text.find("\r") == len(text) - 1 \
+                and "\n" not in text:  # fmt: skip
+            return [text[:-1]]
         text = self._tail + text
         if "\r" in text:
             text = text.replace("\r\n", "\n").replace("\r", "\n")

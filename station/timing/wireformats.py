@@ -3,13 +3,21 @@
 Parsers are small classes with a ``parse(line)`` method. ALGE's is stateful: a classement
 print-out spans several lines that are skipped as a block. Parsing is by fixed columns, as the
 devices send them (timing-protocols.md §1.2, §2.1, §3.1), and it is written for speed:
-replaying a day means hundreds of thousands of lines.
+replaying a day means hundreds of thousands of lines. Each parser has two paths: ``parse``
+first tries one precompiled pattern for the common well-formed impulse line of its protocol
+and builds the impulse from fixed columns; every other line (edits, status lines, damaged
+bytes, decimal commas, blank-padded fields, checksums that fail…) goes to ``parse_general``,
+the careful path, which alone decides what a line that is not the common shape is. The fast
+path returns exactly what the general path returns for the lines it takes
+(tests/test_wireformats_fast_path.py checks it on the real captures and on mutated lines).
 
 The ``format_*`` functions write lines byte for byte like the hardware. The simulated timer
 uses them, and the tests use them for round trips.
 """
 
 from __future__ import annotations
+
+import re
 
 from station.timing.impulses import (
     DAMAGED_FLAG,
@@ -69,6 +77,19 @@ def _digits(text: str) -> bool:
     return text.isascii() and text.isdigit()
 
 
+#: an Impulse made without the NamedTuple's Python-level ``__new__``: the same record at a plain
+#: tuple's cost (one per line of a replay)
+_new = tuple.__new__
+
+#: ALGE channel columns (``C1 ``, ``c1 ``, ``C1M``, ``C1m``…) -> the channel's name
+_ALGE_CHANNEL = {
+    c + d + x: "C" + d + ("M" if x != " " else "")
+    for c in "cC"
+    for d in "0123456789"
+    for x in " mM"
+}
+
+
 def _frac(tod_us: int, decimals: int) -> str:
     return format_tod(tod_us, decimals)
 
@@ -118,7 +139,27 @@ class AlgeParser:
     def __init__(self) -> None:
         self.in_printout = False
 
-    def parse(self, line: str) -> Parsed:
+    #: the common line: flag blank or ``?``, four-digit number, a photocell or keypad channel,
+    #: ``HH:MM:SS.ffff`` (the columns the general path reads; the group column is not read)
+    _FAST = re.compile(
+        r"[ ?][0-9]{4} [cC][0-9][ mM] (?:[01][0-9]|2[0-3]):[0-5][0-9]:[0-5][0-9]\.[0-9]{4} "
+        r"[\s\S]{2}"
+    ).fullmatch
+
+    def parse(self, s: str) -> Parsed:
+        """One line; the common impulse line by fixed columns, every other by
+        :meth:`parse_general`."""
+        if len(s) == 26 and not self.in_printout and self._FAST(s) is not None:
+            return _new(Impulse, (
+                _ALGE_CHANNEL[s[6:9]],
+                ((_TWO[s[10:12]] * 60 + _TWO[s[13:15]]) * 60 + _TWO[s[16:18]]) * 1_000_000
+                + int(s[19:23]) * 100,
+                100, "" if s[0] == " " else "?", s[1:5], None, s,
+            ))  # fmt: skip
+        return self.parse_general(s)
+
+    def parse_general(self, line: str) -> Parsed:
+        """Any line, however damaged: what it is, or why it is nothing."""
         s = line
         n = len(s)
         if self.in_printout:
@@ -237,6 +278,10 @@ TAG_STATUS = {
 TAG_IMPULSES = {"TN": "", "AN": "from memory"}
 
 
+#: four columns of a right-aligned number: digits after blanks, or all blank
+_N4 = r"(?: {4}| {3}[0-9]| {2}[0-9]{2}| [0-9]{3}|[0-9]{4})"
+
+
 class TagParser:
     """TAG Heuer THCOM08 (CP540/545, HL440/940/975): ``Tx NNNN SSSS CC HH:MM:SS.FFFFF DDDDD``.
 
@@ -245,7 +290,36 @@ class TagParser:
 
     name = "tag"
 
+    #: the common time message (``TN`` live, ``AN`` from memory): number and sequence
+    #: right-aligned digits or blank, a two-character channel (one blank-padded), the hour
+    #: blank- or zero-padded, five decimals, the day counter or nothing
+    _FAST = re.compile(
+        rf"[TA]N {_N4} {_N4} ( [0-9A-Za-z]|[0-9A-Za-z]{{2}}) "
+        r"(?:[ 01][0-9]|2[0-3]):[0-5][0-9]:[0-5][0-9]\.[0-9]{5}(?: +([0-9]{1,5}))? *"
+    ).fullmatch
+
     def parse(self, line: str) -> Parsed:
+        """One line; the common time message by fixed columns, every other by
+        :meth:`parse_general`."""
+        data, tab, cs = line.partition("\t")
+        m = self._FAST(data)
+        if m is not None:
+            if tab:
+                c = cs.strip()
+                if c and c != f"{sum(map(ord, data)) & 0xFFFF:04X}":
+                    return self.parse_general(line)
+            bib = data[3:7].lstrip()
+            day = m[2]
+            return _new(Impulse, (
+                m[1].lstrip(),
+                ((_TWO[data[16:18]] * 60 + _TWO[data[19:21]]) * 60 + _TWO[data[22:24]])
+                * 1_000_000 + int(data[25:30]) * 10,
+                10, "" if bib else "?", bib, None if day is None else int(day), line,
+            ))  # fmt: skip
+        return self.parse_general(line)
+
+    def parse_general(self, line: str) -> Parsed:
+        """Any line, however damaged: what it is, or why it is nothing."""
         data, tab, cs = line.partition("\t")
         if tab and cs.strip() and cs.strip() != tag_cs16(data):
             return Unparsed(f"checksum {cs.strip()!r} does not match {tag_cs16(data)!r}", line)
@@ -302,7 +376,24 @@ class RacetimeParser:
 
     name = "microgate"
 
-    def parse(self, line: str) -> Parsed:
+    #: the common record: a time of day (info 0) not skipped, all its columns digits
+    _FAST = re.compile(
+        r"[0-9]{17}0[^Ss][\s\S](?:[01][0-9]|2[0-3])[0-5][0-9][0-5][0-9][0-9]{3}"
+    ).fullmatch
+
+    def parse(self, s: str) -> Parsed:
+        """One line; the common record by fixed columns, every other by :meth:`parse_general`."""
+        if len(s) == 29 and self._FAST(s) is not None:
+            return _new(Impulse, (
+                s[14:17],
+                ((_TWO[s[20:22]] * 60 + _TWO[s[22:24]]) * 60 + _TWO[s[24:26]]) * 1_000_000
+                + int(s[26:29]) * 1000,
+                1000, "", s[4:8].lstrip("0"), None, s,
+            ))  # fmt: skip
+        return self.parse_general(s)
+
+    def parse_general(self, line: str) -> Parsed:
+        """Any line, however damaged: what it is, or why it is nothing."""
         s = line
         if not s.strip():
             return Skip("blank line", line)
