@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from array import array
-from collections import Counter
+from collections import Counter, deque
 
 from station.errors import InputError
 from station.session.config import StationConfig
@@ -27,6 +27,10 @@ from station.timing.wireformats import make_parser
 #: unparsed lines listed (line, reason, first 100 characters): a day of line noise stays within
 #: tens of MB; beyond it one entry says that more were not listed
 MAX_UNPARSED = 100_000
+#: the lines last handed to the assembler whose host times are kept: a start it holds (a time
+#: far from its clock waits for the next impulse to confirm it) is at most a few lines back
+#: (edits may come between); one further back is dated by the line that started it
+RECENT_LINES = 16
 
 
 class StartHosts:
@@ -91,6 +95,10 @@ class Processor:
         self.offset_us: int | None = None  # device clock − host clock
         self.start_host = StartHosts()
         self._latest_start: tuple[int, int] | None = None  # (device µs, descent): the last start
+        #: (line, host time) of the lines last handed to the assembler: a descent's start may
+        #: be a line before the one that made the assembler start it (a held start)
+        self._recent: deque[tuple[int, float | None]] = deque(maxlen=RECENT_LINES)
+        self._chunk_t: float | None = None  # host time of the latest bytes (the flushed line's)
         #: the resolution (µs) the timer states in its first impulse from a photocell (not a
         #: keypad's 1/100 s): the default of the timer's precision (station.model.timer); fixed
         #: from then on, so a live day and its replay judge every descent alike
@@ -116,7 +124,7 @@ class Processor:
                 self.assembler.disconnected(chunk.detail)
             return []
         done: list[TimedDescent] = []
-        t = chunk.t
+        t = self._chunk_t = chunk.t
         for line in self.framer.feed(chunk.data):
             ended = self._line(line, t)
             if ended:
@@ -140,13 +148,19 @@ class Processor:
                 clock = asm.clock
                 if clock is not None:
                     self.offset_us = clock - round(t * 1e6)
+            self._recent.append((self.lines, t))
             if asm.count > before:
-                self.start_host[asm.count] = t
-                self._started(asm.count)
+                self._new_descents(before, done, t, judge=True)
             return done
         if isinstance(parsed, Edit):
             self.counts["edit"] += 1
-            return self.assembler.edit(parsed, self.lines)
+            asm = self.assembler
+            before = asm.count
+            done = asm.edit(parsed, self.lines)
+            self._recent.append((self.lines, t))
+            if asm.count > before:  # a start typed in at the timer, or one from its memory
+                self._new_descents(before, done, t, judge=False)
+            return done
         if isinstance(parsed, Skip):
             self.counts["skipped"] += 1
         elif isinstance(parsed, Unparsed):
@@ -161,12 +175,35 @@ class Processor:
                 )
         return []
 
-    def _started(self, number: int) -> None:
-        """A descent started: one that starts before an earlier one by the timer's clock (the
-        timer reset to 00:00, its clock set back) is flagged, since its start time then goes
-        backwards in the results."""
-        d = next((d for d in reversed(self.assembler.open) if d.number == number), None)
-        if d is None or not d.times_us:
+    def _new_descents(
+        self, before: int, done: list[TimedDescent], t: float | None, judge: bool
+    ) -> None:
+        """The assembler started descents ``before`` + 1 … its count in the call that handed
+        back ``done``, by whatever path: a start impulse, a start it held until the next impulse
+        confirmed it (two starts then come in one call, and the held one may already have
+        finished), a start recovered after a damaged line, a start typed in at the timer or
+        repeated from its memory. Each gets the host time of the line that started it, so it
+        is dated live and in replay alike (:func:`station.session.analysis.start_time`); with
+        ``judge``, each is checked against the timer's clock (:meth:`_started`)."""
+        asm = self.assembler
+        new = {d.number: d for d in (*asm.open, *done) if d.number > before}
+        for number in range(before + 1, asm.count + 1):
+            d = new.get(number)
+            host = t  # (the line that made the assembler start it, when not among the recent)
+            if d is not None:
+                host = next((h for ln, h in reversed(self._recent) if ln == d.first_line), t)
+            self.start_host[number] = host
+            if judge and d is not None:
+                self._started(d)
+
+    def _started(self, d: TimedDescent) -> None:
+        """A descent started by the timer's impulses: one that starts before an earlier one by
+        the timer's clock (the timer reset to 00:00, its clock set back) is flagged, since its
+        start time then goes backwards in the results. A start typed in at the timer or
+        repeated from its memory (a download merged after the day) is not judged: its time is
+        not the clock's now, and comes after later ones by nature."""
+        number = d.number
+        if not d.times_us:
             return
         start = d.times_us[0]
         if self._latest_start is not None and start < self._latest_start[0]:
@@ -186,6 +223,11 @@ class Processor:
     def finish(self) -> list[TimedDescent]:
         """End of the input: the unfinished last line, then the open descent."""
         done: list[TimedDescent] = []
-        for line in self.framer.flush():
-            done += self._line(line, None)
-        return done + self.assembler.close()
+        for line in self.framer.flush():  # it came with the latest bytes: their host time
+            done += self._line(line, self._chunk_t)
+        asm = self.assembler
+        before = asm.count
+        closed = asm.close()  # a start held for confirmation is taken as it is
+        if asm.count > before:
+            self._new_descents(before, closed, None, judge=True)
+        return done + closed
