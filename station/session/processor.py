@@ -186,8 +186,17 @@ class Processor:
         is dated live and in replay alike (:func:`station.session.analysis.start_time`); with
         ``judge``, each is checked against the timer's clock (:meth:`_started`)."""
         asm = self.assembler
+        count = asm.count
+        if count == before + 1 and asm.open and self._recent:  # the common case: one start,
+            d = asm.open[-1]  # by the line last handed to the assembler
+            line, host = self._recent[-1]
+            if d.number == count and d.first_line == line:
+                self.start_host[count] = host
+                if judge:
+                    self._started(d)
+                return
         new = {d.number: d for d in (*asm.open, *done) if d.number > before}
-        for number in range(before + 1, asm.count + 1):
+        for number in range(before + 1, count + 1):
             d = new.get(number)
             host = t  # (the line that made the assembler start it, when not among the recent)
             if d is not None:
