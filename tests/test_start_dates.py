@@ -227,3 +227,44 @@ def test_a_host_time_that_is_nan_dates_by_the_day_given():
     d = TimedDescent(1, ["PC1"], [_tod("10:00:00")])
     assert start_time(d, float("nan"), DAY.date())[:19] == "2026-03-01T10:00:00"
     assert start_time(d, float("nan"), None) == "10:00:00"
+
+
+def test_a_memory_download_merged_into_a_session_is_dated_and_not_taken_for_a_reset(tmp_path, real):
+    """The real day recorded live with the cable out for 100 lines, then the timer's memory
+    merged in (`station import`): the merged descents come after the live ones in the raw log
+    but start earlier. Every descent is dated (3 were not: two held starts confirmed by
+    another start, one at the end), and the first merged start is not taken for a reset of
+    the timer's clock (it was, as going 56 min backwards)."""
+    from station.session import store
+    from station.session.acquisition import replay
+    from station.session.memory_import import import_into
+    from station.session.rawlog import RawLogWriter
+
+    cap = real / "alge" / CAPTURE
+    cfg = write_config(tmp_path, "/dev/null", channels={"C0": "PC1", "C1": "PC9"})
+    session = tmp_path / "s"
+    store.create(load_config(str(cfg)), str(session))
+    t0 = dt.datetime(2020, 2, 2, 9, 47).timestamp()
+    log = RawLogWriter(str(session / "raw.jsonl"), header={"port": "/dev/ttyUSB0"})
+    for i, line in enumerate(cap.read_bytes().split(b"\n")):
+        if not 200 <= i < 300:  # the cable was out
+            log.write(t0 + i * 10, line + b"\r")
+    log.close()
+    assert import_into(str(cap), str(session)).added > 20
+    res = replay(str(session), store.load_session_config(str(session))).results()
+    assert len(res) > 100
+    assert [r.number for r in res if not r.row.start_time.startswith("2020-02-02T")] == []
+    assert [r.number for r in res if any("backwards" in f for f in r.row.flags)] == []
+
+
+def test_a_reset_within_a_memory_download_is_still_flagged(tmp_path):
+    proc = _processor(tmp_path, {"C0": "PC1", "C1": "PC9"})
+    lines = _descent([("C0", "10:00:00"), ("C1", "10:00:27")], 1)
+    for t, line in lines:
+        proc.feed(Chunk(t, (line + "\r").encode()))
+    proc.feed(Chunk(_host("10:01:00"), event="import", detail="imports/memory.txt"))
+    lines = _descent([("C0", "09:00:00"), ("C1", "09:00:27")], 2)  # before 1: not a reset
+    lines += _descent([("C0", "00:00:05"), ("C1", "00:00:32")], 3)  # reset after 2
+    done = _run(proc, lines)
+    assert not done[2].flags
+    assert done[3].flags[0].startswith("starts 9.00 h before descent 2"), done[3].flags

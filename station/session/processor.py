@@ -120,6 +120,11 @@ class Processor:
                 return self.tick(chunk.t)
             if chunk.event != "session":
                 self.connection.append((chunk.t, chunk.event, chunk.detail))
+            if chunk.event == "import":
+                # a download of the timer's memory follows (`station import`): the times it
+                # adds are earlier than the recording's last by nature; the timer's clock is
+                # judged afresh from its first start (a reset within it is still flagged)
+                self._latest_start = None
             if chunk.event == "disconnected":
                 self.assembler.disconnected(chunk.detail)
             return []
