@@ -1,10 +1,13 @@
-"""What ``station annotate`` costs now that it rewrites the session's results CSV (a replay of
-the day with every fit, as ``station export`` does), and what ``station sessions`` pays to try
-a session's recording lock.
+"""What ``station annotate`` costs now that it brings the session's results CSV up to date:
+the first one after the day replays it (every fit, as ``station export`` does) and writes the
+CSV with its state; the later ones change the rows they concern in place
+(station/session/resultsstate.py). And what ``station sessions`` pays to try a session's
+recording lock.
 
 Sessions of 8 and 40 descents are made as tests/session_helpers.py makes them (the model's
-own times as ALGE lines in a raw log). Each figure is the median of 3 runs, in this process
-(the command's own start-up, ``benchmarks/startup.py``, not included).
+own times as ALGE lines in a raw log). Each figure is the median of 3 runs (the first
+annotate: one run), in this process (the command's own start-up, ``benchmarks/startup.py``,
+not included).
 
 Run: python benchmarks/annotate_rewrite.py
 """
@@ -39,13 +42,15 @@ def main_() -> None:
     for n in (8, 40):
         with tempfile.TemporaryDirectory() as tmp:
             session = str(make_session(Path(tmp), order="AB" * (n // 2)))
+            first = _run("annotate", session, "--descents", "2", "--invalid", "r")
             runs = [_run("annotate", session, "--descents", "2", "--invalid", f"r{k}")
                     for k in range(3)]  # fmt: skip
             lock = RecordingLock.take(session)
             held = [_run("annotate", session, "--descents", "2", "--valid") for _ in range(3)]
             lock.release()
             print(
-                f"{n:3d} descents: annotate + rewrite results.csv {statistics.median(runs):6.2f} s"
+                f"{n:3d} descents: annotate, the first (replayed) {first:6.2f} s"
+                f"   in place {statistics.median(runs) * 1e3:6.1f} ms"
                 f"   while recorded (no rewrite) {statistics.median(held) * 1e3:6.1f} ms"
             )
             t0 = time.perf_counter()

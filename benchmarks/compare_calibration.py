@@ -14,6 +14,10 @@ Columns, per scatter level:
 - posture: the median estimated posture scatter;
 - poor-fit: days the χ² test against the timer's precision flags (expected ~0.1 %).
 
+The grid for smaller and larger days (2, 3, 4, 6 descents an item × 0.5, 1.5, 3 % scatter ×
+straight and bent drift, 200 days a cell, with the share warned, the wrong ski named at
+P ≥ 0.95 and P(A faster)'s tails): benchmarks/compare_small_days.py.
+
 Run: python benchmarks/compare_calibration.py [--days 200] [--jobs 2]
 """
 

@@ -4,8 +4,9 @@ the comparison open, the replay's throughput against a bare loop, and the start-
 ``station fit`` against the bare import of its numerics.
 
 Each figure comes from its own benchmark (day_2000.py, ui_fit_latency.py, replay_speed.py,
-startup.py), run here in turn; those say how they measure. On the shared 2-core machine the
-absolute times follow its load (printed); the ratios are what to compare.
+startup.py, fits_once.py for ``station annotate`` at 200 and at 2000 descents, in this
+process and as typed), run here in turn; those say how they measure. On the shared 2-core
+machine the absolute times follow its load (printed); the ratios are what to compare.
 
 Run: python benchmarks/speed_table.py [--descents N] [--ui-descents N] [--repeats N]
 """
@@ -24,6 +25,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import day_2000  # noqa: E402
+import fits_once  # noqa: E402
 import replay_speed  # noqa: E402
 import startup  # noqa: E402
 import ui_fit_latency  # noqa: E402
@@ -34,6 +36,8 @@ def main() -> int:
     ap.add_argument("--descents", type=int, default=2000, help="the recorded day's descents")
     ap.add_argument("--ui-descents", type=int, default=2000, help="descents through the UI")
     ap.add_argument("--repeats", type=int, default=10, help="start-up runs of each command")
+    ap.add_argument("--annotate-sizes", default="200,2000",
+                    help="the days annotated (descents; 'none': not measured)")  # fmt: skip
     args = ap.parse_args()
     rows: list[tuple[str, str, str, str]] = []
     start = time.perf_counter()
@@ -72,6 +76,20 @@ def main() -> int:
     rows.append(("start-up: station fit / import scipy.integrate, scipy.optimize",
                  f"{fit * 1e3:.0f} / {floor * 1e3:.0f} ms", "≤ 1.1×",
                  f"{fit / floor:.2f}×"))  # fmt: skip
+
+    if args.annotate_sizes != "none":
+        small, large = (int(x) for x in args.annotate_sizes.split(","))
+        figs, pair = fits_once.annotate_figures([small, large], 3)
+        loads.append(os.getloadavg()[0])
+        for how, where in (("in place", "in the process"), ("as typed, in place", "as typed")):
+            a, b = pair[how][small], pair[how][large]
+            rows.append((f"station annotate {where}: {large} / {small} descents",
+                         f"{b * 1e3:.0f} / {a * 1e3:.0f} ms", "≤ 1.5×",
+                         f"{b / a:.2f}×"))  # fmt: skip
+        for name in ("annotate, replayed, fits stored", "annotate as typed, replayed"):
+            a, b = figs[small][name], figs[large][name]
+            rows.append((f"(before, the day replayed: {name}: {large} / {small} descents)",
+                         f"{b:.2f} / {a:.2f} s", "", f"{b / a:.2f}×"))  # fmt: skip
 
     print(f"issue 19's figures ({time.perf_counter() - start:.0f} s; load average "
           f"{min(loads):.1f}–{max(loads):.1f} on {os.cpu_count()} cores)")  # fmt: skip

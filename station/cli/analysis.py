@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import os
 import sys
 import time
 from typing import TYPE_CHECKING, Any
@@ -44,8 +45,9 @@ if TYPE_CHECKING:
 
 def cmd_annotate(args: argparse.Namespace) -> int:
     """Enter metadata, invalid marks or a model for a session's descents, as the UI would."""
-    # here, not at the top: the session's replay loads numpy and scipy (see recording.py)
-    from station.cli.console import annotate_session
+    # here, not at the top: the session's replay loads numpy and scipy (see recording.py);
+    # an annotation that changes no fit needs neither (the session's results CSV is changed
+    # in place: station.session.resultsstate), so station.cli.console is not imported either
     from station.session.recorded import RecordedSession
 
     session = RecordedSession(args.session)
@@ -80,14 +82,19 @@ def cmd_annotate(args: argparse.Namespace) -> int:
     if not records:
         raise InputError("nothing to annotate: give metadata, --invalid, --valid or --model")
     session.check_descents(targets)  # --from N may name descents still to come
-    print(annotate_session(session, records), file=sys.stderr)
-    from station.cli.console import add_after
-
+    try:
+        print(session.annotate(records), file=sys.stderr)
+    finally:
+        while session.warnings:  # what the replay passed over (a torn last record)
+            _warn(session.warnings.pop(0))
     try:
         store = session.config.store
     except InputError:
         store = None
-    add_after(session.path, store)  # the season store's rows follow the annotation
+    if os.environ.get("STATION_STORE") or store:  # console.add_after's test, without its imports
+        from station.cli.console import add_after
+
+        add_after(session.path, store)  # the season store's rows follow the annotation
     return 0
 
 

@@ -9,7 +9,9 @@ Before, each command built its own replay from the command line's arguments and 
 comparison was glued together three times.
 
 No I/O happens when the object is made but the check that the folder is a session; the
-replay is run once, when a result is first asked for, and kept.
+replay is run once, when a result is first asked for, and kept. An annotation that changes no
+fit changes the rows it concerns without a replay, when the results CSV is the one a replay
+wrote (:mod:`station.session.resultsstate`).
 """
 
 from __future__ import annotations
@@ -18,24 +20,27 @@ import datetime as dt
 import hashlib
 import json
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
 
 from station import __version__
 from station.errors import InputError
-from station.files import MAX_OBSERVATIONS, MAX_RAWLOG, open_regular, staged_output
+from station.files import MAX_OBSERVATIONS, MAX_RAWLOG, check_output, open_regular
+from station.session import resultsstate
 from station.session import store as sessions
-from station.session.acquisition import Acquisition, Listener, replay
-from station.session.analysis import DescentResult
-from station.session.comparison import WIND_LIMIT_MS, DayComparison, compare_results
 from station.session.config import StationConfig
-from station.session.day import Day
-from station.session.fitstore import FitStore
-from station.session.rawlog import read_rawlog
 from station.session.records import Annotation
 from station.session.results import read_results
-from station.survey.track import Track
+
+# the replay, the fits and the comparison load numpy and scipy (a second): imported where
+# they are used, so ``station annotate`` that needs no fit, and ``station sessions``, do not
+if TYPE_CHECKING:
+    from station.session.acquisition import Acquisition, Listener
+    from station.session.analysis import DescentResult
+    from station.session.comparison import DayComparison
+    from station.session.fitstore import FitStore
+    from station.survey.track import Track
 
 _BLOCK = 1 << 20
 
@@ -130,6 +135,8 @@ class RecordedSession:
 
     def provenance(self) -> Provenance:
         """What the results are computed from (reads the raw log, config and survey)."""
+        from station.session.rawlog import read_rawlog
+
         raw = self.file(sessions.RAW)
         times = [c.t for c in read_rawlog(raw)]
         return Provenance(
@@ -153,6 +160,8 @@ class RecordedSession:
         """Replay the session (its annotations applied) through the acquisition loop, in
         line; a new replay each call, told to ``listener`` as it goes. The fits stored with
         the session are used where their key matches, and the new ones stored."""
+        from station.session.acquisition import replay
+
         fits = self.fits()
         acq = replay(
             self.path, self.config, listener, speed=speed, warnings=warnings, fits=fits,
@@ -164,6 +173,8 @@ class RecordedSession:
 
     def fits(self) -> FitStore | None:
         """The session's stored fits (``fits.jsonl``, :mod:`station.session.fitstore`)."""
+        from station.session.fitstore import FitStore
+
         return FitStore.for_session(self.path, self.config)
 
     def start_replay(
@@ -171,6 +182,8 @@ class RecordedSession:
     ) -> Acquisition:
         """The replay in threads of its own, paced at ``speed`` (the UI): the acquisition
         is returned at once; ``listener`` hears the day as it goes."""
+        from station.session.acquisition import Acquisition
+
         acq = Acquisition.open(self.config, listener, compare=compare)
         acq.day.analyser.fits = self.fits()
         acq.start_replay(self.path, speed)
@@ -214,12 +227,9 @@ class RecordedSession:
         day = None
         if records:
             try:
-                day = Day(self.config, None, None, None)  # type: ignore[arg-type]  # metadata only
+                day = resultsstate.Marks(self.config, records)
             except InputError:
                 day = None
-        if day is not None:
-            for rec in records:
-                day.annotate(rec)
         out = []
         for r in rows:
             n = r.get("descent")
@@ -235,6 +245,9 @@ class RecordedSession:
     def descent_numbers(self) -> list[int]:
         """The descent numbers the session has: from its results CSV, else (none, or one
         that cannot be read) by replaying it: the raw log knows them."""
+        numbers = resultsstate.descent_numbers(self.path)
+        if numbers is not None:  # the state lists them: 2000 rows are not read for this
+            return numbers
         try:
             rows = self.results_rows()
         except InputError:
@@ -269,6 +282,7 @@ class RecordedSession:
         up by the recorder when one is recording the session (``station annotate``, and what
         was entered in a replay of the session). Returns the line that says what happened."""
         with sessions.annotations_locked(self.path):  # another annotate waits: one CSV each
+            before = resultsstate.annotations_digest(self.path)
             for rec in records:
                 sessions.append_annotation(self.path, rec)
             said = f"{len(records)} annotation(s) added to {self.path}"
@@ -282,43 +296,108 @@ class RecordedSession:
                         f"{self.path} --csv {self.file(sessions.RESULTS)} "
                         "writes it with them")  # fmt: skip
             self._run = None  # the annotations changed: replay again
-            path = self.rewrite_results()
+            path = self._rewrite_rows(before, records) or self.rewrite_results()
         return f"{said}; {path} rewritten"
+
+    def _rewrite_rows(self, before: str | None, records: Sequence[Annotation]) -> str | None:
+        """The results CSV brought up to date with ``records`` without a replay, where none of
+        them changes a fit and the CSV is the one a replay wrote with the annotations before
+        them (``before``: the annotations file's SHA-256 then); None: a replay is needed."""
+        cur = resultsstate.current(self.path, before)
+        if cur is None:
+            return None
+        try:
+            config = self.config
+        except InputError:
+            return None  # the replay says why
+        after = resultsstate.annotations_digest(self.path)
+        try:
+            return self._saved(
+                lambda: resultsstate.in_place(self.path, config, cur, records, after)
+            )
+        except InputError:
+            raise  # the CSV cannot be written: a replay would not write it either
+        except Exception as exc:  # noqa: BLE001 - a bug here must not lose the annotation
+            self.warnings.append(f"results.csv not changed in place ({type(exc).__name__}: "
+                                 f"{exc}); the day is replayed")  # fmt: skip
+            return None
 
     def rewrite_results(self) -> str:
         """Rewrite the results CSV from the raw log and the annotations, as ``station export``
-        writes it (the same replay, the same writer), once the recorder no longer owns it. A
-        CSV that cannot be written is one line that says the annotations are saved."""
+        writes it (the same replay, the same writer), once the recorder no longer owns it,
+        with the state that lets the next annotate change rows in place. A CSV that cannot be
+        written is one line that says the annotations are saved."""
+        digest = resultsstate.annotations_digest(self.path)  # before the replay reads them
+        self._run = None
+
+        def write() -> str:
+            acq = self.run()
+            results = acq.results()
+            header = sessions.results_header(acq.config, acq.track.name)
+            return resultsstate.write_results_with_state(
+                self.path, [r.row for r in results], header, digest, _fitted(acq)
+            )
+
+        path = self._saved(write)
+        assert path is not None
+        return path
+
+    def _saved(self, write: Callable[[], str | None]) -> str | None:
+        """``write()`` of the results CSV; what stops it is one line that says the
+        annotations are saved."""
         path = self.file(sessions.RESULTS)
         try:
-            with (
-                staged_output(path, sessions.RESULTS) as tmp,
-                open(tmp, "w", encoding="utf-8", newline="") as fh,
-            ):
-                self.run().write_csv_to(fh)
+            check_output(path, sessions.RESULTS)
+            return write()
+        except OSError as exc:
+            why = exc.strerror or str(exc)
         except InputError as exc:
             why = exc.message if exc.path == path else str(exc)
-            raise InputError(
-                f"the annotations are saved, but results.csv was not rewritten: {why}; "
-                f"station export {self.path} --csv FILE writes the results elsewhere",
-                path=path,
-            ) from None
-        return path
+        raise InputError(
+            f"the annotations are saved, but results.csv was not rewritten: {why}; "
+            f"station export {self.path} --csv FILE writes the results elsewhere",
+            path=path,
+        ) from None
 
     # ------------------------------------------------------------------ comparing its items
 
     def compare(
         self,
         *,
-        wind_limit_ms: float = WIND_LIMIT_MS,
+        wind_limit_ms: float | None = None,
         reference: str | None = None,
         **options: Any,
     ) -> DayComparison:
-        """The joint fit of the day's valid descents (:func:`compare_results`)."""
+        """The joint fit of the day's valid descents (:func:`compare_results`; the wind limit
+        its default)."""
+        from station.session.comparison import WIND_LIMIT_MS, compare_results
+
+        if wind_limit_ms is None:
+            wind_limit_ms = WIND_LIMIT_MS
         return compare_results(
             self.track, self.results(), wind_limit_ms=wind_limit_ms, reference=reference,
             **options,
         )  # fmt: skip
+
+
+def _fitted(acq: Acquisition) -> resultsstate.Fitted:
+    """The replay's descents in the order it fitted them, and the descent on each set of
+    photocells whose fit handed the survey's covariance on to the later ones (the analyser's
+    rule: the first good fit with one)."""
+    day = acq.day
+    order = [day.results[n] for n in day.results]  # fitted once each, in this order
+    sources: dict[tuple[str, ...], tuple[int, Any]] = {}
+    for r in order:
+        if r.descent.photocells in sources:
+            continue  # found: the fit is not read (a recording keeps it in the store only)
+        fit = r.fit
+        if fit is not None and fit.status == "ok" and fit.survey_time_cov is not None:
+            sources[r.descent.photocells] = (r.number, fit.survey_time_cov)
+    return resultsstate.Fitted(
+        [r.descent for r in order],
+        [(ids, n, cov) for ids, (n, cov) in sources.items()],
+        day.timer_precision_s(),
+    )
 
 
 def _text(value: Any) -> str:

@@ -40,6 +40,8 @@ TEXT_COLUMNS = ["missing", "status", "descent_status", "flags", "model", "skier"
 
 
 INT_COLUMNS = ("descent", "photocells_used")
+#: the columns written as text (quoted)
+_TEXT = frozenset([*TEXT_COLUMNS, "start_time"])
 
 
 def _number(value: Any, col: str) -> int | float | None:
@@ -63,18 +65,7 @@ def _number(value: Any, col: str) -> int | float | None:
 def results_frame(rows: list[dict[str, Any]]) -> list[list[Any]]:
     """The cells of each row in ``COLUMNS`` order: text made spreadsheet-safe, numbers as
     numbers (so they are written unquoted and read back as floats), missing as None."""
-    out = []
-    for row in rows:
-        cells = []
-        for col in COLUMNS:
-            value = row.get(col)
-            if col in TEXT_COLUMNS or col == "start_time":
-                missing = isinstance(value, float) and math.isnan(value)
-                cells.append(None if missing else safe_text(value))
-            else:
-                cells.append(_number(value, col))
-        out.append(cells)
-    return out
+    return [[cell_value(col, row.get(col)) for col in COLUMNS] for row in rows]
 
 
 #: the unit of each number column ("1" for a pure number), written in the ``# units:`` line
@@ -90,16 +81,69 @@ UNITS = {
 
 def write_results_to(fh: IO[str], rows: list[dict[str, Any]], header: dict[str, str]) -> None:
     """The results CSV into an open text file (``newline=""``), e.g. standard output."""
-    cells = results_frame(rows)
+    head, lines = results_lines(rows, header)
+    fh.write(head)
+    fh.write("".join(lines))
+
+
+class RowWriter:
+    """The text of one row of cells (:func:`results_frame`) as the results CSV writes it.
+
+    The csv module, not DataFrame.to_csv: numbers must stay numbers (unquoted, full
+    precision) while every text field is quoted, so a "#" in the notes is safe."""
+
+    def __init__(self) -> None:
+        self._buf = io.StringIO()
+        self._w = csvfiles.writer(self._buf, quoting=csv.QUOTE_NONNUMERIC)
+
+    def text(self, cells: Sequence[Any]) -> str:
+        self._buf.seek(0)
+        self._buf.truncate()
+        self._w.writerow(cells)
+        return self._buf.getvalue()
+
+
+def results_lines(rows: list[dict[str, Any]], header: dict[str, str]) -> tuple[str, list[str]]:
+    """The results CSV as its head (``#`` lines and column names) and the text of each row
+    (a row is one line unless its notes hold a line break): what :func:`write_results_to`
+    writes, in pieces, so ``station annotate`` knows where each row is and can change one
+    row without reading the others (:mod:`station.session.resultsstate`)."""
     lines = [f"# station {__version__} results"]
     lines += [header_line(k, v) for k, v in header.items()]
     lines.append(header_line("units", " | ".join(f"{k} {u}" for k, u in UNITS.items())))
-    fh.write("\n".join(lines) + "\n")
-    # the csv module, not DataFrame.to_csv: numbers must stay numbers (unquoted, full
-    # precision) while every text field is quoted, so a "#" in the notes is safe
-    w = csvfiles.writer(fh, quoting=csv.QUOTE_NONNUMERIC)
-    w.writerow(COLUMNS)
-    w.writerows(cells)
+    w = RowWriter()
+    head = "\n".join(lines) + "\n" + w.text(COLUMNS)
+    return head, [w.text(cells) for cells in results_frame(rows)]
+
+
+def parse_row(text: str) -> list[Any]:
+    """The cells of one row's text as :func:`results_frame` made them (text as str, numbers
+    as int or float, an empty number None), for :class:`RowWriter` to write again: the bytes
+    are the same (floats are written as ``repr``, which reads back to the same float). A row
+    that is not one of ``COLUMNS`` is ``ValueError``."""
+    try:
+        cells = next(csv.reader(io.StringIO(text, newline="")))
+    except (StopIteration, csv.Error) as exc:
+        raise ValueError(f"not a results row: {exc}") from None
+    if len(cells) != len(COLUMNS):
+        raise ValueError(f"{len(cells)} cells, not {len(COLUMNS)}")
+    out: list[Any] = []
+    for col, cell in zip(COLUMNS, cells, strict=True):
+        if col in _TEXT:
+            out.append(cell)
+        elif cell == "":
+            out.append(None)
+        else:
+            out.append(int(cell) if col in INT_COLUMNS else float(cell))
+    return out
+
+
+def cell_value(col: str, value: Any) -> Any:
+    """One cell as :func:`results_frame` makes it."""
+    if col in _TEXT:
+        missing = isinstance(value, float) and math.isnan(value)
+        return None if missing else safe_text(value)
+    return _number(value, col)
 
 
 def append_results(

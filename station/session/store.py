@@ -8,6 +8,10 @@
       annotations.jsonl  what the engineer entered: metadata, invalid marks, refits
       fits.jsonl       every descent's fit, keyed by what it depends on (a cache:
                        station.session.fitstore), so a replay fits only what changed
+      results.state.json  what results.csv was computed from and where its rows are, so
+      results.descents.json  an annotate changes the rows it concerns without a replay
+                       (station.session.resultsstate), and refits only the descents it
+                       concerns (their crossing times, in the order they were fitted)
       recording.lock   there while the session is recorded (:class:`RecordingLock`)
 
 Replaying a session (``station replay SESSION``) runs its own snapshot through the same
@@ -61,8 +65,12 @@ RESULTS = "results.csv"
 ANNOTATIONS = "annotations.jsonl"
 LOCK = "recording.lock"
 FITS = "fits.jsonl"
+#: what results.csv was computed from (station.session.resultsstate)
+RESULTS_STATE = "results.state.json"
+#: the descents' crossing times as the results CSV's replay fitted them (the same module)
+RESULTS_DESCENTS = "results.descents.json"
 #: files made from the others (a replay makes them again): not part of what a session is
-DERIVED = (RESULTS, LOCK, FITS)
+DERIVED = (RESULTS, LOCK, FITS, RESULTS_STATE, RESULTS_DESCENTS)
 
 
 def is_session(path: str) -> bool:

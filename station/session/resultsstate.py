@@ -1,0 +1,725 @@
+"""What a session's results CSV was computed from (``SESSION/results.state.json``), so that
+``station annotate`` can bring the CSV up to date without replaying the day when the
+annotation is all that changed.
+
+An annotate used to replay the whole raw log and rewrite every row: 0.95 s at 200 descents,
+4.6–8.8 s at 2000 (issue 19). Most annotations change a column or two of a few rows: an
+invalid or valid mark the ``status`` and ``invalid_reason`` of one row; ski, wax, notes,
+skier or the snow temperature the metadata columns of the descents they are for. Those rows
+are changed in place and the file written once. An annotation that changes a fit (a model; a
+mass, air or wind for listed descents) fits those descents alone, with their crossing times
+from ``SESSION/results.descents.json`` (the replay's descents in the order it fitted them, and
+the survey covariance the first good fit on a set of photocells hands on to the later ones),
+when none of them is that first fit or comes before it; otherwise, and for such a change from
+descent N on, the day is replayed as before (its fits from the fit store but those changed).
+
+The state says, for one results CSV:
+
+- the SHA-256 of the CSV itself (a CSV damaged, cut or edited by hand is not trusted);
+- the raw log's SHA-256, size and modification time (read for its hash again only when the
+  size or time changed), the SHA-256 of every other file of the session but the annotations
+  and what is made from the others (config, survey, observations), and the code that
+  computes results (its files' sizes and times, and the version): results of another day,
+  setup or station are not taken for this one's;
+- the SHA-256 of the annotations file the CSV shows;
+- where its rows are (the bytes of its head, then of each row), the descent of each row, the
+  status of the fit of each row marked invalid (the CSV says ``invalid`` there), and the
+  SHA-256 of the descents file with the timer precision the fits were judged by.
+
+When any of it does not hold, or the state is missing or cannot be read, the day is replayed
+as before, and the state written anew with the CSV. The state is written by the replay that
+writes the CSV, never by a recorder: the first annotate after a recording replays.
+
+The rows the fast path writes are those a replay writes, byte for byte: the metadata in force
+for a descent is found by the rules of :class:`station.session.day.Day` (mirrored in
+:class:`Marks`: importing the day imports the fit, 0.9 s of numpy and scipy), a refit runs
+the day's own analyser, and the tests compare the result with a replay's from scratch for
+every kind of annotation (tests/test_annotate_in_place.py).
+"""
+
+from __future__ import annotations
+
+import array
+import base64
+import binascii
+import contextlib
+import functools
+import hashlib
+import json
+import os
+import sys
+import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+from station import __version__
+from station.errors import InputError
+from station.files import MAX_OBSERVATIONS, MAX_RAWLOG, read_bytes
+from station.session import store as sessions
+from station.session.config import StationConfig
+from station.session.records import (
+    METADATA_FIELDS,
+    Annotation,
+    InvalidMark,
+    Metadata,
+    MetadataAnnotation,
+    ResultRow,
+    ResultStatus,
+    ValidMark,
+    csv_record,
+)
+from station.session.results import (
+    COLUMNS,
+    MAX_RESULTS,
+    RowWriter,
+    cell_value,
+    parse_row,
+    results_frame,
+    results_lines,
+)
+
+STATE = sessions.RESULTS_STATE
+DESCENTS = sessions.RESULTS_DESCENTS
+FORMAT = 1
+#: the metadata keys a fit depends on (Day.fit_job: mass, the air's density, the wind): an
+#: annotation that names one is fitted again, by a replay
+FIT_KEYS = frozenset(
+    {"mass_kg", "air_temperature_c", "pressure_hpa", "humidity_pct", "wind_ms", "wind_from_deg"}
+)
+#: the parts of the station whose code decides the results (not the commands, UI, reports)
+_NOT_RESULTS = ("cli", "ui", "store", "report")
+#: a state file is small (a few numbers a descent)
+MAX_STATE = 16 * 1024 * 1024
+_META_COLUMNS = tuple(f for f in METADATA_FIELDS if f.column)
+_STATUS = COLUMNS.index("status")
+_INVALID = COLUMNS.index("invalid_reason")
+
+
+@cache
+def _umask() -> int:
+    """The process's umask (read once: ``os.umask`` sets it to read it)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+@cache
+def code_stamp() -> str:
+    """The code that computes results, by its files' paths, sizes and modification times and
+    the version (read once a process: ~75 stat calls, not a read of every file)."""
+    root = Path(__file__).resolve().parents[1]
+    h = hashlib.sha256(__version__.encode())
+    for f in sorted(root.rglob("*.py")):
+        rel = f.relative_to(root)
+        if rel.parts[0] in _NOT_RESULTS:
+            continue
+        st = f.stat()
+        h.update(f"{rel.as_posix()}\0{st.st_size}\0{st.st_mtime_ns}\0".encode())
+    return h.hexdigest()
+
+
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _setup_names(session: str) -> list[str]:
+    """The session's files but the raw log, the annotations and what is made from the others
+    (results, fits, lock, this state; temporary files begin with a dot): its config, survey
+    and observations, by their paths inside it."""
+    skip = {sessions.RAW, sessions.ANNOTATIONS, *sessions.DERIVED}
+    out = []
+    for root, dirs, files in os.walk(session):
+        dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+        for name in files:
+            rel = os.path.relpath(os.path.join(root, name), session)
+            if rel not in skip and not name.startswith("."):
+                out.append(rel)
+    return sorted(out)
+
+
+def _setup_files(session: str, names: Sequence[str]) -> dict[str, str]:
+    return {
+        rel: _sha256(read_bytes(os.path.join(session, rel), MAX_OBSERVATIONS, "session file"))
+        for rel in names
+    }
+
+
+def annotations_digest(session: str) -> str | None:
+    """The SHA-256 of the annotations file as it is (of no bytes when there is none); None
+    when it cannot be read (then no state is written or trusted)."""
+    path = os.path.join(session, sessions.ANNOTATIONS)
+    if not os.path.lexists(path):
+        return _sha256(b"")
+    try:
+        return _sha256(read_bytes(path, sessions.MAX_ANNOTATIONS, "annotations file"))
+    except (InputError, OSError):
+        return None
+
+
+def _raw_stamp(session: str, known: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The raw log's size, modification time and SHA-256. A raw log of the size and time
+    ``known`` gives is taken to have its SHA-256 too, as make and git judge a file by its
+    size and time: a recorder never writes to a session again once it ended, and reading a
+    2000-descent day's log for its hash (1 MB) was a third of an annotate's time."""
+    path = os.path.join(session, sessions.RAW)
+    st = os.stat(path)
+    stamp: dict[str, Any] = {"size": st.st_size, "mtime_ns": st.st_mtime_ns}
+    if known is not None and all(known.get(k) == v for k, v in stamp.items()):
+        return {**stamp, "sha256": known.get("sha256")}
+    return {**stamp, "sha256": _sha256(read_bytes(path, MAX_RAWLOG, "raw log"))}
+
+
+@dataclass
+class ResultsState:
+    """What one results CSV was computed from, and where its rows are: after ``head`` bytes,
+    rows of ``lengths`` bytes, one for each descent of ``runs`` (first, last). Kept compact, so
+    that reading and writing it costs a 2000-descent day little more than a 200-descent one:
+    the lengths as an array of 32-bit numbers (base64), the descents as runs (1–2000)."""
+
+    code: str
+    files: dict[str, str]
+    raw: dict[str, Any]
+    annotations_sha256: str
+    results_sha256: str
+    runs: list[tuple[int, int]]
+    head: int
+    lengths: array.array[int]
+    statuses: dict[int, str] = field(default_factory=dict)  # the fit's, of rows marked invalid
+    #: what a refit of one descent needs: the SHA-256 of the descents file (DESCENTS) and the
+    #: timer's precision the day's fits were judged by; None: refits replay the day
+    fits: dict[str, Any] | None = None
+
+    @property
+    def descents(self) -> list[int]:
+        return [n for first, last in self.runs for n in range(first, last + 1)]
+
+    @property
+    def size(self) -> int:
+        """The size of the CSV."""
+        return self.head + sum(self.lengths)
+
+    def row_of(self, number: int) -> int:
+        """The row of a descent (from 0), -1 when the CSV has none."""
+        k = 0
+        for first, last in self.runs:
+            if first <= number <= last:
+                return k + number - first
+            k += last - first + 1
+        return -1
+
+    def spans(self, rows: Sequence[int]) -> dict[int, tuple[int, int]]:
+        """Where the rows ``rows`` (numbers from 0) begin and end in the CSV."""
+        out: dict[int, tuple[int, int]] = {}
+        pos, at = self.head, 0
+        for k in sorted(set(rows)):
+            pos += sum(self.lengths[at:k])
+            at = k
+            out[k] = (pos, pos + self.lengths[k])
+        return out
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "format": FORMAT, "code": self.code, "files": self.files, "raw": self.raw,
+            "annotations_sha256": self.annotations_sha256,
+            "results_sha256": self.results_sha256, "runs": self.runs, "head": self.head,
+            "lengths": _packed(self.lengths),
+            "statuses": {str(k): v for k, v in self.statuses.items()},
+            "fits": self.fits,
+        }  # fmt: skip
+
+    @classmethod
+    def from_json(cls, rec: Any) -> ResultsState:
+        """The state from its JSON form; anything else is ``ValueError`` (not trusted)."""
+        if not isinstance(rec, dict) or rec.get("format") != FORMAT:
+            raise ValueError("not a results state of this version")
+        try:
+            state = cls(
+                code=_typed(rec["code"], str), files=_typed(rec["files"], dict),
+                raw=_typed(rec["raw"], dict),
+                annotations_sha256=_typed(rec["annotations_sha256"], str),
+                results_sha256=_typed(rec["results_sha256"], str),
+                runs=_runs(rec["runs"]),
+                head=_typed(rec["head"], int),
+                lengths=_unpacked(_typed(rec["lengths"], str)),
+                statuses={int(k): _typed(v, str) for k, v in _typed(rec["statuses"], dict).items()},
+                fits=None if rec.get("fits") is None else _typed(rec["fits"], dict),
+            )  # fmt: skip
+        except KeyError as exc:
+            raise ValueError(f"no {exc}") from None
+        if sum(last - first + 1 for first, last in state.runs) != len(state.lengths):
+            raise ValueError("rows and descents disagree")
+        return state
+
+
+def _runs(value: Any) -> list[tuple[int, int]]:
+    """Runs of descents, in order, each after the one before."""
+    out: list[tuple[int, int]] = []
+    for run in _typed(value, list):
+        first, last = _typed(run, list)
+        if _typed(first, int) > _typed(last, int) or (out and first <= out[-1][1]):
+            raise ValueError("descents out of order")
+        out.append((first, last))
+    return out
+
+
+def runs_of(descents: Sequence[int]) -> list[tuple[int, int]]:
+    """Descents in order as runs of consecutive numbers."""
+    out: list[list[int]] = []
+    for n in descents:
+        if out and n == out[-1][1] + 1:
+            out[-1][1] = n
+        elif out and n <= out[-1][1]:
+            raise ValueError("descents out of order")
+        else:
+            out.append([n, n])
+    return [(a, b) for a, b in out]
+
+
+def _packed(lengths: array.array[int]) -> str:
+    a = array.array("I", lengths)
+    if sys.byteorder == "big":
+        a.byteswap()  # little-endian in the file
+    return base64.b64encode(a.tobytes()).decode("ascii")
+
+
+def _unpacked(text: str) -> array.array[int]:
+    try:
+        data = base64.b64decode(text, validate=True)
+    except binascii.Error:
+        raise ValueError("lengths are not base64") from None
+    if len(data) % 4:
+        raise ValueError("lengths of the wrong size")
+    a = array.array("I")
+    a.frombytes(data)
+    if sys.byteorder == "big":
+        a.byteswap()
+    return a
+
+
+def _typed(value: Any, kind: type) -> Any:
+    if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+        raise ValueError(f"expected {kind.__name__}")
+    return value
+
+
+# ----------------------------------------------------------------------------- writing
+
+
+def write_results_with_state(
+    session: str,
+    rows: Sequence[ResultRow],
+    header: dict[str, str],
+    annotations_sha256: str | None,
+    fitted: Fitted | None = None,
+) -> str:
+    """Write the results CSV of a replay (``rows`` as its results show them, the invalid
+    marks on them) and its state; ``annotations_sha256``: of the annotations file the replay
+    applied, taken before it read them; ``fitted``: the replay's descents as it fitted them,
+    for a later refit of one. Returns the CSV's path. The CSV is written first: a state that
+    cannot be written leaves the old one, which no longer matches the CSV."""
+    head, lines = results_lines([csv_record(r) for r in rows], header)
+    statuses = {r.descent: r.status.value for r in rows if r.invalid_reason}
+    encoded = [head.encode("utf-8")] + [x.encode("utf-8") for x in lines]
+    lengths = array.array("I", [len(row) for row in encoded[1:]])
+    fits = None
+    if fitted is not None:
+        try:
+            fits = _write_descents(session, fitted)
+        except (OSError, ValueError, TypeError):
+            fits = None  # refits replay the day
+    return _write(
+        session, encoded, len(encoded[0]), lengths, runs_of([r.descent for r in rows]),
+        annotations_sha256, statuses, None, fits,
+    )  # fmt: skip
+
+
+@dataclass
+class Fitted:
+    """A replay's descents as it fitted them: in the order it fitted them (the crossing times,
+    :class:`DescentTimes`), the survey covariance of each set of photocells and the descent
+    whose fit handed it on (the first good fit on them: the later ones use it), and the
+    timer's precision. A descent after that one on its photocells can be fitted again alone
+    and gets the fit the replay would give it."""
+
+    order: list[Any]  # DescentTimes
+    sources: list[tuple[tuple[str, ...], int, Any]]  # photocells, descent, covariance
+    timer_precision_s: float
+
+
+def _write_descents(session: str, fitted: Fitted) -> dict[str, Any]:
+    from station.session.fitstore import to_json
+
+    rec = {
+        "order": [to_json(d) for d in fitted.order],
+        "sources": [[list(ids), n, to_json(cov)] for ids, n, cov in fitted.sources],
+    }
+    data = json.dumps(rec, separators=(",", ":")).encode()
+    digest = _replace(os.path.join(session, DESCENTS), [data])
+    return {"sha256": digest, "timer_precision_s": fitted.timer_precision_s}
+
+
+def _write(
+    session: str,
+    data: Sequence[bytes | memoryview],
+    head: int,
+    lengths: array.array[int],
+    runs: list[tuple[int, int]],
+    annotations_sha256: str | None,
+    statuses: dict[int, str],
+    known: tuple[dict[str, str], dict[str, Any]] | None,
+    fits: dict[str, Any] | None,
+) -> str:
+    """Write the CSV ``data`` (its pieces: ``head`` bytes, then rows of ``lengths``, one for
+    each descent of ``runs``), then its state (when the annotations it shows are known)."""
+    path = os.path.join(session, sessions.RESULTS)
+    # the CSV first: a state that is not written then is the old one, which does not hold
+    # for the new CSV (its SHA-256), so the next annotate replays
+    digest = _replace(path, data)
+    if annotations_sha256 is None:
+        return path
+    try:
+        files, raw = known if known is not None else (
+            _setup_files(session, _setup_names(session)), _raw_stamp(session)
+        )  # fmt: skip
+        state = ResultsState(
+            code_stamp(), files, raw, annotations_sha256, digest, runs, head, lengths,
+            statuses, fits,
+        )  # fmt: skip
+        text = json.dumps(state.to_json(), separators=(",", ":")).encode()
+        # written over the old one, not renamed: a state cut short is no JSON, and the old
+        # one does not hold for the new CSV; either way the next annotate replays
+        flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NONBLOCK  # a FIFO: no wait
+        fd = os.open(os.path.join(session, STATE), flags, 0o666)
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(text)
+    except (OSError, InputError):
+        pass  # no state: the next annotate replays
+    return path
+
+
+def _replace(path: str, data: Sequence[bytes | memoryview]) -> str:
+    """Write a file of the pieces ``data`` atomically (a temporary file beside it, renamed
+    over it), without joining them (a 2000-descent CSV is 0.6 MB); returns its SHA-256."""
+    folder = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(path)}-", dir=folder)
+    digest = hashlib.sha256()
+    try:
+        os.fchmod(fd, 0o666 & ~_umask())  # as open() would have made it, not mkstemp's 0600
+        with os.fdopen(fd, "wb") as fh:
+            for piece in data:
+                fh.write(piece)
+                digest.update(piece)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    return digest.hexdigest()
+
+
+# ----------------------------------------------------------------------------- reading
+
+
+@dataclass
+class Current:
+    """A results CSV its state says is current: its bytes and its state."""
+
+    data: bytes
+    state: ResultsState
+    files: dict[str, str]
+    raw: dict[str, Any]
+
+
+@functools.lru_cache(maxsize=1)
+def _parsed(text: bytes) -> ResultsState:
+    return ResultsState.from_json(json.loads(text))
+
+
+def read_state(session: str) -> ResultsState | None:
+    """The state as its file says (None: none, or not one of this version); parsed once a
+    process for the same bytes (``annotate`` looks at it for the descents, then to annotate)."""
+    try:
+        return _parsed(read_bytes(os.path.join(session, STATE), MAX_STATE, "results state"))
+    except (OSError, ValueError, RecursionError, InputError):  # not trusted: replayed
+        return None
+
+
+def current(session: str, annotations_sha256: str | None) -> Current | None:
+    """The results CSV and its state when the state holds for the session as it is, with the
+    annotations file whose SHA-256 is ``annotations_sha256``; None otherwise (replay)."""
+    state = read_state(session)
+    if state is None:
+        return None
+    if annotations_sha256 is None or state.annotations_sha256 != annotations_sha256:
+        return None
+    if state.code != code_stamp():
+        return None
+    try:
+        names = _setup_names(session)
+        if names != sorted(state.files):
+            return None
+        data = read_bytes(os.path.join(session, sessions.RESULTS), MAX_RESULTS, "results CSV")
+        if len(data) != state.size or _sha256(data) != state.results_sha256:
+            return None
+        files = _setup_files(session, names)
+        if files != state.files:
+            return None
+        raw = _raw_stamp(session, state.raw)
+        if raw["sha256"] != state.raw.get("sha256") or raw["size"] != state.raw.get("size"):
+            return None
+    except (OSError, InputError):
+        return None
+    return Current(data, state, files, raw)
+
+
+def descent_numbers(session: str) -> list[int] | None:
+    """The descents of the results CSV as its state lists them, when the state is of this CSV
+    (by its size: a check of what the engineer typed, not of the results); None otherwise."""
+    state = read_state(session)
+    try:
+        size = os.path.getsize(os.path.join(session, sessions.RESULTS))
+    except OSError:
+        return None
+    return state.descents if state is not None and size == state.size else None
+
+
+# ----------------------------------------------------------------------------- annotating
+
+
+class Marks:
+    """The annotations of a day as :class:`station.session.day.Day` applies them (its
+    ``annotate`` and ``metadata_for``), without its fits."""
+
+    def __init__(self, config: StationConfig, annotations: Sequence[Annotation]) -> None:
+        values: dict[str, object] = {"mass_kg": config.mass_kg, **config.metadata}
+        air = config.air
+        if air.measured:
+            values["pressure_hpa"] = air.pressure_hpa
+            values["air_temperature_c"] = air.temperature_c
+            values["humidity_pct"] = air.humidity_pct
+        self.config = config
+        self.base = Metadata.from_values(values)
+        self.changes: list[tuple[int, Metadata]] = []
+        self.listed: list[tuple[frozenset[int], Metadata]] = []
+        self.invalid: dict[int, str] = {}
+        for a in annotations:
+            if isinstance(a, MetadataAnnotation):
+                if a.descents is not None:
+                    self.listed.append((frozenset(a.descents), a.values))
+                else:
+                    self.changes.append((a.from_descent or 0, a.values))
+            elif isinstance(a, InvalidMark):
+                self.invalid[a.descent] = a.reason or "marked invalid"
+            elif isinstance(a, ValidMark):
+                self.invalid.pop(a.descent, None)
+
+    def metadata_for(self, number: int) -> Metadata:
+        meta = self.base
+        for start, values in self.changes:
+            if start <= number:
+                meta = meta.overlay(values)
+        for descents, values in self.listed:
+            if number in descents:
+                meta = meta.overlay(values)
+        return meta
+
+
+def in_place(
+    session: str,
+    config: StationConfig,
+    cur: Current,
+    new: Sequence[Annotation],
+    annotations_sha256: str | None,
+) -> str | None:
+    """Bring the CSV ``cur`` up to date with the annotations ``new`` appended after those it
+    shows, without a replay, when none of them changes a fit; write it and its state. Returns
+    the CSV's path, or None when a replay is needed (nothing written then)."""
+    touched: set[int] = set()
+    state = cur.state
+    #: the invalid marks the new records leave (a row's earlier reason is in its cell)
+    reasons: dict[int, str] = {}
+    metadata = False
+    refit: set[int] = set()  # descents whose fit changes: fitted again
+    for a in new:
+        if isinstance(a, InvalidMark | ValidMark):
+            touched.add(a.descent)
+            reasons[a.descent] = (a.reason or "marked invalid") if isinstance(a, InvalidMark) \
+                else ""  # fmt: skip
+        elif isinstance(a, MetadataAnnotation):
+            metadata = True
+            if FIT_KEYS & a.values.values().keys():
+                if a.descents is None:
+                    return None  # from N on: most of the day fitted again, by a replay
+                refit.update(a.descents)
+                continue
+            if not any(f.column for f in METADATA_FIELDS if f.key in a.values.values()):
+                continue  # a key results.csv has no column for (grind, snow type …)
+            if a.descents is not None:
+                touched.update(a.descents)
+            else:
+                start = a.from_descent or 0
+                touched.update(n for n in state.descents if n >= start)
+        else:  # a model change
+            refit.add(a.descent)
+    if (metadata or refit) and config.items:
+        # the bib of a descent names an item (ski, wax …) over what the annotations say: not
+        # known here; such a day is replayed
+        return None
+    data = cur.data
+    rows = {n: k for n in touched | refit if (k := state.row_of(n)) >= 0}
+    span = state.spans(list(rows.values()))
+    refit &= rows.keys()
+    refitted: dict[int, tuple[bytes, str]] = {}
+    if refit:
+        starts: dict[int, str] = {}
+        for n in refit:
+            a, b = span[rows[n]]
+            try:
+                starts[n] = parse_row(data[a:b].decode("utf-8"))[1]
+            except ValueError:
+                return None
+        got = _refit(session, config, state, starts)
+        if got is None:
+            return None
+        refitted = got
+    marks = None
+    if metadata:  # what is in force for a descent follows from every annotation of the day
+        try:
+            marks = Marks(config, sessions.read_annotations(session))
+        except Exception:  # noqa: BLE001 - the replay says what is wrong
+            return None
+    statuses = dict(state.statuses)
+    writer = RowWriter()
+    changed: list[tuple[int, bytes]] = []  # (row, its new bytes), in the file's order
+    for n in sorted(rows):  # a descent the CSV has no row for is still to come: nothing to show
+        k = rows[n]
+        if n in refitted:
+            row, status = refitted[n]
+            statuses.pop(n, None)
+            if parse_row(row.decode("utf-8"))[_INVALID]:
+                statuses[n] = status
+            changed.append((k, row))
+            continue
+        try:
+            text = data[span[k][0] : span[k][1]].decode("utf-8")
+            cells = parse_row(text)
+            if writer.text(cells) != text or cells[0] != n:
+                return None  # not written by this writer: replayed
+        except ValueError:
+            return None
+        if marks is not None:
+            meta = marks.metadata_for(n)
+            for f in _META_COLUMNS:
+                v = getattr(meta, f.key)
+                cells[COLUMNS.index(f.key)] = cell_value(f.key, ("" if v is None else v)
+                                                        if f.kind is str else v)  # fmt: skip
+        status = statuses.pop(n, None) or cells[_STATUS]
+        if status == ResultStatus.INVALID.value:
+            return None  # the fit's status is not known: replayed
+        if marks is not None:
+            cells[_INVALID] = cell_value("invalid_reason", marks.invalid.get(n, ""))
+        elif n in reasons:
+            cells[_INVALID] = cell_value("invalid_reason", reasons[n])
+        reason = cells[_INVALID]
+        cells[_STATUS] = ResultStatus.INVALID.value if reason else status
+        if reason:
+            statuses[n] = status
+        changed.append((k, writer.text(cells).encode("utf-8")))
+    # the file in pieces: the unchanged stretches as they are, the changed rows new
+    whole = memoryview(data)
+    pieces: list[bytes | memoryview] = []
+    lengths = array.array("I", state.lengths)
+    at = 0
+    for k, row in changed:
+        pieces += [whole[at : span[k][0]], row]
+        at = span[k][1]
+        lengths[k] = len(row)
+    pieces.append(whole[at:])
+    return _write(
+        session, pieces, state.head, lengths, state.runs, annotations_sha256,
+        statuses, (cur.files, cur.raw), state.fits,
+    )  # fmt: skip
+
+
+def _refit(
+    session: str, config: StationConfig, state: ResultsState, start_times: dict[int, str]
+) -> dict[int, tuple[bytes, str]] | None:
+    """The rows of the descents ``start_times`` names (with their start times as the CSV has
+    them) fitted again as a replay would fit them now, with the session's annotations: each
+    one's new row and its fit's status; None when one of them cannot be fitted alone (the
+    first good fit on its photocells, or one before it, hands the survey covariance on to the
+    later ones: a replay then). Loads the fit (numpy, scipy): only here."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from station.session.analysis import Analyser, FitJob
+    from station.session.day import Day
+    from station.session.fitstore import from_json
+    from station.session.records import DescentTimes, FitModel
+    from station.survey.load import load_survey
+    from station.survey.track import build_track
+
+    info = state.fits
+    if info is None:
+        return None
+    try:
+        data = read_bytes(os.path.join(session, DESCENTS), MAX_STATE * 8, "descents file")
+        if _sha256(data) != info.get("sha256"):
+            return None
+        rec = json.loads(data)
+        precision = _typed(info.get("timer_precision_s"), float)
+        order = rec["order"]
+        where = {d["number"]: i for i, d in enumerate(order)}
+        sources = {tuple(ids): (n, cov) for ids, n, cov in rec["sources"]}
+        track = build_track(load_survey(config.survey_path))
+        analyser = Analyser(config, track)
+        analyser.speed_curves = False
+        # no fit store: opening it reads every stored fit's key (0.9 s of a 1.5 s refit at
+        # 2000 descents), and the few fits made here cost the next replay milliseconds
+        analyser.fits = None
+        day = Day(config, track, None, analyser)  # type: ignore[arg-type]  # fits, no impulses
+        for a in sessions.read_annotations(session):
+            day.annotate(a)
+    except Exception:  # noqa: BLE001 - anything amiss: the replay says what is wrong
+        return None
+    out: dict[int, tuple[bytes, str]] = {}
+    writer = RowWriter()
+    for n, started in start_times.items():
+        i = where.get(n)
+        if i is None:
+            return None
+        try:
+            d = from_json(DescentTimes, order[i])
+        except Exception:  # noqa: BLE001 - not this version's: replayed
+            return None
+        source = sources.get(d.photocells)
+        if source is None or source[0] in start_times or where.get(source[0], i) >= i:
+            return None  # its fit hands the survey's covariance on, or is handed it: replayed
+        try:
+            cov = from_json(np.ndarray, source[1])
+        except Exception:  # noqa: BLE001
+            return None
+        analyser._survey_cov[d.photocells] = cov  # noqa: SLF001 - as the replay hands it on
+        # Day.fit_job, with the start time of the CSV and the day's timer precision (the
+        # replay's processor knows both; here there is none)
+        meta = day.metadata_for(n)  # (no items: see in_place)
+        try:
+            wind, problem = day.wind_for(meta), ""
+        except InputError as exc:
+            wind, problem = 0.0, str(exc)
+        job = FitJob(
+            descent=d, start_time=started, metadata=meta,
+            model=day.models.get(n, FitModel(config.model)),
+            mass_kg=float(meta.mass_kg if meta.mass_kg is not None else config.mass_kg),
+            air_density=day.density_for(meta), wind_ms=wind, timer_precision_s=precision,
+            problem=problem,
+        )  # fmt: skip
+        res = analyser.run(job)
+        row = replace(res.row, invalid_reason=day.invalid.get(n, ""))
+        text = writer.text(results_frame([csv_record(row)])[0])
+        out[n] = (text.encode("utf-8"), res.row.status.value)
+    return out
