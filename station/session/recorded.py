@@ -381,23 +381,8 @@ class RecordedSession:
 
 
 def _fitted(acq: Acquisition) -> resultsstate.Fitted:
-    """The replay's descents in the order it fitted them, and the descent on each set of
-    photocells whose fit handed the survey's covariance on to the later ones (the analyser's
-    rule: the first good fit with one)."""
-    day = acq.day
-    order = [day.results[n] for n in day.results]  # fitted once each, in this order
-    sources: dict[tuple[str, ...], tuple[int, Any]] = {}
-    for r in order:
-        if r.descent.photocells in sources:
-            continue  # found: the fit is not read (a recording keeps it in the store only)
-        fit = r.fit
-        if fit is not None and fit.status == "ok" and fit.survey_time_cov is not None:
-            sources[r.descent.photocells] = (r.number, fit.survey_time_cov)
-    return resultsstate.Fitted(
-        [r.descent for r in order],
-        [(ids, n, cov) for ids, (n, cov) in sources.items()],
-        day.timer_precision_s(),
-    )
+    """The replay's descents in the order it fitted them (:func:`resultsstate.fitted_of`)."""
+    return resultsstate.fitted_of(acq.day)
 
 
 def _text(value: Any) -> str:
