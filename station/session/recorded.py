@@ -285,7 +285,8 @@ class RecordedSession:
             before = resultsstate.annotations_digest(self.path)
             for rec in records:
                 sessions.append_annotation(self.path, rec)
-            said = f"{len(records)} annotation(s) added to {self.path}"
+            n = len(records)
+            said = f"{n} annotation{'' if n == 1 else 's'} added to {self.path}"
             state = self.recording_state()
             if state is sessions.Recording.NOW:  # the recorder takes them up (Acquisition)
                 return (f"{said}; it is being recorded now: the recording takes them up and "
