@@ -1,23 +1,30 @@
 """Decided or not after every descent: does looking after every descent inflate wrong answers?
 
 Days of two items in ABBA order up to the horizon (10 descents per item, 20 descents, 3 minutes
-apart, drift 0.02 per hour), simulated as in benchmarks/plan_power.py (simulators/days.py) and
+apart, drift 0.005 per hour), simulated as in benchmarks/plan_power.py (simulators/days.py) and
 fitted by the real joint fit of `station compare` after every descent from the fourth on (each
 look a fit of the descents so far); the group-sequential rule of station/model/sequential.py
 decides at each look. Per posture scatter (0.5 / 1 / 2 %):
 
 - equal skis: the share of days on which a winner is declared at any look (target ≤ 10 %),
-  and, for contrast, how often the plain 90 % interval excludes 0 at some look (the naive rule
-  of stopping when it first does);
+  with its binomial 95 % upper bound, and, for contrast, how often the plain 90 % interval
+  excludes 0 at some look (the naive rule of stopping when it first does); the SD of the z
+  statistic Δμ̂/se over the days at the middle and last look (1 when the fit's standard error
+  is right);
 - Δμ = 0.001: the share of days on which the wrong ski is declared at any look (target 0), the
   share decided by the horizon, and the median descents per item at the first decision.
 
-Run: python benchmarks/plan_sequential.py [--days 40] [--jobs 2] [--setup demo|sparse|both]
+The fits do not depend on the rule: ``--cache FILE`` keeps every look's (Δμ̂, se, dof) so the
+rule can be judged again without fitting again (the cache is keyed by setup, scatter, Δμ, day).
+
+Run: python benchmarks/plan_sequential.py [--days 200] [--days-diff 100] [--jobs 2]
+     [--setup demo|sparse|both] [--cache FILE]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
@@ -33,32 +40,45 @@ from benchmarks.plan_power import SETUPS, track  # noqa: E402
 from simulators.days import DaySetup, simulate_day  # noqa: E402
 from station.model.compare import joint_fit  # noqa: E402
 from station.model.plan import run_order  # noqa: E402
-from station.model.sequential import decide  # noqa: E402
+from station.model.sequential import decide, standard_error  # noqa: E402
 
 HORIZON = 10
 SCATTERS = (0.005, 0.01, 0.02)
 MU_A = 0.0085
+ORDER = "".join("AB"[i] for i in run_order(2, HORIZON))
+
+Look = tuple[float, float, float]  # Δμ̂, se, dof
 
 
-def watched_day(args: tuple[str, float, float, int]) -> tuple[bool, bool, bool, int | None]:
-    """(declared A faster at some look, declared B faster at some look, the naive 90 %
-    interval excluded 0 at some look, descents per item at the first decision)."""
+def looks_of_day(args: tuple[str, float, float, int]) -> list[Look]:
+    """Every look's (Δμ̂ = μ_A − μ_B, its standard error, its degrees of freedom) of one
+    simulated day, from the fourth descent on."""
     setup, delta, scatter, seed = args
     rng = np.random.default_rng(seed)
-    order = "".join("AB"[i] for i in run_order(2, HORIZON))
     day = DaySetup(scatter=scatter, timer_sd_s=SETUPS[setup][1])
-    data = simulate_day(track(setup), order, {"A": MU_A, "B": MU_A + delta}, day, rng)
-    a_won = b_won = naive = False
-    first = None
+    data = simulate_day(track(setup), ORDER, {"A": MU_A, "B": MU_A + delta}, day, rng)
+    out = []
     for k in range(4, len(data) + 1):
         c = joint_fit(track(setup), data[:k]).comparisons[0]
-        if c.ci90 is None or c.dof is None:
-            continue
-        from scipy.special import stdtrit
+        assert c.ci90 is not None and c.dof is not None
+        # the comparison's first item is the reference, the item skied most so far: B at
+        # the looks where it leads (ABBAABB)
+        sign = 1.0 if c.a == "A" else -1.0
+        out.append((sign * c.delta_mu, standard_error(c.ci90, c.dof), c.dof))
+    return out
 
-        se = (c.ci90[1] - c.ci90[0]) / 2 / float(stdtrit(c.dof, 0.95))
-        naive = naive or c.ci90[0] > 0 or c.ci90[1] < 0
-        d = decide(c.a, c.b, c.delta_mu, se, c.dof, order[:k], horizon=HORIZON)
+
+def judge(looks: list[Look]) -> tuple[bool, bool, bool, int | None]:
+    """(declared A faster at some look, declared B faster at some look, the naive 90 %
+    interval excluded 0 at some look, descents per item at the first decision)."""
+    from scipy.special import stdtrit
+
+    a_won = b_won = naive = False
+    first = None
+    for j, (delta, se, dof) in enumerate(looks):
+        k = j + 4
+        naive = naive or abs(delta) >= float(stdtrit(dof, 0.95)) * se
+        d = decide("A", "B", delta, se, dof, ORDER[:k], horizon=HORIZON)
         if d.state == "decided":
             a_won = a_won or d.faster == "A"
             b_won = b_won or d.faster == "B"
@@ -67,40 +87,70 @@ def watched_day(args: tuple[str, float, float, int]) -> tuple[bool, bool, bool, 
     return a_won, b_won, naive, first
 
 
+def upper95(hits: int, n: int) -> float:
+    """The one-sided 95 % Clopper–Pearson upper bound of a rate."""
+    from scipy.special import betaincinv
+
+    return 1.0 if hits >= n else float(betaincinv(hits + 1, n - hits, 0.95))
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--days", type=int, default=40, help="simulated days per row")
+    ap.add_argument("--days", type=int, default=200, help="simulated equal-ski days per row")
+    ap.add_argument("--days-diff", type=int, default=100, help="simulated Δμ 0.001 days per row")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--setup", choices=["demo", "sparse", "both"], default="demo")
+    ap.add_argument("--cache", type=Path, help="JSON file of the looks, read and extended")
+    ap.add_argument("--scatter", type=float, action="append", help="only this scatter")
     args = ap.parse_args()
     setups = ["demo", "sparse"] if args.setup == "both" else [args.setup]
-    print(f"machine: {os.cpu_count()} cores; {args.days} days per row, {args.jobs} processes; "
-          f"a look after every descent from the 4th, horizon {HORIZON} per item")  # fmt: skip
+    cache: dict[str, list[Look]] = {}
+    if args.cache is not None and args.cache.exists():
+        cache = json.loads(args.cache.read_text())
+    print(f"machine: {os.cpu_count()} cores; {args.days} equal-ski days and {args.days_diff} "
+          f"Δμ 0.001 days per row, {args.jobs} processes; a look after every descent from the "
+          f"4th, horizon {HORIZON} per item")  # fmt: skip
     print(f"binomial SD of a rate of 10 % over {args.days} days: "
           f"{100 * np.sqrt(0.09 / args.days):.1f} %")  # fmt: skip
     t_all = time.perf_counter()
+
+    def days(pool, setup: str, delta: float, scatter: float, n: int, seed0: int):
+        keys = [f"{setup}/{scatter}/{delta}/{seed0 + s}" for s in range(n)]
+        todo = [k for k in keys if k not in cache]
+        jobs = [(setup, delta, scatter, int(k.rsplit("/", 1)[1])) for k in todo]
+        for k, looks in zip(todo, pool.map(looks_of_day, jobs, chunksize=2), strict=True):
+            cache[k] = looks
+        if args.cache is not None and todo:
+            args.cache.write_text(json.dumps(cache))
+        return [cache[k] for k in keys]
+
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
         for setup in setups:
             print(f"\nsetup {setup}: {len(track(setup).photocells)} photocells, timer "
                   f"{SETUPS[setup][1] * 1e3:g} ms")  # fmt: skip
-            print(f"{'scatter':>7} | {'equal: winner declared':>22} | {'naive 90 % rule':>15} | "
+            print(f"{'scatter':>7} | {'equal: winner declared':>22} | {'95 % upper':>10} | "
+                  f"{'naive 90 % rule':>15} | {'SD(z) mid/last':>14} | "
                   f"{'Δμ 0.001: wrong ski':>19} | {'decided':>7} | "
                   f"{'descents/item at decision':>25}")  # fmt: skip
-            for scatter in SCATTERS:
+            for scatter in args.scatter or SCATTERS:
                 seed0 = 7000 + int(scatter * 1000) * 1000
-                eq = list(pool.map(watched_day, [(setup, 0.0, scatter, seed0 + s)
-                                                 for s in range(args.days)]))  # fmt: skip
-                df = list(pool.map(watched_day, [(setup, 0.001, scatter, seed0 + 500 + s)
-                                                 for s in range(args.days)]))  # fmt: skip
-                declared = np.mean([a or b for a, b, _, _ in eq])
+                eq_looks = days(pool, setup, 0.0, scatter, args.days, seed0)
+                df_looks = days(pool, setup, 0.001, scatter, args.days_diff, seed0 + 500)
+                eq = [judge(x) for x in eq_looks]
+                df = [judge(x) for x in df_looks]
+                hits = sum(a or b for a, b, _, _ in eq)
+                declared = hits / len(eq)
                 naive = np.mean([n for _, _, n, _ in eq])
+                z = np.array([[d / s for d, s, _ in x] for x in eq_looks])
+                sdz = f"{z[:, z.shape[1] // 2].std():.2f}/{z[:, -1].std():.2f}"
                 wrong = np.mean([b for _, b, _, _ in df])
                 decided = np.mean([f is not None for *_, f in df])
                 firsts = [f for *_, f in df if f is not None]
                 med = f"{np.median(firsts):.1f}" if firsts else "—"
                 print(f"{scatter * 100:>6.1f}% | {declared * 100:>21.1f}% | "
-                      f"{naive * 100:>14.1f}% | {wrong * 100:>18.1f}% | "
-                      f"{decided * 100:>6.1f}% | {med:>25}")  # fmt: skip
+                      f"{upper95(hits, len(eq)) * 100:>9.1f}% | {naive * 100:>14.1f}% | "
+                      f"{sdz:>14} | {wrong * 100:>18.1f}% | {decided * 100:>6.1f}% | "
+                      f"{med:>25}")  # fmt: skip
     print(f"\n{time.perf_counter() - t_all:.0f} s in all")
     return 0
 

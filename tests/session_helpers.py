@@ -28,8 +28,10 @@ def make_session(
     seed: int = 1,
     annotate: bool = True,
     config_extra: str = "",
+    drift_per_hour: float = 0.0,
 ) -> Path:
-    """A session of ``len(order)`` descents of items A, B … (with ski annotations)."""
+    """A session of ``len(order)`` descents of items A, B … (with ski annotations); μ drifts
+    by ``drift_per_hour`` from the first descent on."""
     from station.model.physics import Conditions, Params, StraightRun
     from station.session import store
     from station.session.acquisition import replay
@@ -56,7 +58,11 @@ def make_session(
     for k, item in enumerate(order):
         t_start = T0 + k * interval_s
         sol = run.solve(
-            Params(cda, mus[item], 3.0 + 0.3 * rng.standard_normal()),
+            Params(
+                cda,
+                mus[item] + drift_per_hour * k * interval_s / 3600.0,
+                3.0 + 0.3 * rng.standard_normal(),
+            ),  # fmt: skip
             Conditions(88.0, 1.079),
             sensitivities=False,
         )

@@ -88,7 +88,7 @@ def test_annotate_appends_and_rewrites_the_csv_as_export_writes_it(session, tmp_
     before = s.results()
     said = s.annotate([InvalidMark(2, "gate", 1.0)])
     assert said.endswith(f"{session / store.RESULTS} rewritten")
-    assert "1 annotation(s) added" in said
+    assert "1 annotation added" in said
     assert [r.row.invalid_reason for r in s.results()] == ["", "gate", "", ""]
     assert before[1].row.invalid_reason == ""  # the earlier replay's snapshot is unchanged
     fresh = RecordedSession(str(session))

@@ -14,7 +14,9 @@ from station.model.sequential import (
     boundaries,
     decide,
     describe,
+    information,
     look_boundaries,
+    look_fractions,
     pair_counts,
 )
 
@@ -30,9 +32,8 @@ def test_looking_after_every_descent_declares_equal_items_different_at_most_alph
     """Brownian motion in information time, looked at on an ABBA day's schedule: the z
     statistic crosses a boundary at some look on 10 % of days; the 90 % interval looked at the
     same way would cross on far more."""
-    counts = pair_counts("ABBAABBAABBAABBAABBA", "A", "B")
-    c = np.array(look_boundaries(counts, 10))
-    t = np.array([2 / (1 / a + 1 / b) / 10 for a, b in counts])
+    t = np.array(look_fractions("ABBAABBAABBAABBAABBA", "A", "B", 10))
+    c = np.array(look_boundaries(t))
     rng = np.random.default_rng(0)
     b = np.cumsum(rng.normal(size=(200_000, len(t))) * np.sqrt(np.diff(t, prepend=0.0)), axis=1)
     z = np.abs(b / np.sqrt(t))
@@ -47,9 +48,36 @@ def test_looks_count_only_descents_of_the_pair_once_both_have_two():
 
 
 def test_beyond_the_horizon_the_last_boundary_is_kept():
-    counts = pair_counts("AB" * 8, "A", "B")
-    c = look_boundaries(counts, 4)
+    c = look_boundaries(look_fractions("AB" * 8, "A", "B", 4))
     assert c[-1] == c[-2] == c[-3]
+
+
+@pytest.mark.parametrize("run", ["ABBAABBAABBA", "ABBAA", "ABBAABB", "ABCCBAABCCBA", "AABB"])
+def test_the_information_of_a_look_is_that_of_the_items_and_a_linear_drift(run):
+    """The information about μ_A − μ_B at each look equals 1/Var of that contrast in the least
+    squares fit of one value per descent on its item and a straight drift over its position
+    (written out as a design matrix here); balanced looks keep h/2, and a look where one item
+    has had the latest descents (ABBAA) has less."""
+    got = information(run, "A", "B")
+    want = []
+    for k in range(1, len(run) + 1):
+        pre = run[:k]
+        if pre[-1] not in "AB" or min(pre.count("A"), pre.count("B")) < 2:
+            continue
+        items = sorted(set(pre))
+        x = np.array([[float(it == j) for j in items] + [i - (k - 1) / 2] for i, it in
+                      enumerate(pre)])  # fmt: skip
+        cov = np.linalg.inv(x.T @ x)
+        c = np.zeros(len(items) + 1)
+        c[items.index("A")], c[items.index("B")] = 1, -1
+        want.append(1 / float(c @ cov @ c))
+    assert got == pytest.approx(want, rel=1e-9)
+    h = [2 / (1 / a + 1 / b) for a, b in pair_counts(run, "A", "B")]
+    assert all(g <= hh / 2 * (1 + 1e-9) for g, hh in zip(got, h, strict=True))
+    if run == "ABBAA":
+        assert got[-1] < 0.95 * h[-1] / 2
+    if run == "ABBAABBAABBA":
+        assert got[0] == pytest.approx(1.0) and got[-1] == pytest.approx(3.0)
 
 
 def test_the_decision_states():
@@ -87,9 +115,8 @@ def test_the_projection_of_more_descents_comes_true_when_the_estimate_stays():
     assert d.state == "undecided" and k is not None and k >= 2
 
     def later(m: int) -> Decision:
-        na, nb = 3, 3
-        h0, h1 = 2 / (1 / na + 1 / nb), 2 / (1 / (na + m) + 1 / (nb + m))
-        return decide("A", "B", delta, se * math.sqrt(h0 / h1), None, run + "AB" * m)
+        i0, i1 = information(run, "A", "B")[-1], information(run + "AB" * m, "A", "B")[-1]
+        return decide("A", "B", delta, se * math.sqrt(i0 / i1), None, run + "AB" * m)
 
     assert later(k).state == "decided" and later(k - 1).state == "undecided"
 
@@ -147,15 +174,20 @@ def test_compare_refuses_bad_decision_options(run_station, session, args, expect
     assert r.returncode == 2 and expect in r.stderr and len(r.stderr.strip().splitlines()) == 1
 
 
-@pytest.mark.slow  # a simulation study: 240 days with a joint fit after every descent
-@pytest.mark.parametrize(("delta", "seed"), [(0.0, 100), (0.001, 200)])
-def test_watched_days_declare_equal_skis_rarely_and_never_the_wrong_one(demo_track, delta, seed):
-    """Days of ABBA… up to a horizon of 6 per item at 1 % posture scatter, fitted by the real
-    joint fit after every descent from the fourth and decided by the rule at every look. Equal
-    skis: a winner at some look on at most 10 % of days, here ≤ 15.5 % (10 % and two binomial
-    SDs of 120 days: this seed gave 13.3 %); the naive rule, the 90 % interval at every look,
-    exceeds 25 %; benchmarks/plan_sequential.py prints the table. Δμ = 0.001: never the
-    wrong ski."""
+@pytest.mark.slow  # a simulation study: 360 days with a joint fit after every descent
+@pytest.mark.parametrize(
+    ("delta", "scatter", "days", "seed"),
+    [(0.0, 0.01, 150, 100), (0.0, 0.02, 150, 300), (0.001, 0.01, 60, 200)],
+)
+def test_watched_days_declare_equal_skis_rarely_and_never_the_wrong_one(
+    demo_track, delta, scatter, days, seed
+):
+    """Days of ABBA… up to a horizon of 6 per item, fitted by the real joint fit after every
+    descent from the fourth and decided by the rule at every look. Equal skis: a winner at some
+    look on at most 10 % of days, asserted as ≤ 14 % of 150 days (at a true 10 % that fails one
+    seed in 23, binomial P(X ≥ 22) = 0.044; a rule at 20 % passes one in 27, 0.037), while the
+    naive rule, the 90 % interval at every look, exceeds 25 %; benchmarks/plan_sequential.py
+    prints the table over 200 days a row. Δμ = 0.001: never the wrong ski, and decided."""
     from simulators.days import DaySetup, simulate_day
     from station.model.compare import joint_fit
     from station.model.sequential import standard_error
@@ -163,10 +195,9 @@ def test_watched_days_declare_equal_skis_rarely_and_never_the_wrong_one(demo_tra
     rng = np.random.default_rng(seed)
     order = "ABBA" * 3
     declared = wrong = naive = 0
-    days = 120
     for _ in range(days):
         data = simulate_day(demo_track, order, {"A": 0.0085, "B": 0.0085 + delta},
-                            DaySetup(scatter=0.01), rng)  # fmt: skip
+                            DaySetup(scatter=scatter), rng)  # fmt: skip
         won, bad, looked = set(), False, False
         for k in range(4, len(data) + 1):
             c = joint_fit(demo_track, data[:k]).comparisons[0]
@@ -180,8 +211,9 @@ def test_watched_days_declare_equal_skis_rarely_and_never_the_wrong_one(demo_tra
         declared += bool(won)
         wrong += bad
         naive += looked
+    print(f"{scatter=} {delta=}: {declared}/{days} declared, {wrong} wrong, naive {naive}")
     if delta == 0.0:
-        assert declared / days <= 0.155 and naive / days > 0.25
+        assert declared / days <= 0.14 and naive / days > 0.25, (declared, naive)
     else:
         assert wrong == 0 and declared == days
 

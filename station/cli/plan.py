@@ -22,6 +22,13 @@ from station.cli.common import (
 )
 from station.errors import InputError
 
+#: the posture scatter a plan assumes when a past session could not estimate it (estimated at 0,
+#: or with no interval): field tests give 0.6-2.2 % per run, the tuck's drag area 1-2 % (issue 21)
+DEFAULT_POSTURE = 0.01
+#: below this a session's estimate is "no scatter seen", not a measured one (REML puts the
+#: scatter at 0 when a few descents cannot tell it from the timing noise)
+MIN_POSTURE = 0.001
+
 
 def _fraction(text: str) -> float:
     value = _nonnegative(text)
@@ -71,6 +78,7 @@ def _from_session(args: argparse.Namespace) -> dict[str, Any]:
     return {
         "posture_sd": res.posture_sd,
         "posture_ci90": res.posture_ci90,
+        "drift_per_hour": res.drift_per_hour[0] if res.drift_per_hour is not None else None,
         "cda": cdas[len(cdas) // 2],
         "v0": res.typical_v0,
         "mu": sorted(i.mu for i in res.items)[len(res.items) // 2],
@@ -95,18 +103,39 @@ def cmd_plan(args: argparse.Namespace) -> int:
     g = gravity_for(track, args.gravity).value
     source = "given"
     posture, cda, v0, mu = args.posture_scatter, args.cda, args.v0, args.mu
+    drift, drift_source = args.drift_per_hour, "given" if args.drift_per_hour_given else "default"
+    if args.from_session is None and posture is None:
+        raise InputError("give the posture scatter (--posture-scatter) or a past session (--from)")
     if args.from_session is not None:
         past = _from_session(args)
-        posture = past["posture_sd"]
+        if not args.drift_per_hour_given and past["drift_per_hour"] is not None:
+            drift = past["drift_per_hour"]
+            drift_source = f"estimated from {args.from_session}"
         cda = cda if args.cda_given else past["cda"]
         v0 = v0 if args.v0_given else past["v0"]
         mu = mu if args.mu_given else past["mu"]
         if not air_given:
             rho = past["air_density"] if past["air_density"] is not None else _density(args)
         ci = past["posture_ci90"]
-        source = f"estimated from {args.from_session} ({past['descents']} descents" + (
-            f", 90 % CI [{ci[0] * 100:.2f}, {ci[1] * 100:.2f}] %)" if ci else ")"
-        )
+        if posture is not None:
+            source = "given"
+        elif ci is not None and past["posture_sd"] >= MIN_POSTURE:
+            posture = past["posture_sd"]
+            source = f"estimated from {args.from_session} ({past['descents']} descents, 90 % CI "
+            source += f"[{ci[0] * 100:.2f}, {ci[1] * 100:.2f}] %)"
+        else:
+            # a scatter estimated at 0 is the few descents' silence, not a steady skier: a
+            # plan on 0 % promises a power the day cannot keep
+            posture = max(past["posture_sd"], DEFAULT_POSTURE)
+            source = (f"the default: {args.from_session}'s {past['descents']} descents put it at "
+                      f"{past['posture_sd'] * 100:.2f} % with no interval")  # fmt: skip
+            print(
+                f"warning: --from {args.from_session}: the session's posture scatter is "
+                f"estimated at {past['posture_sd'] * 100:.2f} % and its descents say too little "
+                f"about it; planning with {posture * 100:.1f} % (give --posture-scatter for "
+                "another)",
+                file=sys.stderr,
+            )
     a = DayAssumptions(
         mass_kg=args.mass,
         air_density=rho,
@@ -115,7 +144,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         mu=mu,
         timer_sd_s=args.timer_ms / 1000.0,
         posture_sd=posture,
-        drift_per_hour=args.drift_per_hour,
+        drift_per_hour=drift,
         minutes_between=args.minutes_between,
         g=g,
     )
@@ -129,11 +158,12 @@ def cmd_plan(args: argparse.Namespace) -> int:
     if args.json:
         out = plan.to_dict()
         out["assumptions"]["posture_source"] = source
+        out["assumptions"]["drift_source"] = drift_source
         if args.delta_ms is not None:
             out["assumptions"]["delta_ms"] = args.delta_ms
         _print_json(out)
         return 0
-    print(format_plan(plan, source, args.delta_ms))
+    print(format_plan(plan, source, args.delta_ms, drift_source))
     if not plan.reached:
         print(
             f"warning: {plan.target_power * 100:.0f} % power is out of reach within "
@@ -144,7 +174,9 @@ def cmd_plan(args: argparse.Namespace) -> int:
     return 0
 
 
-def format_plan(plan: Any, posture_source: str, delta_ms: float | None) -> str:
+def format_plan(
+    plan: Any, posture_source: str, delta_ms: float | None, drift_source: str = "given"
+) -> str:
     a = plan.assumptions
     n = plan.descents_per_item
     ms = f" ({delta_ms:g} ms over the run)" if delta_ms is not None else ""
@@ -167,6 +199,7 @@ def format_plan(plan: Any, posture_source: str, delta_ms: float | None) -> str:
         f"assumed: {a.mass_kg:g} kg, air {a.air_density:.3f} kg/m³, CdA {a.cda:.3f} m², "
         f"v0 {a.v0:.1f} m/s, μ {a.mu:.4f}, timer {a.timer_sd_s * 1e3:.2f} ms, posture scatter "
         f"{a.posture_sd * 100:.2f} % ({posture_source}), drift {a.drift_per_hour:g} per hour"
+        + ("" if drift_source in ("given", "default") else f" ({drift_source})")
     )
     return "\n".join(lines)
 
@@ -194,13 +227,13 @@ def add_parsers(sub: Any) -> None:
     d.add_argument("--delta-ms", type=_positive, metavar="MS",
                    help="the difference to resolve as time over the run (first to last "
                         "photocell), ms")  # fmt: skip
-    s = p.add_mutually_exclusive_group(required=True)
-    s.add_argument("--posture-scatter", type=_fraction, metavar="FRAC",
-                   help="SD of the drag area between descents, a fraction "
-                        "(0.015 = 1.5 %%)")  # fmt: skip
-    s.add_argument("--from", dest="from_session", metavar="SESSION",
-                   help="take the posture scatter (and CdA, v0, μ) from a past session's "
-                        "joint fit")  # fmt: skip
+    p.add_argument("--posture-scatter", type=_fraction, metavar="FRAC",
+                   help="SD of the drag area between descents, a fraction (0.015 = 1.5 %%); "
+                        "with --from it wins over the session's")  # fmt: skip
+    p.add_argument("--from", dest="from_session", metavar="SESSION",
+                   help="take the posture scatter, the drift (and CdA, v0, μ) from a past "
+                        "session's joint fit; a scatter the session put at 0 falls back to "
+                        f"{DEFAULT_POSTURE * 100:g} %% with a warning")  # fmt: skip
     p.add_argument("--power", type=_power, default=0.9,
                    help="probability that the day's 90 %% interval excludes 0 "
                         "(default 0.9)")  # fmt: skip
@@ -208,8 +241,8 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--timer-ms", type=_positive, default=0.5, metavar="MS",
                    help="the timer's precision, SD of one time in ms (default 0.5)")  # fmt: skip
     p.add_argument("--drift-per-hour", type=_number, default=0.0, metavar="DMU",
-                   help="expected drift of μ per hour (the fit estimates it; "
-                        "default 0)")  # fmt: skip
+                   action=_Given, help="expected drift of μ per hour (the fit estimates it; "
+                                       "default 0, or the session's with --from)")  # fmt: skip
     p.add_argument("--minutes-between", type=_positive, default=3.0, metavar="MIN",
                    help="from one descent's start to the next (default 3)")  # fmt: skip
     p.add_argument("--cda", type=_positive, default=0.22, metavar="M2", action=_Given,
@@ -221,4 +254,5 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--json", action="store_true", help="machine-readable output")
     _add_air(p)
     _add_gravity(p)
-    p.set_defaults(func=cmd_plan, cda_given=False, v0_given=False, mu_given=False)
+    p.set_defaults(func=cmd_plan, cda_given=False, v0_given=False, mu_given=False,
+                   drift_per_hour_given=False)  # fmt: skip

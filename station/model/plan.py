@@ -36,9 +36,15 @@ from station.model.batch import Rows, solve_rows
 from station.model.physics import G_STANDARD, Conditions, Params, StraightRun
 from station.survey.track import Track
 
-#: the smallest number of descents per item the joint fit can compare (one descent's glide
-#: cannot be told from its posture)
-MIN_PER_ITEM = 2
+#: the smallest day the planner plans, descents per item. The joint fit compares two (one
+#: descent's glide cannot be told from its posture), but its interval does not keep its 90 %
+#: there when the scatter is small (83.5 % at 0.5 %, benchmarks/compare_small_days.py: four
+#: descents cannot tell the scatter from none), and on few photocells the power the plan
+#: promises is not what such days give (0.963 stated, 0.88 over 100 simulated days at Δμ
+#: 0.002, 1 % on four photocells: their intervals rest on one or two degrees of freedom, and the
+#: estimate's spread is 43 % above the known-scatter one). Three per item, as the README
+#: advises "when the numbers must be trusted": at most one more than a day needs.
+MIN_PER_ITEM = 3
 #: the largest day the planner considers, descents per item
 MAX_PER_ITEM = 60
 #: the interval's level: 90 %, two-sided, as ``station compare`` reports

@@ -188,6 +188,11 @@ class Acquisition:
         self._csv_size = 0
         self._csv_inode = 0
         self._header: dict[str, str] | None = None  # the CSV's header, made once
+        #: why the day's results may not be what a replay of its raw log gives (a chunk or a
+        #: job that failed, an annotation that changed descents fitted before it): then the
+        #: recording leaves no results state and the first annotate replays; None: they are
+        self.not_as_replayed: str | None = None
+        self._fit_from = -1  # the highest descent whose fit has begun (under the lock)
         self._closing = False
         self._jobs: queue.Queue[object] = queue.Queue()
         #: held while the session is recorded (``station sessions``, ``annotate`` try it)
@@ -363,6 +368,7 @@ class Acquisition:
                 done = self.day.processor.feed(chunk)
             except Exception as exc:  # noqa: BLE001 - the bytes are logged; go on reading
                 done = []
+                self._not_as_replayed("a chunk could not be processed")
                 self._tell(self.listener.warning, f"a chunk could not be processed: {exc!r}")
             jobs = self._after(n, done)
         self._submit_all(jobs)
@@ -480,6 +486,7 @@ class Acquisition:
             if rec.line in self._own_lines:  # ours, applied when it was written
                 self._own_lines.remove(rec.line)
             elif rec.problem:
+                self._not_as_replayed("a record of the annotations file was passed over")
                 self._tell(self.listener.warning, f"{sessions.ANNOTATIONS}: {rec.problem}; "
                            "passed over")  # fmt: skip
             elif rec.annotation is not None:
@@ -489,6 +496,14 @@ class Acquisition:
             taken.append(own)
         jobs: list[_Job] = []
         for a in taken:
+            if (
+                isinstance(a, MetadataAnnotation)
+                and a.descents is None
+                and self._fit_from >= (a.from_descent or 0)
+            ):
+                # a replay applies it to those fitted already (or being fitted); the
+                # recording does not
+                self._not_as_replayed("metadata from a descent already fitted on")
             self.day.annotate(a)
             if not (isinstance(a, MetadataAnnotation) and a.descents is None):
                 jobs.append(_Annotate(a, applied=True))  # a change from N on: nothing to refit
@@ -553,6 +568,7 @@ class Acquisition:
         try:
             self._handle(job)
         except Exception as exc:  # noqa: BLE001 - the day goes on
+            self._not_as_replayed(f"a {type(job).__name__.strip('_').lower()} job failed")
             self._tell(self.listener.warning, f"{type(job).__name__.strip('_').lower()} "
                        f"failed: {type(exc).__name__}: {exc}")  # fmt: skip
 
@@ -577,10 +593,15 @@ class Acquisition:
             if isinstance(job, _Fit):
                 effect = Effect(refit=(job.descent.number,))
                 fit_jobs = [day.fit_job(job.descent)]
+                self._fit_from = max(self._fit_from, job.descent.number)
             else:
                 a = job.annotation
                 effect = _effect_now(day, a) if job.applied else day.annotate(a)
                 fit_jobs = [day.fit_job(day.results[n].descent) for n in effect.refit]
+                if effect.refit:
+                    # a refit after later descents: the survey covariance handed on, and
+                    # the order of the fits, may not be a replay's
+                    self._not_as_replayed("descents fitted again during the recording")
         fitted = [day.analyser.run(j) for j in fit_jobs]  # outside the lock: the reader goes on
         kept = fitted if self.keep_curves else [r.lean() for r in fitted]
         with self.lock:
@@ -710,6 +731,46 @@ class Acquisition:
 
         write_result_rows([r.row for r in snapshot], path, self._results_header())
 
+    def _not_as_replayed(self, why: str) -> None:
+        if self.not_as_replayed is None:
+            self.not_as_replayed = why
+
+    def _write_results_state(self) -> None:
+        """At the end of a recording, with the annotations file held: the results state a
+        replay would write with the CSV (:func:`resultsstate.write_state_of_recording`), so
+        that the first ``station annotate`` changes rows in place instead of replaying the
+        day; only when nothing says the results differ from a replay's. Otherwise (and when
+        it cannot be written) there is none: the annotate replays, as before."""
+        from station.session import resultsstate
+
+        assert self.session_dir is not None
+        session = self.session_dir
+        if self.not_as_replayed is None:
+            if self._csv_problem is not None:
+                self._not_as_replayed("the results CSV was not written")
+            elif self.rawlog is None or self.rawlog.lost_records:
+                self._not_as_replayed("records of the raw log were lost")
+            elif self.source_error is not None:
+                self._not_as_replayed("the timer could not be read")
+        written = False
+        if self.not_as_replayed is None:
+            try:
+                with self.lock:
+                    snapshot = self.day.snapshot()
+                    fitted = resultsstate.fitted_of(self.day)
+                written = resultsstate.write_state_of_recording(
+                    session, [r.row for r in snapshot], self._results_header(),
+                    resultsstate.annotations_digest(session), fitted,
+                )  # fmt: skip
+            except Exception:  # noqa: BLE001 - no state: the next annotate replays
+                written = False
+            if not written:
+                self._not_as_replayed("the results state could not be written")
+        if not written:  # one left from before would not match the CSV; gone all the same
+            for name in (resultsstate.STATE, resultsstate.DESCENTS):
+                with contextlib.suppress(OSError):
+                    os.unlink(os.path.join(session, name))
+
     def _tell(self, fn: Callable[..., None], *args: Any) -> None:
         """Call the listener; what it raises stays with it."""
         with contextlib.suppress(Exception):  # a listener must never stop the loop
@@ -746,9 +807,12 @@ class Acquisition:
                 if self.session_dir is not None:  # the last records others appended
                     try:
                         with self.lock:
-                            held.enter_context(sessions.annotations_locked(self.session_dir))
+                            locked = sessions.annotations_locked(self.session_dir)
+                            if held.enter_context(locked) is not True:
+                                self._not_as_replayed("the annotations file could not be held")
                             jobs = self._take_up_locked()
                     except Exception as exc:  # noqa: BLE001 - the CSV and the raw log first
+                        self._not_as_replayed("annotations could not be taken up at the end")
                         self._tell(self.listener.warning, f"annotations entered elsewhere may "
                                    f"be missing from the results CSV: {exc}")  # fmt: skip
                 for job in jobs:
@@ -758,6 +822,8 @@ class Acquisition:
                 self._save_csv(snapshot)  # written already, unless a write failed
                 if self.rawlog is not None:
                     self.rawlog.close()
+                if self.session_dir is not None:  # the raw log as it stays, the CSV final
+                    self._write_results_state()
                 if self.recording_lock is not None:  # inside the annotations lock: see above
                     self.recording_lock.release()
         finally:

@@ -9,6 +9,7 @@ as if nothing happened.
 from __future__ import annotations
 
 import datetime as dt
+import math
 from collections.abc import Hashable
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
@@ -129,7 +130,7 @@ def start_time(d: DescentTimes, host_t: float | None, date: dt.date | None) -> s
         return start.astimezone().isoformat()
     days, tod = divmod(d.start_us, DAY_US)
     t = (dt.datetime.min + dt.timedelta(microseconds=tod)).time()
-    if host_t is not None:
+    if host_t is not None and math.isfinite(host_t):  # (NaN: no host time to go by)
         host = dt.datetime.fromtimestamp(host_t)
         near = [dt.datetime.combine(host.date() + dt.timedelta(days=k), t) for k in (-1, 0, 1)]
         return min(near, key=lambda c: abs(c - host)).astimezone().isoformat()

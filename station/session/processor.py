@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from array import array
-from collections import Counter
+from collections import Counter, deque
 
 from station.errors import InputError
 from station.session.config import StationConfig
@@ -27,6 +27,10 @@ from station.timing.wireformats import make_parser
 #: unparsed lines listed (line, reason, first 100 characters): a day of line noise stays within
 #: tens of MB; beyond it one entry says that more were not listed
 MAX_UNPARSED = 100_000
+#: the lines last handed to the assembler whose host times are kept: a start it holds (a time
+#: far from its clock waits for the next impulse to confirm it) is at most a few lines back
+#: (edits may come between); one further back is dated by the line that started it
+RECENT_LINES = 16
 
 
 class StartHosts:
@@ -91,6 +95,10 @@ class Processor:
         self.offset_us: int | None = None  # device clock − host clock
         self.start_host = StartHosts()
         self._latest_start: tuple[int, int] | None = None  # (device µs, descent): the last start
+        #: (line, host time) of the lines last handed to the assembler: a descent's start may
+        #: be a line before the one that made the assembler start it (a held start)
+        self._recent: deque[tuple[int, float | None]] = deque(maxlen=RECENT_LINES)
+        self._chunk_t: float | None = None  # host time of the latest bytes (the flushed line's)
         #: the resolution (µs) the timer states in its first impulse from a photocell (not a
         #: keypad's 1/100 s): the default of the timer's precision (station.model.timer); fixed
         #: from then on, so a live day and its replay judge every descent alike
@@ -112,11 +120,17 @@ class Processor:
                 return self.tick(chunk.t)
             if chunk.event != "session":
                 self.connection.append((chunk.t, chunk.event, chunk.detail))
+            if chunk.event == "import":
+                # a download of the timer's memory follows (`station import`): the times it
+                # adds are earlier than the recording's last by nature; the timer's clock is
+                # judged afresh from its first start (a reset within it is still flagged)
+                self._latest_start = None
             if chunk.event == "disconnected":
                 self.assembler.disconnected(chunk.detail)
             return []
         lines = self.framer.feed(chunk.data)
         t: float | None = chunk.t  # None: a plain capture (replay_chunks)
+        self._chunk_t = t
         if len(lines) == 1:  # a live recording's every chunk
             line = lines[0]
             return self._parsed(line, self.parser.parse(line), t)
@@ -143,9 +157,8 @@ class Processor:
                 self.impulses += 1
                 before = asm.count
                 ended = feed(parsed, self.lines, None)
-                if asm.count > before:
-                    self.start_host[asm.count] = None
-                    self._started(asm.count)
+                if asm.count > before:  # no host clock: each start undated, judged
+                    self._new_descents(before, ended, None, judge=True)
             else:
                 ended = self._parsed(line, parsed, None)
             if ended:
@@ -164,24 +177,30 @@ class Processor:
             if self.resolution_us is None and parsed.channel in self._photocell_channels:
                 self.resolution_us = parsed.resolution_us
             before = asm.count
-            if t is None:  # a plain capture: no host clock
+            if t is None or t != t:  # a plain capture (or a NaN host time): no host clock
                 done = asm.feed(parsed, self.lines, None)
             else:
                 host_us = round(t * 1e6)
                 offset = self.offset_us
                 # the device time now, by the host clock
-                now = host_us + offset if offset is not None and t == t else None
+                now = host_us + offset if offset is not None else None
                 done = asm.feed(parsed, self.lines, now)
                 clock = asm.clock
                 if clock is not None:
                     self.offset_us = clock - host_us
+            self._recent.append((self.lines, t))
             if asm.count > before:
-                self.start_host[asm.count] = t
-                self._started(asm.count)
+                self._new_descents(before, done, t, judge=True)
             return done
         if isinstance(parsed, Edit):
             self.counts["edit"] += 1
-            return self.assembler.edit(parsed, self.lines)
+            asm = self.assembler
+            before = asm.count
+            done = asm.edit(parsed, self.lines)
+            self._recent.append((self.lines, t))
+            if asm.count > before:  # a start typed in at the timer, or one from its memory
+                self._new_descents(before, done, t, judge=False)
+            return done
         if isinstance(parsed, Skip):
             self.counts["skipped"] += 1
         elif isinstance(parsed, Unparsed):
@@ -196,12 +215,44 @@ class Processor:
                 )
         return []
 
-    def _started(self, number: int) -> None:
-        """A descent started: one that starts before an earlier one by the timer's clock (the
-        timer reset to 00:00, its clock set back) is flagged, since its start time then goes
-        backwards in the results."""
-        d = next((d for d in reversed(self.assembler.open) if d.number == number), None)
-        if d is None or not d.times_us:
+    def _new_descents(
+        self, before: int, done: list[TimedDescent], t: float | None, judge: bool
+    ) -> None:
+        """The assembler started descents ``before`` + 1 … its count in the call that handed
+        back ``done``, by whatever path: a start impulse, a start it held until the next impulse
+        confirmed it (two starts then come in one call, and the held one may already have
+        finished), a start recovered after a damaged line, a start typed in at the timer or
+        repeated from its memory. Each gets the host time of the line that started it, so it
+        is dated live and in replay alike (:func:`station.session.analysis.start_time`); with
+        ``judge``, each is checked against the timer's clock (:meth:`_started`)."""
+        asm = self.assembler
+        count = asm.count
+        if count == before + 1 and asm.open and self._recent:  # the common case: one start,
+            d = asm.open[-1]  # by the line last handed to the assembler
+            line, host = self._recent[-1]
+            if d.number == count and d.first_line == line:
+                self.start_host[count] = host
+                if judge:
+                    self._started(d)
+                return
+        new = {d.number: d for d in (*asm.open, *done) if d.number > before}
+        for number in range(before + 1, count + 1):
+            d = new.get(number)
+            host = t  # (the line that made the assembler start it, when not among the recent)
+            if d is not None:
+                host = next((h for ln, h in reversed(self._recent) if ln == d.first_line), t)
+            self.start_host[number] = host
+            if judge and d is not None:
+                self._started(d)
+
+    def _started(self, d: TimedDescent) -> None:
+        """A descent started by the timer's impulses: one that starts before an earlier one by
+        the timer's clock (the timer reset to 00:00, its clock set back) is flagged, since its
+        start time then goes backwards in the results. A start typed in at the timer or
+        repeated from its memory (a download merged after the day) is not judged: its time is
+        not the clock's now, and comes after later ones by nature."""
+        number = d.number
+        if not d.times_us:
             return
         start = d.times_us[0]
         if self._latest_start is not None and start < self._latest_start[0]:
@@ -221,6 +272,11 @@ class Processor:
     def finish(self) -> list[TimedDescent]:
         """End of the input: the unfinished last line, then the open descent."""
         done: list[TimedDescent] = []
-        for line in self.framer.flush():
-            done += self._line(line, None)
-        return done + self.assembler.close()
+        for line in self.framer.flush():  # it came with the latest bytes: their host time
+            done += self._line(line, self._chunk_t)
+        asm = self.assembler
+        before = asm.count
+        closed = asm.close()  # a start held for confirmation is taken as it is
+        if asm.count > before:
+            self._new_descents(before, closed, None, judge=True)
+        return done + closed

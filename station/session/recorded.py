@@ -285,7 +285,8 @@ class RecordedSession:
             before = resultsstate.annotations_digest(self.path)
             for rec in records:
                 sessions.append_annotation(self.path, rec)
-            said = f"{len(records)} annotation(s) added to {self.path}"
+            n = len(records)
+            said = f"{n} annotation{'' if n == 1 else 's'} added to {self.path}"
             state = self.recording_state()
             if state is sessions.Recording.NOW:  # the recorder takes them up (Acquisition)
                 return (f"{said}; it is being recorded now: the recording takes them up and "
@@ -381,23 +382,8 @@ class RecordedSession:
 
 
 def _fitted(acq: Acquisition) -> resultsstate.Fitted:
-    """The replay's descents in the order it fitted them, and the descent on each set of
-    photocells whose fit handed the survey's covariance on to the later ones (the analyser's
-    rule: the first good fit with one)."""
-    day = acq.day
-    order = [day.results[n] for n in day.results]  # fitted once each, in this order
-    sources: dict[tuple[str, ...], tuple[int, Any]] = {}
-    for r in order:
-        if r.descent.photocells in sources:
-            continue  # found: the fit is not read (a recording keeps it in the store only)
-        fit = r.fit
-        if fit is not None and fit.status == "ok" and fit.survey_time_cov is not None:
-            sources[r.descent.photocells] = (r.number, fit.survey_time_cov)
-    return resultsstate.Fitted(
-        [r.descent for r in order],
-        [(ids, n, cov) for ids, (n, cov) in sources.items()],
-        day.timer_precision_s(),
-    )
+    """The replay's descents in the order it fitted them (:func:`resultsstate.fitted_of`)."""
+    return resultsstate.fitted_of(acq.day)
 
 
 def _text(value: Any) -> str:

@@ -28,7 +28,8 @@ The state says, for one results CSV:
 
 When any of it does not hold, or the state is missing or cannot be read, the day is replayed
 as before, and the state written anew with the CSV. The state is written by the replay that
-writes the CSV, never by a recorder: the first annotate after a recording replays.
+writes the CSV, and by a recording that ended cleanly (:func:`write_state_of_recording`)
+when what it recorded is what a replay gives: then the first annotate after it runs in place.
 
 The rows the fast path writes are those a replay writes, byte for byte: the metadata in force
 for a descent is found by the rules of :class:`station.session.day.Day` (mirrored in
@@ -336,6 +337,60 @@ def write_results_with_state(
     )  # fmt: skip
 
 
+def write_state_of_recording(
+    session: str,
+    rows: Sequence[ResultRow],
+    header: dict[str, str],
+    annotations_sha256: str | None,
+    fitted: Fitted,
+) -> bool:
+    """The state of the results CSV a recording wrote (``station record``, the UI's ``live``),
+    at its end, so that the first annotate after it need not replay the day: written only
+    when the CSV on disk is byte for byte the one a replay writes of ``rows`` (the day's
+    results as the recorder has them, which the caller vouches a replay gives too) and the
+    descents file is written; returns whether it was. The CSV is read, never written here."""
+    if annotations_sha256 is None:
+        return False
+    head, lines = results_lines([csv_record(r) for r in rows], header)
+    encoded = [head.encode("utf-8")] + [x.encode("utf-8") for x in lines]
+    try:
+        data = read_bytes(os.path.join(session, sessions.RESULTS), MAX_RESULTS, "results CSV")
+        runs = runs_of([r.descent for r in rows])
+    except (OSError, InputError, ValueError):
+        return False
+    if data != b"".join(encoded):
+        return False  # a write failed, or was cut short: the CSV is not a replay's
+    try:
+        fits = _write_descents(session, fitted)
+    except (OSError, ValueError, TypeError):
+        return False
+    statuses = {r.descent: r.status.value for r in rows if r.invalid_reason}
+    lengths = array.array("I", [len(row) for row in encoded[1:]])
+    return _write_state(
+        session, _sha256(data), len(encoded[0]), lengths, runs, annotations_sha256, statuses,
+        None, fits,
+    )  # fmt: skip
+
+
+def fitted_of(day: Any) -> Fitted:
+    """A day's descents (:class:`station.session.day.Day`) in the order they were fitted, and
+    the descent on each set of photocells whose fit handed the survey's covariance on to the
+    later ones (the analyser's rule: the first good fit with one)."""
+    order = [day.results[n] for n in day.results]  # fitted once each, in this order
+    sources: dict[tuple[str, ...], tuple[int, Any]] = {}
+    for r in order:
+        if r.descent.photocells in sources:
+            continue  # found: the fit is not read (a recording keeps it in the store only)
+        fit = r.fit
+        if fit is not None and fit.status == "ok" and fit.survey_time_cov is not None:
+            sources[r.descent.photocells] = (r.number, fit.survey_time_cov)
+    return Fitted(
+        [r.descent for r in order],
+        [(ids, n, cov) for ids, (n, cov) in sources.items()],
+        day.timer_precision_s(),
+    )
+
+
 @dataclass
 class Fitted:
     """A replay's descents as it fitted them: in the order it fitted them (the crossing times,
@@ -378,8 +433,26 @@ def _write(
     # the CSV first: a state that is not written then is the old one, which does not hold
     # for the new CSV (its SHA-256), so the next annotate replays
     digest = _replace(path, data)
-    if annotations_sha256 is None:
-        return path
+    if annotations_sha256 is not None:
+        _write_state(
+            session, digest, head, lengths, runs, annotations_sha256, statuses, known, fits
+        )
+    return path
+
+
+def _write_state(
+    session: str,
+    digest: str,
+    head: int,
+    lengths: array.array[int],
+    runs: list[tuple[int, int]],
+    annotations_sha256: str,
+    statuses: dict[int, str],
+    known: tuple[dict[str, str], dict[str, Any]] | None,
+    fits: dict[str, Any] | None,
+) -> bool:
+    """The state of the results CSV whose SHA-256 is ``digest``; False when it could not be
+    written (then the next annotate replays)."""
     try:
         files, raw = known if known is not None else (
             _setup_files(session, _setup_names(session)), _raw_stamp(session)
@@ -396,8 +469,8 @@ def _write(
         with os.fdopen(fd, "wb") as fh:
             fh.write(text)
     except (OSError, InputError):
-        pass  # no state: the next annotate replays
-    return path
+        return False  # no state: the next annotate replays
+    return True
 
 
 def _replace(path: str, data: Sequence[bytes | memoryview]) -> str:

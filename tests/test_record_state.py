@@ -1,0 +1,160 @@
+"""A recording that ends cleanly leaves the results state a replay would write (issue 19), so
+the first ``station annotate`` after ``station record`` changes rows in place instead of
+replaying the day; a recording whose results CSV could not be written leaves none, and the
+annotate replays as before. Real parts: ``station record`` against the simulated timer on a
+pty, its session annotated by :class:`RecordedSession` and compared with a replay of the
+session from scratch."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from station.session import store
+from station.session.acquisition import Acquisition, QuietListener
+from station.session.recorded import RecordedSession
+from station.session.records import FitModel, InvalidMark, ModelChange
+from station.session.replay import replay_chunks
+from station.session.resultsstate import DESCENTS, STATE
+from tests.conftest import station_cmd
+from tests.session_helpers import make_session
+from tests.test_annotate_in_place import csv_of, from_scratch
+from tests.timing_helpers import record_with_sim, start_sim, write_config
+
+SIM = ["--speed", "10", "--first-after", "2", "--hold", "1", "--seed", "7"]
+
+
+@pytest.fixture
+def replays(monkeypatch):
+    """The sessions a RecordedSession replayed (its ``run``), in order."""
+    calls: list[str] = []
+    run = RecordedSession.run
+
+    def counted(self):
+        calls.append(self.path)
+        return run(self)
+
+    monkeypatch.setattr(RecordedSession, "run", counted)
+    return calls
+
+
+def source_day(tmp_path: Path) -> Path:
+    (tmp_path / "src").mkdir()
+    return make_session(tmp_path / "src", order="ABBAAB", annotate=False)
+
+
+def record_chunks(source: Path, session: Path, during=None) -> Acquisition:
+    """The recorder's own loop (threads, fit worker, results CSV, raw log) fed the chunks of
+    a recorded day as its serial reader would feed them; ``during(acq)`` after the third
+    descent's chunks. Quick: no timer in real time (the pty tests below have one)."""
+    cfg = store.load_session_config(str(source))
+    acq = Acquisition.open(cfg, QuietListener(), session_dir=str(session))
+    try:
+        for chunk in replay_chunks(str(source), None, threading.Event(), []):
+            if chunk.event != "session":
+                acq.receive(chunk)
+            if during is not None and acq.finished_descents == 3:
+                during(acq)
+                during = None
+    finally:
+        acq.close()
+    return acq
+
+
+def test_a_recording_leaves_the_state_a_replay_writes(tmp_path, replays):
+    source = source_day(tmp_path)
+    session = tmp_path / "rec"
+    acq = record_chunks(source, session)
+    assert acq.not_as_replayed is None
+    assert (session / STATE).exists() and csv_of(session) == from_scratch(session)
+    RecordedSession(str(session)).annotate(
+        [InvalidMark(2, "fell", 2.0), ModelChange(4, FitModel.VELOCITY, 2.0)]
+    )
+    assert replays == []
+    assert csv_of(session) == from_scratch(session)
+
+
+def test_a_descent_fitted_again_during_the_recording_leaves_no_state(tmp_path, replays):
+    """The first descent's fit hands the survey's covariance on: fitted again after later ones
+    took it, the recording's CSV is not what a replay gives (measured: it differs), so the
+    recorder leaves no state and the annotate replays."""
+    source = source_day(tmp_path)
+    session = tmp_path / "rec"
+
+    def during(acq: Acquisition) -> None:
+        end = time.monotonic() + 60
+        while len(acq.results()) < 3:  # descents 2 and 3 fitted with the covariance of 1
+            assert time.monotonic() < end
+            time.sleep(0.01)
+        acq.annotate(ModelChange(1, FitModel.VELOCITY))
+
+    acq = record_chunks(source, session, during)
+    assert acq.not_as_replayed == "descents fitted again during the recording"
+    assert not (session / STATE).exists() and not (session / DESCENTS).exists()
+    RecordedSession(str(session)).annotate([InvalidMark(2, "fell", 2.0)])
+    assert replays == [str(session)]
+    assert csv_of(session) == from_scratch(session)
+
+
+@pytest.mark.slow  # a simulated timer on a pty, in real time
+def test_record_then_annotate_runs_in_place_and_writes_what_a_replay_writes(tmp_path, replays):
+    _, session, _ = record_with_sim(tmp_path, [*SIM, "--descents", "4"], max_descents=4)
+    assert (session / STATE).exists() and (session / DESCENTS).exists()
+    assert csv_of(session) == from_scratch(session)  # the recording's CSV is a replay's
+
+    # an invalid mark, and a model change of a descent after the one that hands the survey on
+    said = RecordedSession(str(session)).annotate(
+        [InvalidMark(2, "fell at gate 3", time.time()), ModelChange(3, FitModel.VELOCITY)]
+    )
+    assert said.endswith(f"{session / store.RESULTS} rewritten")
+    assert replays == []  # in place: no replay of the day
+    rows = csv_of(session).decode().splitlines()
+    assert "fell at gate 3" in rows[-3] and ',"velocity",' in rows[-2]
+    assert csv_of(session) == from_scratch(session)
+
+    # the state the annotate left holds too: the next one is in place again
+    copy = tmp_path / "copy"
+    shutil.copytree(session, copy)
+    RecordedSession(str(copy)).annotate([InvalidMark(4, "wind", time.time())])
+    assert replays == []
+    assert csv_of(copy) == from_scratch(copy)
+
+
+@pytest.mark.slow  # a simulated timer on a pty, in real time
+def test_a_recording_whose_results_csv_was_not_written_leaves_no_state(tmp_path, replays):
+    sim, port, _ = start_sim(tmp_path, *SIM, "--descents", "2")
+    cfg = write_config(tmp_path, port)
+    session = tmp_path / "session"
+    rec = subprocess.Popen(
+        [*station_cmd(), "record", "--config", str(cfg), "--session-dir", str(session),
+         "--max-descents", "2"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        # the empty CSV of the start, then a folder in its place: every write after it fails
+        end = time.monotonic() + 60
+        while not (session / store.RESULTS).exists():
+            assert time.monotonic() < end and rec.poll() is None, rec.stderr.read()
+            time.sleep(0.01)
+        (session / store.RESULTS).unlink()
+        (session / store.RESULTS).mkdir()
+        out, err = rec.communicate(timeout=120)
+    finally:
+        sim.wait(timeout=30)
+    assert rec.returncode == 0, err
+    assert f"cannot write {session / store.RESULTS}" in out + err
+    assert "results: not written" in err
+    assert not (session / STATE).exists() and not (session / DESCENTS).exists()
+
+    # the annotate replays the day, and writes the CSV (and its state) a replay writes
+    (session / store.RESULTS).rmdir()
+    said = RecordedSession(str(session)).annotate([InvalidMark(1, "gate", time.time())])
+    assert said.endswith("rewritten")
+    assert replays == [str(session)]
+    assert csv_of(session) == from_scratch(session)
+    assert (session / STATE).exists()
