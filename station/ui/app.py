@@ -10,6 +10,7 @@ it shows is what the messages brought, and what the engineer enters goes to the 
 from __future__ import annotations
 
 import datetime as dt
+import gc
 import math
 import os
 import time
@@ -302,6 +303,11 @@ class StationApp(App):
         self.main.query_one("#table", DataTable).focus()
         self._update_status()
         self.on_resize()
+        # what is here now (the libraries, the screen) lives as long as the app: out of the
+        # garbage collector's way, or every full collection of the day walks it again (one
+        # every two descents, ~150 ms of the UI's process each, whatever descent it fell in)
+        gc.collect()
+        gc.freeze()
         if self.mode == "replay" and self.recorded is not None:
             self.acq = self.recorded.start_replay(PostingListener(self), speed=self.speed)
         else:
