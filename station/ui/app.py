@@ -42,6 +42,7 @@ from station.session.records import (
 )
 from station.session.store import RESULTS, is_session
 from station.timing.impulses import format_tod
+from station.ui.comparison import ComparisonProcess
 from station.ui.messages import (
     AcquisitionWarning,
     ComparisonUpdated,
@@ -55,6 +56,7 @@ from station.ui.messages import (
 from station.ui.plots import residual_plot, speed_plot
 from station.ui.screens import ComparisonScreen, HelpScreen, MetadataScreen, ReasonScreen
 from station.ui.simulator import SimulatedTimer, SimulatorError
+from station.ui.table import ResultsTable
 
 
 @dataclass(frozen=True)
@@ -208,12 +210,15 @@ class MainScreen(Screen):
                     yield Static("", id="residuals", markup=False)
                     yield Static("", id="speed", markup=False)
             yield RichLog(id="log", max_lines=500, markup=False, wrap=False)
-        yield DataTable(id="table", cursor_type="row", zebra_stripes=True, cell_padding=0)
+        yield ResultsTable(id="table", cursor_type="row", zebra_stripes=True, cell_padding=0)
         # compact, without the command palette's key: at 80 columns "q Quit" stays in sight
         yield Footer(compact=True, show_command_palette=False)
 
     def on_resize(self, _event: object) -> None:
         self.app.on_resize()  # type: ignore[attr-defined]
+
+    def on_screen_resume(self, _event: object) -> None:
+        self.app.on_main_uncovered()  # type: ignore[attr-defined]
 
 
 class StationApp(App):
@@ -259,6 +264,7 @@ class StationApp(App):
         self.demo_skis = demo_skis or []
         self.config = config
         self.acq: Acquisition | None = None
+        self.comparer: ComparisonProcess | None = None
         self.photocell_ids: tuple[str, ...] = ()
         # what the messages brought: the UI's own snapshots of the day
         self.results: dict[int, DescentResult] = {}
@@ -273,6 +279,10 @@ class StationApp(App):
         self.columns: list[Column] = []
         self.plot_rows = 6
         self._plotted: DescentResult | None = None
+        self._resid_width = 0  # the residual plot's width (the panel's layout follows it)
+        self._panel_of: DescentResult | None = None  # the snapshot the panel shows (or will)
+        self._panel_due: DescentResult | None = None  # to show when the dialog on top closes
+        self._comparison_due = False  # a comparison arrived as a fit was due: drawn after it
         self.comparison_text = (
             "no comparison yet: it needs fitted descents with ski or wax entered (m)"
         )
@@ -293,19 +303,22 @@ class StationApp(App):
         self._update_status()
         self.on_resize()
         if self.mode == "replay" and self.recorded is not None:
-            self.acq = self.recorded.start_replay(
-                PostingListener(self), speed=self.speed, compare=True
-            )
+            self.acq = self.recorded.start_replay(PostingListener(self), speed=self.speed)
         else:
             self.acq = Acquisition.open(
                 self.config,
                 PostingListener(self),
                 session_dir=self.session_dir,
                 date=self.date,
-                compare=True,
                 ski_rotation=self.demo_skis if self.mode == "demo" else (),
             )
         self.photocell_ids = tuple(self.acq.track.photocell_ids)
+        # the comparison: the UI's own, in a process of its own (station.ui.comparison)
+        self.comparer = ComparisonProcess(
+            self.acq.track,
+            post=lambda text: self.post_message(ComparisonUpdated(text)),
+            warn=lambda text: self.post_message(AcquisitionWarning(text)),
+        )
         if self.session_dir is not None:
             self.sub_title = f"{self.mode} · {self.session_dir}"
         elif self.source is not None:  # a replay names what it replays: the session's name
@@ -391,18 +404,21 @@ class StationApp(App):
         counts = f"{c.impulses} impulses · {c.edits} edits · {c.unparsed} unparsed"
         problem = f"  │  ! {self.problem}" if self.problem else ""
         detail = f"  │  {self.connection_detail}" if self.connection_detail else ""
+        # one line of a fixed height and the screen's width: no layout needed
         self.main.query_one("#status", Static).update(
-            f" {self.connection}  │  {counts}{problem}{detail}"
+            f" {self.connection}  │  {counts}{problem}{detail}", layout=False
         )
 
     def on_impulses_arrived(self, msg: ImpulsesArrived) -> None:
         self.counts = msg.counts
         self._update_status()
-        log = self.main.query_one("#log", RichLog)
+        lines = []
         for e in msg.events:
             where = f"{e.channel}→{e.photocell}" if e.photocell else e.channel
             fate = f"#{e.descent}" if e.kept else f"✗ {e.reason}"
-            log.write(f"{format_tod(e.tod_us, 4)} {where:<8} {fate}")
+            lines.append(f"{format_tod(e.tod_us, 4)} {where:<8} {fate}")
+        if lines:  # one write: the log (500 lines at most) is drawn once for the chunk
+            self.main.query_one("#log", RichLog).write("\n".join(lines))
 
     def on_descent_progress(self, msg: DescentProgress) -> None:
         p = self.progress = msg.progress
@@ -418,16 +434,20 @@ class StationApp(App):
                 f"descent {p.number} running: {len(p.passed)}/{len(ids)} · "
                 f"{last} +{(passed[last] - t0) / 1e6:.2f} s\n{marks}"
             )
-        self.main.query_one("#progress", Static).update(text)
+        self.main.query_one("#progress", Static).update(text, layout=False)  # 2 lines, fixed
         if isinstance(self.screen, MetadataScreen):  # a descent started while it is open
             self.screen.set_next(p.next_number)
+        if self._comparison_due and not self._fit_imminent():  # no fit came (aborted)
+            self._show_comparison()
 
     def on_descent_fitted(self, msg: DescentFitted) -> None:
         res = msg.result
         n = res.number
         # its speed curve (12 kB) only while it is shown, its fit (4 kB) in the session's
         # fit store where it has one: read back, drawn again when selected (DescentResult.lean)
-        self.results[n] = res.lean()
+        self.results[n] = stored = res.lean()
+        if self.comparer is not None:
+            self.comparer.update(stored)  # noted; sent to the comparison's process off this thread
         table = self.main.query_one("#table", DataTable)
         key = str(n)
         values = self._cells(res)
@@ -442,6 +462,8 @@ class StationApp(App):
             if following:
                 table.move_cursor(row=table.row_count - 1, scroll=True)
         self.latest = n
+        if self._comparison_due:  # the comparison that waited for this fit, after its frame
+            self.call_after_refresh(self._show_comparison)
         # the panel shows the selected row, and only it: "the descent" is one descent
         if self._cursor_number() == n:
             self._show(res)
@@ -449,14 +471,47 @@ class StationApp(App):
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
         if event.row_key is None or event.row_key.value is None:
             return
-        res = self.results.get(int(event.row_key.value))
-        if res is not None:
-            self._show(res)
+        if event.cursor_row != event.data_table.cursor_row:
+            return  # the cursor moved on meanwhile (descents arriving in bulk): no panel for it
+        n = int(event.row_key.value)
+        res = self.results.get(n)
+        if res is None:
+            return
+        if self.shown == n and self._panel_of is res:
+            return  # the new descent the table moved to: its fit is shown (or due) already
+        self._show(res)
+
+    def _main_covered(self) -> bool:
+        """A dialog (the comparison, the metadata form, the help) covers the main screen."""
+        return self.screen is not self.main
+
+    def on_main_uncovered(self) -> None:
+        """The main screen is on top again: the panel drawn for the selected descent, if a
+        fit arrived while a dialog covered it."""
+        if self._panel_due is not None:
+            self._show(self._panel_due)
 
     def on_comparison_updated(self, msg: ComparisonUpdated) -> None:
         self.comparison_text = msg.text
+        if self._fit_imminent():  # drawn after the fit: the long text's layout waits
+            self._comparison_due = True
+            return
+        self._show_comparison()
+
+    def _show_comparison(self) -> None:
+        self._comparison_due = False
         if isinstance(self.screen, ComparisonScreen):
-            self.screen.update(msg.text)
+            self.screen.update(self.comparison_text)
+
+    def _fit_imminent(self) -> bool:
+        """The open descent has passed all but its last photocell: its fit is due any moment,
+        and nothing else (the comparison's text) is drawn before it."""
+        p = self.progress
+        return (
+            p is not None
+            and p.number is not None
+            and len(p.passed) >= max(1, len(self.photocell_ids) - 1)
+        )
 
     def on_acquisition_warning(self, msg: AcquisitionWarning) -> None:
         self.problem = msg.text
@@ -469,21 +524,30 @@ class StationApp(App):
         takes seconds of a 2-core laptop): shown, it is brought up to date, and kept so."""
 
         def closed(_result: None) -> None:
-            if self.acq is not None:
-                self.acq.show_comparison(False)
+            if self.comparer is not None:
+                self.comparer.show(False)
 
         self.push_screen(ComparisonScreen(self.comparison_text), closed)
-        if self.acq is not None:
-            self.acq.show_comparison(True)
+        if self.comparer is not None:
+            self.comparer.show(True)
 
     def on_source_ended(self, msg: SourceEnded) -> None:
         self.connection = "replay finished"
         self._update_status()
+        if self.comparer is not None:  # the whole day's comparison, shown or not
+            self.comparer.source_ended()
         self.notify(msg.summary, title="replay finished", timeout=10)
 
     def _show(self, res: DescentResult) -> None:
-        """Result panel and plots for one descent."""
+        """Result panel and plots for one descent: drawn once per fit, and while a dialog
+        covers the main screen not at all (the comparison, open all day, hides them): then
+        when the dialog closes."""
         self.shown = res.number
+        self._panel_of = self.results.get(res.number)  # the snapshot shown, or due
+        if self._main_covered():
+            self._panel_due = res
+            return
+        self._panel_due = None
         f, row, d = res.fit, res.row, res.descent
         head = f"descent {d.number} · {local_time(res.start_time)} · "
         if f is None:
@@ -492,6 +556,7 @@ class StationApp(App):
                 head + f"{status}: {'; '.join(row.flags)}\n" + conditions(row)
             )
             self.main.query_one("#residuals", Static).update("")
+            self._resid_width = 40  # its min-width
             self.main.query_one("#speed", Static).update("")
             self._plotted = None
             return
@@ -531,7 +596,7 @@ class StationApp(App):
             + (f"\n{notes}" if notes else "")
             + (f"\n{f.message}" if f.message else "")
         )
-        self.main.query_one("#result", Static).update(text)
+        self.main.query_one("#result", Static).update(text, layout=False)  # a fixed box
         self._plotted = res
         self._draw_plots()
 
@@ -555,7 +620,10 @@ class StationApp(App):
             lines = residual_plot(ids, res_ms, height=rows, bar_width=bar)
             text = "\n".join(lines) if ids else "no residuals: " + f.status
             resid_width = max(resid_width, *(len(line) for line in text.splitlines()))
-            self.main.query_one("#residuals", Static).update(text)
+            # its width follows its text: laid out again only when that changes
+            box = self.main.query_one("#residuals", Static)
+            box.update(text, layout=resid_width != self._resid_width)
+            self._resid_width = resid_width
         box = self.main.query_one("#speed", Static)
         width = max(10, left - resid_width - 1 - 7)  # its padding, the speed labels
         if res.speed_x is None and res.fit is not None and self.acq is not None:
@@ -567,7 +635,7 @@ class StationApp(App):
             plot = speed_plot(x, v, width=width, height=rows - 1)
         else:
             plot = ["(no speed profile)"]
-        box.update("\n".join(plot))
+        box.update("\n".join(plot), layout=False)  # the rest of the row: a fixed box
 
     # ------------------------------------------------------------------ actions
 
@@ -671,5 +739,7 @@ class StationApp(App):
             self.sim.terminate()  # it ends while the day is closed, not after
         if self.acq is not None:
             self.acq.close()
+        if self.comparer is not None:
+            self.comparer.close()
         if self.sim is not None:
             self.sim.stop(timeout=0.05)

@@ -224,6 +224,10 @@ class ReasonScreen(ModalScreen[str | None]):
         self.dismiss(None)
 
 
+#: below this terminal width the comparison dialog (110 wide, with borders) fills it
+FULL_WIDTH = 114
+
+
 class ComparisonScreen(ModalScreen[None]):
     """Which ski or wax glides better: the joint fit of the session, updated after each descent."""
 
@@ -240,9 +244,22 @@ class ComparisonScreen(ModalScreen[None]):
                 yield Static(self.text, id="comparison_text", markup=False)
             yield Button("Close", id="close", compact=True)
 
+    def on_mount(self) -> None:
+        self._fit_width()
+
+    def on_resize(self, _event: object) -> None:
+        self._fit_width()
+
+    def _fit_width(self) -> None:
+        """At 80 columns the dialog is the terminal's width: its side borders give the text
+        the columns the ranking's header needs."""
+        self.set_class(self.app.size.width < FULL_WIDTH, "full-width")
+
     def update(self, text: str) -> None:
         self.text = text
-        self.query_one("#comparison_text", Static).update(text)
+        # not composed yet, or being closed: what it composes with is the text just kept
+        for box in self.query("#comparison_text").results(Static):
+            box.update(text)
 
     def on_button_pressed(self, _event: Button.Pressed) -> None:
         self.dismiss(None)
