@@ -19,6 +19,13 @@ estimated posture scatter.
 ``judge``: every look from the fourth descent, equal skis at 2 % scatter) on the ``--days`` seeds
 from FIRST, to see whether its 12.5 % of winners declared on seeds 27000–27199 holds on others.
 
+Measured (2 % scatter; issue 21's diagnosis): plan_sequential's days at the last look held the
+truth on 86.3 % of seeds 27000–27299 but 89.3 and 88.7 % of the next two blocks of 300 (SD(z)
+1.02, 1.01, 1.01); with compare_calibration's drift, μ and Δμ on seeds 27000…: 86.0 %;
+compare_calibration's seeds at 10 a ski: 91.7 % (SD(z) 1.00). The seed block, not the model.
+The rule (--rule): winners on 25, 22 and 23 of 200 equal-ski days on seeds 27000, 27300, 27600
+(11.7 % of 600), while the last look missed on 30, 17 and 23 of them.
+
 Run: python benchmarks/compare_coverage_diff.py [--days 300] [--jobs 2] [--variant NAME ...]
      [--rule FIRST]
 """
