@@ -136,3 +136,20 @@ def pg():
         yield server
     finally:
         server.close()
+
+
+@pytest.fixture
+def replays(monkeypatch):
+    """The sessions a RecordedSession replayed (its ``run``), in order: a test of the in-place
+    annotate asserts none ran."""
+    from station.session.recorded import RecordedSession
+
+    calls: list[str] = []
+    run = RecordedSession.run
+
+    def counted(self):
+        calls.append(self.path)
+        return run(self)
+
+    monkeypatch.setattr(RecordedSession, "run", counted)
+    return calls

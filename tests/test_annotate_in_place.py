@@ -52,20 +52,6 @@ def session(recorded, tmp_path):
     return copy
 
 
-@pytest.fixture
-def replays(monkeypatch):
-    """How many times a RecordedSession replayed its day."""
-    calls: list[str] = []
-    run = RecordedSession.run
-
-    def counted(self):
-        calls.append(self.path)
-        return run(self)
-
-    monkeypatch.setattr(RecordedSession, "run", counted)
-    return calls
-
-
 def from_scratch(session: Path) -> bytes:
     """The results CSV of a replay of the session with every fit computed (no stored fit,
     no state), as ``station export`` writes it."""

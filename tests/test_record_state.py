@@ -29,20 +29,6 @@ from tests.timing_helpers import record_with_sim, start_sim, write_config
 SIM = ["--speed", "10", "--first-after", "2", "--hold", "1", "--seed", "7"]
 
 
-@pytest.fixture
-def replays(monkeypatch):
-    """The sessions a RecordedSession replayed (its ``run``), in order."""
-    calls: list[str] = []
-    run = RecordedSession.run
-
-    def counted(self):
-        calls.append(self.path)
-        return run(self)
-
-    monkeypatch.setattr(RecordedSession, "run", counted)
-    return calls
-
-
 def source_day(tmp_path: Path) -> Path:
     (tmp_path / "src").mkdir()
     return make_session(tmp_path / "src", order="ABBAAB", annotate=False)

@@ -21,18 +21,17 @@ from station.model.air import air_density
 from station.model.timer import precision_from_resolution
 from station.session.analysis import Analyser, DescentResult, FitJob, start_time
 from station.session.config import StationConfig
+from station.session.marks import Marks
 from station.session.processor import Processor
 from station.session.records import (
     METADATA_FIELDS,
     Annotation,
     DescentTimes,
     FitModel,
-    InvalidMark,
     Metadata,
     MetadataAnnotation,
     ModelChange,
     Progress,
-    ValidMark,
 )
 from station.survey.track import Track
 
@@ -74,21 +73,10 @@ class Day:
     analyser: Analyser
     date: dt.date | None = None
     results: dict[int, DescentResult] = field(default_factory=dict)
-    metadata_changes: list[tuple[int, Metadata]] = field(default_factory=list)
-    metadata_for_descents: list[tuple[frozenset[int], Metadata]] = field(default_factory=list)
-    invalid: dict[int, str] = field(default_factory=dict)
-    models: dict[int, FitModel] = field(default_factory=dict)
-    _base: Metadata | None = field(default=None, repr=False)  # the config's, built once
+    _marks: Marks | None = field(default=None, repr=False)  # built at first use (the config's)
     #: the metadata of the descents fitted, one object for equal ones: a change "from descent
     #: N on" made a new one for every later descent, each kept with its row all day
     _metas: dict[Metadata, Metadata] = field(default_factory=dict, repr=False)
-    #: the config's metadata with every change "from N on" made so far overlaid, in order:
-    #: (how many changes, the last one, the result, their largest N). Metadata entered before
-    #: each descent made ``metadata_for`` overlay the whole day's changes on every impulse
-    #: (34 ms a call at descent 440, on the reader's thread); now only the new ones
-    _folded: tuple[int, object, Metadata | None, int] = field(
-        default=(0, None, None, 0), repr=False
-    )
 
     @classmethod
     def start(cls, config: StationConfig, track: Track, date: dt.date | None = None) -> Day:
@@ -96,45 +84,28 @@ class Day:
 
     # -- metadata
 
-    def base_metadata(self) -> Metadata:
-        if self._base is None:
-            self._base = self._config_metadata()
-        return self._base
+    @property
+    def marks(self) -> Marks:
+        """The annotations as they stand (:class:`station.session.marks.Marks`: the same rules
+        as the in-place annotate's)."""
+        if self._marks is None:
+            self._marks = Marks.of(self.config)
+        return self._marks
 
-    def _config_metadata(self) -> Metadata:
-        cfg = self.config
-        values: dict[str, object] = {"mass_kg": cfg.mass_kg, **cfg.metadata}
-        air = cfg.air
-        if air.measured:
-            values["pressure_hpa"] = air.pressure_hpa
-            values["air_temperature_c"] = air.temperature_c
-            values["humidity_pct"] = air.humidity_pct
-        return Metadata.from_values(values)
+    @property
+    def invalid(self) -> dict[int, str]:
+        return self.marks.invalid
+
+    @property
+    def models(self) -> dict[int, FitModel]:
+        return self.marks.models
+
+    def base_metadata(self) -> Metadata:
+        return self.marks.base
 
     def metadata_for(self, number: int) -> Metadata:
-        """Metadata in force for a descent: the config's, then the changes ``from`` a number on
-        in the order they were made, then those for listed descents only (the most specific)."""
-        changes = self.metadata_changes
-        done, last, folded, latest = self._folded
-        if folded is None or done > len(changes) or (done and changes[done - 1] is not last):
-            done, folded, latest = 0, self.base_metadata(), 0  # first call, or the list changed
-        if done < len(changes):
-            for start, values in changes[done:]:
-                folded = folded.overlay(values)
-                latest = max(latest, start)
-            done = len(changes)
-            self._folded = (done, changes[-1], folded, latest)
-        if number >= latest:  # every change applies (the usual case: later descents)
-            meta = folded
-        else:
-            meta = self.base_metadata()
-            for start, values in changes:
-                if start <= number:
-                    meta = meta.overlay(values)
-        for descents, values in self.metadata_for_descents:
-            if number in descents:
-                meta = meta.overlay(values)
-        return meta
+        """Metadata in force for a descent (:meth:`station.session.marks.Marks.metadata_for`)."""
+        return self.marks.metadata_for(number)
 
     def wind_for(self, meta: Metadata) -> float:
         if meta.wind_ms is None:
@@ -232,21 +203,13 @@ class Day:
 
     def annotate(self, a: Annotation) -> Effect:
         """Apply one annotation; says which fits are out of date and which marks changed."""
+        self.marks.note(a)
         if isinstance(a, MetadataAnnotation):
-            if a.descents is not None:
-                numbers = frozenset(a.descents)
-                self.metadata_for_descents.append((numbers, a.values))
-                # already fitted: fit again with the new metadata
-                return Effect(refit=tuple(n for n in sorted(numbers) if n in self.results))
-            self.metadata_changes.append((a.from_descent or 0, a.values))
+            if a.descents is not None:  # already fitted: fit again with the new metadata
+                return Effect(refit=tuple(n for n in sorted(set(a.descents)) if n in self.results))
             return Effect()
         n = a.descent
-        if isinstance(a, InvalidMark):
-            self.invalid[n] = a.reason or "marked invalid"
-        elif isinstance(a, ValidMark):
-            self.invalid.pop(n, None)
-        elif isinstance(a, ModelChange):
-            self.models[n] = a.model
+        if isinstance(a, ModelChange):
             return Effect(refit=(n,) if n in self.results else ())
         return Effect(changed=(n,) if n in self.results else ())
 

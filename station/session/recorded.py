@@ -227,7 +227,7 @@ class RecordedSession:
         day = None
         if records:
             try:
-                day = resultsstate.Marks(self.config, records)
+                day = resultsstate.Marks.of(self.config, records)
             except InputError:
                 day = None
         out = []

@@ -32,10 +32,11 @@ writes the CSV, and by a recording that ended cleanly (:func:`write_state_of_rec
 when what it recorded is what a replay gives: then the first annotate after it runs in place.
 
 The rows the fast path writes are those a replay writes, byte for byte: the metadata in force
-for a descent is found by the rules of :class:`station.session.day.Day` (mirrored in
-:class:`Marks`: importing the day imports the fit, 0.9 s of numpy and scipy), a refit runs
-the day's own analyser, and the tests compare the result with a replay's from scratch for
-every kind of annotation (tests/test_annotate_in_place.py).
+for a descent is found by the day's own rules (:class:`station.session.marks.Marks`, which
+:class:`station.session.day.Day` uses too, without importing the day: that imports the fit,
+0.9 s of numpy and scipy), a refit runs the day's own analyser, and the tests compare the
+result with a replay's from scratch for every kind of annotation
+(tests/test_annotate_in_place.py).
 """
 
 from __future__ import annotations
@@ -61,11 +62,11 @@ from station.errors import InputError
 from station.files import MAX_OBSERVATIONS, MAX_RAWLOG, read_bytes
 from station.session import store as sessions
 from station.session.config import StationConfig
+from station.session.marks import Marks
 from station.session.records import (
     METADATA_FIELDS,
     Annotation,
     InvalidMark,
-    Metadata,
     MetadataAnnotation,
     ResultRow,
     ResultStatus,
@@ -562,44 +563,6 @@ def descent_numbers(session: str) -> list[int] | None:
 # ----------------------------------------------------------------------------- annotating
 
 
-class Marks:
-    """The annotations of a day as :class:`station.session.day.Day` applies them (its
-    ``annotate`` and ``metadata_for``), without its fits."""
-
-    def __init__(self, config: StationConfig, annotations: Sequence[Annotation]) -> None:
-        values: dict[str, object] = {"mass_kg": config.mass_kg, **config.metadata}
-        air = config.air
-        if air.measured:
-            values["pressure_hpa"] = air.pressure_hpa
-            values["air_temperature_c"] = air.temperature_c
-            values["humidity_pct"] = air.humidity_pct
-        self.config = config
-        self.base = Metadata.from_values(values)
-        self.changes: list[tuple[int, Metadata]] = []
-        self.listed: list[tuple[frozenset[int], Metadata]] = []
-        self.invalid: dict[int, str] = {}
-        for a in annotations:
-            if isinstance(a, MetadataAnnotation):
-                if a.descents is not None:
-                    self.listed.append((frozenset(a.descents), a.values))
-                else:
-                    self.changes.append((a.from_descent or 0, a.values))
-            elif isinstance(a, InvalidMark):
-                self.invalid[a.descent] = a.reason or "marked invalid"
-            elif isinstance(a, ValidMark):
-                self.invalid.pop(a.descent, None)
-
-    def metadata_for(self, number: int) -> Metadata:
-        meta = self.base
-        for start, values in self.changes:
-            if start <= number:
-                meta = meta.overlay(values)
-        for descents, values in self.listed:
-            if number in descents:
-                meta = meta.overlay(values)
-        return meta
-
-
 def in_place(
     session: str,
     config: StationConfig,
@@ -661,7 +624,7 @@ def in_place(
     marks = None
     if metadata:  # what is in force for a descent follows from every annotation of the day
         try:
-            marks = Marks(config, sessions.read_annotations(session))
+            marks = Marks.of(config, sessions.read_annotations(session))
         except Exception:  # noqa: BLE001 - the replay says what is wrong
             return None
     statuses = dict(state.statuses)
