@@ -27,6 +27,16 @@ comparison itself after every descent; 1.3 s median at descent 100 on a loaded m
 the comparison on a thread of the acquisition and a DataTable that drew all its visible cells
 again after each new row.
 
+The CPU growing with the day (open, load 5: 66 ms median at descents 1–20, 75 ms at 781–800;
+a 800-descent run took 194 s) was found by profiling the UI's process (cProfile on each of
+its threads, samples bucketed by descent): ``metadata_for`` overlaid every metadata change of
+the day (one entered before each descent) on every impulse, 34 ms a call at descent 440 on
+the reader's thread; it now overlays only the changes made since its last call (43.5 / 48.7
+ms; the run 76 s). The libraries and the screen frozen out of the garbage collector after the
+app has mounted: a full collection (one every ~2 descents) went from ~120 ms to 36 ms at
+descent 20 (max 414 → 257 ms at 781–800). Near 2000 (load 3.5): 31.7 ms CPU at descents 1–20,
+82.9 ms at 1981–2000, 90.5 ms median: the full collections still walk the day's objects.
+
 Run: python benchmarks/ui_fit_latency.py [--descents 2000] [--only open|closed]
 """
 
