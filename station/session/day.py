@@ -157,8 +157,19 @@ class Day:
     # -- descents
 
     def fit_job(self, d: DescentTimes) -> FitJob:
-        """What the fit of a descent needs, as things stand now. The item a bib names in the
-        config (``items: {12: {ski: A}}``) is what that descent tested."""
+        """What the fit of a descent needs, as things stand now: its start time dated by the
+        host time of its start, and the timer's precision as the day judges it."""
+        return self.job(
+            d,
+            start_time(d, self.processor.start_host.get(d.number), self.date),
+            self.timer_precision_s(),
+        )
+
+    def job(self, d: DescentTimes, started: str, timer_precision_s: float) -> FitJob:
+        """What the fit of a descent needs, given its start time and the timer's precision
+        (the in-place annotate has them from the results CSV's state, and no processor). The
+        item a bib names in the config (``items: {12: {ski: A}}``) is what that descent
+        tested."""
         meta = self.metadata_for(d.number)
         item = self.config.items.get(d.bib) if d.bib else None
         if item:
@@ -173,13 +184,13 @@ class Day:
             wind, problem = 0.0, str(exc)
         return FitJob(
             descent=d,
-            start_time=start_time(d, self.processor.start_host.get(d.number), self.date),
+            start_time=started,
             metadata=meta,
             model=self.models.get(d.number, FitModel(self.config.model)),
             mass_kg=float(meta.mass_kg if meta.mass_kg is not None else self.config.mass_kg),
             air_density=self.density_for(meta),
             wind_ms=wind,
-            timer_precision_s=self.timer_precision_s(),
+            timer_precision_s=timer_precision_s,
             problem=problem,
         )
 

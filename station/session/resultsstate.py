@@ -692,10 +692,10 @@ def _refit(
 
     import numpy as np
 
-    from station.session.analysis import Analyser, FitJob
+    from station.session.analysis import Analyser
     from station.session.day import Day
     from station.session.fitstore import from_json
-    from station.session.records import DescentTimes, FitModel
+    from station.session.records import DescentTimes
     from station.survey.load import load_survey
     from station.survey.track import build_track
 
@@ -740,20 +740,9 @@ def _refit(
         except Exception:  # noqa: BLE001
             return None
         analyser._survey_cov[d.photocells] = cov  # noqa: SLF001 - as the replay hands it on
-        # Day.fit_job, with the start time of the CSV and the day's timer precision (the
-        # replay's processor knows both; here there is none)
-        meta = day.metadata_for(n)  # (no items: see in_place)
-        try:
-            wind, problem = day.wind_for(meta), ""
-        except InputError as exc:
-            wind, problem = 0.0, str(exc)
-        job = FitJob(
-            descent=d, start_time=started, metadata=meta,
-            model=day.models.get(n, FitModel(config.model)),
-            mass_kg=float(meta.mass_kg if meta.mass_kg is not None else config.mass_kg),
-            air_density=day.density_for(meta), wind_ms=wind, timer_precision_s=precision,
-            problem=problem,
-        )  # fmt: skip
+        # the day's own job, with the start time of the CSV and the day's timer precision
+        # (the replay's processor knows both; here there is none; no items: see in_place)
+        job = day.job(d, started, precision)
         res = analyser.run(job)
         row = replace(res.row, invalid_reason=day.invalid.get(n, ""))
         text = writer.text(results_frame([csv_record(row)])[0])
