@@ -40,7 +40,13 @@ from benchmarks.plan_power import SETUPS, track  # noqa: E402
 from simulators.days import DaySetup, simulate_day  # noqa: E402
 from station.model.compare import joint_fit  # noqa: E402
 from station.model.plan import run_order  # noqa: E402
-from station.model.sequential import decide, standard_error  # noqa: E402
+from station.model.sequential import (  # noqa: E402
+    decide,
+    look_boundaries,
+    look_fractions,
+    spent,
+    standard_error,
+)
 
 HORIZON = 10
 SCATTERS = (0.005, 0.01, 0.02)
@@ -87,6 +93,67 @@ def judge(looks: list[Look]) -> tuple[bool, bool, bool, int | None]:
     return a_won, b_won, naive, first
 
 
+def per_look(eq_looks: list[list[Look]], draws: int = 200_000) -> list[str]:
+    """Where the rule spends its error on equal-ski days, look by look (issue 21's diagnosis):
+    the α the spending function allows by each look against the share of days declared by then;
+    the look's information time from the skeleton (sequential.look_fractions) against the fit's
+    own information (mean 1/se², as a fraction of the last look's) and the estimates' actual
+    information (E Δμ̂² at the last look over that at this one), and the correlation of z with
+    the last look's against √(t/t_N), the Brownian motion's; the degrees of freedom the t
+    boundary uses; the SD of z = Δμ̂/se against that of the t distribution at those degrees of
+    freedom (√(ν/(ν − 2)), what a right standard error gives), and the two-sided share beyond
+    the t's 90 % point. Then the rule itself on Brownian motion in information time with the
+    timing noise re-estimated at every look (χ² increments at the fit's degrees of freedom):
+    the rule's error when the fit's z is exactly t, and when each look's z is spread by its
+    measured SD over the t's."""
+    from scipy.special import ndtr, stdtrit
+
+    fr = np.array(look_fractions(ORDER, "A", "B", HORIZON))
+    c = np.array(look_boundaries(list(fr)))
+    d = np.array([[x[0] for x in day] for day in eq_looks])
+    se = np.array([[x[1] for x in day] for day in eq_looks])
+    nu = np.array([[x[2] for x in day] for day in eq_looks])
+    z = d / se
+    n_days, n_looks = z.shape
+    first = np.full(n_days, n_looks)
+    for i, day in enumerate(eq_looks):
+        for j, (delta, s, dof) in enumerate(day):
+            if decide("A", "B", delta, s, dof, ORDER[: j + 4], horizon=HORIZON).state == "decided":
+                first[i] = j
+                break
+    info_fit = np.mean(1 / se**2, axis=0)
+    msq = np.mean(d**2, axis=0)
+    dof = np.median(nu, axis=0)
+    sd_t = np.sqrt(dof / (dof - 2))
+    ratio = z.std(axis=0) / sd_t
+    ct = np.array([float(stdtrit(v, 1 - ndtr(-b))) for v, b in zip(dof, c, strict=True)])
+    q90 = np.array([float(stdtrit(v, 0.95)) for v in dof])
+    out = [f"{'descent':>7} | {'t skeleton':>10} | {'fit 1/se²':>9} | {'E Δμ̂²':>7} | "
+           f"{'corr z·z_N':>10} | {'√(t/t_N)':>8} | {'dof':>4} | {'c_k (t)':>7} | "
+           f"{'α spent':>7} | {'declared':>8} | {'SD z':>5} | {'SD t':>5} | "
+           f"{'|z| > t90':>9}"]  # fmt: skip
+    for j in range(n_looks):
+        corr = float(np.corrcoef(z[:, j], z[:, -1])[0, 1])
+        out.append(
+            f"{j + 4:>7} | {fr[j]:>10.3f} | {info_fit[j] / info_fit[-1]:>9.3f} | "
+            f"{msq[-1] / msq[j]:>7.3f} | {corr:>10.3f} | {np.sqrt(fr[j] / fr[-1]):>8.3f} | "
+            f"{dof[j]:>4.0f} | {ct[j]:>7.3f} | {spent(min(fr[j], 1.0)):>7.4f} | "
+            f"{np.mean(first <= j):>8.4f} | {z[:, j].std():>5.3f} | {sd_t[j]:>5.3f} | "
+            f"{np.mean(np.abs(z[:, j]) >= q90[j]):>9.3f}"
+        )  # fmt: skip
+    rng = np.random.default_rng(0)
+    b = np.cumsum(rng.normal(size=(draws, n_looks)) * np.sqrt(np.diff(fr, prepend=0.0)), axis=1)
+    chi = np.cumsum(rng.chisquare(np.diff(dof, prepend=0.0), size=(draws, n_looks)), axis=1)
+    zt = b / np.sqrt(fr) / np.sqrt(chi / dof)
+    exact = np.mean((np.abs(zt) >= ct).any(axis=1))
+    spread = np.mean((np.abs(zt * ratio) >= ct).any(axis=1))
+    days = np.mean(first < n_looks)
+    out.append(f"the rule on Brownian motion with the t's noise ({draws} draws): "
+               f"{100 * exact:.1f} %; with each look's z spread as measured (SD z / SD t): "
+               f"{100 * spread:.1f} %; on the days: {100 * days:.1f} %")  # fmt: skip
+    return out
+
+
 def upper95(hits: int, n: int) -> float:
     """The one-sided 95 % Clopper–Pearson upper bound of a rate."""
     from scipy.special import betaincinv
@@ -102,6 +169,10 @@ def main() -> int:
     ap.add_argument("--setup", choices=["demo", "sparse", "both"], default="demo")
     ap.add_argument("--cache", type=Path, help="JSON file of the looks, read and extended")
     ap.add_argument("--scatter", type=float, action="append", help="only this scatter")
+    ap.add_argument("--seed0", type=int, help="first seed of the equal-ski days (default per row)")
+    ap.add_argument("--per-look", action="store_true",
+                    help="also the equal-ski days look by look: α spent and declared, information, "
+                         "dof, spread of z")  # fmt: skip
     args = ap.parse_args()
     setups = ["demo", "sparse"] if args.setup == "both" else [args.setup]
     cache: dict[str, list[Look]] = {}
@@ -134,7 +205,8 @@ def main() -> int:
                   f"{'descents/item at decision':>25}")  # fmt: skip
             for scatter in args.scatter or SCATTERS:
                 seed0 = 7000 + int(scatter * 1000) * 1000
-                eq_looks = days(pool, setup, 0.0, scatter, args.days, seed0)
+                eq0 = seed0 if args.seed0 is None else args.seed0
+                eq_looks = days(pool, setup, 0.0, scatter, args.days, eq0)
                 df_looks = days(pool, setup, 0.001, scatter, args.days_diff, seed0 + 500)
                 eq = [judge(x) for x in eq_looks]
                 df = [judge(x) for x in df_looks]
@@ -151,6 +223,8 @@ def main() -> int:
                       f"{upper95(hits, len(eq)) * 100:>9.1f}% | {naive * 100:>14.1f}% | "
                       f"{sdz:>14} | {wrong * 100:>18.1f}% | {decided * 100:>6.1f}% | "
                       f"{med:>25}")  # fmt: skip
+                if args.per_look:
+                    print("\n".join(per_look(eq_looks)) + "\n")
     print(f"\n{time.perf_counter() - t_all:.0f} s in all")
     return 0
 
