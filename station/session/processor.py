@@ -148,10 +148,27 @@ class Processor:
         impulse handled here: a replay of a capture is a hundred thousand of them."""
         done: list[TimedDescent] = []
         parse = self.parser.parse
+        parsed_lines = [parse(line) for line in lines]  # the parser's state is its own
         asm = self.assembler
-        feed = asm.feed
-        for line in lines:
-            parsed = parse(line)
+        feed, feed_run = asm.feed, asm.feed_run
+        start_host, started_judged = self.start_host, self._started
+        i, n = 0, len(lines)
+        while i < n:
+            if self.resolution_us is not None:
+                # the common impulses from here in one run of the assembler's
+                stop, ended, started = feed_run(parsed_lines, i, self.lines + 1)
+                if stop > i:
+                    self.lines += stop - i
+                    self.impulses += stop - i
+                    for d in started:  # no host clock: each start undated, judged
+                        start_host[d.number] = None
+                        started_judged(d)
+                    done += ended
+                    i = stop
+                    if i == n:
+                        break
+            # the one it stopped at (or the first impulse, which states the resolution)
+            parsed = parsed_lines[i]
             if type(parsed) is Impulse and self.resolution_us is not None:
                 self.lines += 1
                 self.impulses += 1
@@ -160,9 +177,10 @@ class Processor:
                 if asm.count > before:  # no host clock: each start undated, judged
                     self._new_descents(before, ended, None, judge=True)
             else:
-                ended = self._parsed(line, parsed, None)
+                ended = self._parsed(lines[i], parsed, None)
             if ended:
                 done += ended
+            i += 1
         return done
 
     def _line(self, line: str, t: float | None) -> list[TimedDescent]:

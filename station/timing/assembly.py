@@ -46,6 +46,7 @@ from __future__ import annotations
 from array import array
 from bisect import bisect_left
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -460,6 +461,8 @@ class DescentAssembler:
         double trigger of the descent that just ended, or a reason to reject it. One unwrap,
         no list copied, no closure, the event a plain tuple."""
         _chn, tod, _res, flag, bib, day, _text = imp
+        if flag == DAMAGED_FLAG:
+            return None  # its descent says so (_accept): the general path
         mode = self.mode
         d = self.open[0]
         if mode == "bib":
@@ -529,6 +532,162 @@ class DescentAssembler:
         d.status = "complete" if photocells[0] == self.photocells[0] else "incomplete"
         self._done(d)
         return [d]
+
+    def feed_run(
+        self, items: Sequence[object], start: int, line: int
+    ) -> tuple[int, list[TimedDescent], list[TimedDescent]]:
+        """:meth:`feed` for ``items[start:]`` (what a chunk's lines parsed to; ``line``: the
+        number of ``items[start]``, the next ones count on) in one loop, as far as each item is
+        an impulse of the common case: with no descent open a start, with one open descent
+        the impulse at its next photocell, both as the fast paths (:meth:`_start`,
+        :meth:`_next_photocell`) take them. It stops, having changed nothing for it, at the
+        first item that is not: an edit or any other line, a second skier on the run, a bib
+        of another descent, a photocell skipped, a time far from the clock, a repeat, a double
+        trigger, a damaged flag, a reason to reject it; the caller hands that one to
+        :meth:`feed` (or :meth:`edit`) and calls again after it. Returns the index of the
+        item it stopped at (``len(items)`` at the end), the descents that finished and the
+        descents that started, in order.
+
+        Why: a replay is a hundred thousand impulses, and the fast paths' cost was mostly
+        Python's per call: the attributes looked up again, a tuple unpacked, a list made for
+        each answer. Here the assembler's state stays in local variables for the run, the
+        open descent's lists are at hand, and its speed between the last two photocells is
+        the one computed for the impulse before (the same float). The decisions are
+        :meth:`_next_photocell`'s and :meth:`_start`'s, condition for condition
+        (tests/test_assembly_batch.py checks the events and descents against the general
+        path on the real captures and on random streams)."""
+        done: list[TimedDescent] = []
+        started: list[TimedDescent] = []
+        n = len(items)
+        mode = self.mode
+        clock = self._clock
+        open_ = self.open
+        if (
+            start >= n
+            or self._pending is not None
+            or mode is None
+            or clock is None
+            or len(open_) > 1
+        ):
+            return start, done, started
+        by_order = mode == "order"  # else "bib" (mode is decided and changes on no fast path)
+        fast_channels = self._fast_channels
+        seen_map = self._seen
+        events_append = self.events.append
+        jump = self.jump_us
+        debounce = self.debounce_us
+        timeouts = self.timeout_us
+        max_speed = self.max_speed
+        first_pc = self.photocells[0]
+        last_k = self._last_k
+        damaged = bool(self._damaged)  # changed by note_damaged and _recover: not in here
+        old_max = self._old_max
+        last_done = self._last_done
+        ld_pc: str | None = None  # the last photocell and time of the descent that ended last
+        ld_t = 0
+        if last_done is not None and last_done.photocells:
+            ld_pc, ld_t = last_done.photocells[-1], last_done.times_us[-1]
+        base = self._day_offset * DAY_US
+        low = clock - HALF_DAY_US
+        d: TimedDescent | None = None
+        photocells: list[str] = []
+        times: list[int] = []
+        channels: list[str] = []
+        number = 0
+        d_bib = ""
+        j = -1  # the index of the open descent's last photocell
+        v_prev: float | None = None  # its speed into it, where this loop computed it
+        if open_:
+            d = open_[0]
+            photocells, times, channels = d.photocells, d.times_us, d.channels
+            number, d_bib, j = d.number, d.bib, self.order[photocells[-1]]
+        i = start
+        while i < n:
+            imp = items[i]
+            if type(imp) is not Impulse:
+                break
+            ch, tod, _res, flag, bib, day, _text = imp
+            fast = fast_channels.get(ch)
+            if fast is None or day is not None or flag == DAMAGED_FLAG:
+                break
+            ch, pc, k, step_m = fast
+            t = base + tod  # the one unwrap (see _time)
+            if t < low:
+                t += DAY_US
+            if not -jump <= t - clock <= jump:
+                break
+            seen = seen_map.get(ch)
+            if (seen is not None and t in seen) or t <= old_max:
+                break
+            if ld_pc == pc and 0 <= t - ld_t <= debounce:
+                break  # a double trigger of the descent that just ended
+            if d is None:
+                if k != 0:
+                    break
+                self.count += 1
+                number = self.count
+                d_bib = "" if by_order or flag == "?" else bib.strip().lstrip("0")
+                d = TimedDescent(number, [pc], [t], first_line=line, channels=[ch], bib=d_bib)
+                open_.append(d)
+                started.append(d)
+                photocells, times, channels = d.photocells, d.times_us, d.channels
+                j = 0
+                v_prev = None
+            else:
+                if k != j + 1:
+                    break
+                if not by_order and (flag == "?" or not d_bib or bib.strip().lstrip("0") != d_bib):
+                    break
+                last = times[-1]
+                gap = t - last
+                if gap <= 0 or gap > timeouts[j]:
+                    break
+                v = None
+                if step_m is not None:
+                    v = step_m / (gap / 1e6)
+                    if v > max_speed:
+                        break
+                    if by_order and len(photocells) >= 2:
+                        if v_prev is None:  # the speed into photocell j, as _why_not has it
+                            pos = self.positions
+                            assert pos is not None
+                            dt = (last - times[-2]) / 1e6
+                            if dt > 0:
+                                v_prev = (pos[j] - pos[self.order[photocells[-2]]]) / dt
+                        if v_prev is not None and not (
+                            v_prev / SPEED_RATIO <= v <= v_prev * SPEED_RATIO
+                        ):
+                            break
+                photocells.append(pc)
+                times.append(t)
+                channels.append(ch)
+                j = k
+                v_prev = v
+            if damaged:
+                self._move_clock(t)
+            else:
+                self._clock = t
+            clock = t
+            low = t - HALF_DAY_US
+            if not base <= t < base + DAY_US:
+                base = t // DAY_US * DAY_US
+                if not damaged:
+                    self._day_offset = t // DAY_US
+            if seen is None:
+                seen = seen_map[ch] = set()
+            seen.add(t)
+            events_append(_new_event(ImpulseEvent, (line, ch, pc, tod, flag, True, "", number)))
+            i += 1
+            line += 1
+            if k == last_k:
+                open_.clear()
+                d.status = "complete" if photocells[0] == first_pc else "incomplete"
+                self._done(d)
+                done.append(d)
+                old_max = self._old_max
+                ld_pc, ld_t = pc, t
+                d = None
+        return i, done, started
 
     def _keep(self, channel: str, t: int) -> None:
         """A kept impulse: a repeat of it (the timer's memory sent again) is not doubled."""
