@@ -265,9 +265,89 @@ def test_a_simulated_tag_day_the_same_every_way(configs, demo_track, run_times, 
     assert sum(d[3] == "complete" for d in got["finished"]) == 30
 
 
+# ----------------------------------------------------------------------------- the edge cases
+
+
+def _clean(run_times, k: int, start_s: float, numbering: str) -> list[tuple]:
+    """Descent k (from 0) of one skier at a time: (channel, s, number, flag) at each photocell."""
+    return [(f"C{i}", start_s + ti, k + 1 if numbering == "bib" else 9 * k + i + 1, " ")
+            for i, ti in enumerate(run_times)]  # fmt: skip
+
+
+def _case(run_times, name: str) -> tuple[list[tuple], str, dict | None]:
+    """A stream where the batch must stop and leave an impulse to the general path, for each
+    condition the batch checks (that the general path decides otherwise there): its impulses,
+    the pairing, the channels (None: the nine photocells)."""
+    t0 = 36_000.0
+    first = _clean(run_times, 0, t0, "bib")  # decides the pairing (the general path)
+    if name == "damaged flag":
+        second = _clean(run_times, 1, t0 + 60, "bib")
+        second[4] = (*second[4][:3], "!")
+        return first + second, "bib", None
+    if name == "finish within the debounce of the one before":
+        run = run_times[-1]
+        two = [("C0", t0 + 60, 2, " "), ("C0", t0 + 65, 3, " "), ("C1", t0 + 60 + run, 2, " "),
+               ("C1", t0 + 60 + run + 0.1, 3, " ")]  # fmt: skip
+        return [("C0", t0, 1, " "), ("C1", t0 + run, 1, " "), *two], "bib", ALGE_2
+    if name == "a start repeated":
+        second = _clean(run_times, 1, t0 + 60, "bib")
+        return first + second + second[:1] + _clean(run_times, 2, t0 + 120, "bib"), "bib", None
+    if name == "too slow after the speed before":
+        first = _clean(run_times, 0, t0, "counter")
+        second = _clean(run_times, 1, t0 + 60, "counter")
+        slow = 3 * (second[4][1] - second[3][1])
+        second = second[:4] + [(c, s + slow, n, f) for c, s, n, f in second[4:]]
+        return first + second, "order", None
+    if name == "after the time-out":
+        second = _clean(run_times, 1, t0 + 200, "bib")
+        late = 87.0 - (second[2][1] - second[1][1])  # 86.6 s time-out, 87.4 s clock jump
+        second = second[:2] + [(c, s + late, n, f) for c, s, n, f in second[2:]]
+        return first + second, "bib", None
+    if name == "a bib of another descent":
+        second = _clean(run_times, 1, t0 + 60, "bib")
+        second[3] = (second[3][0], second[3][1], 7, " ")
+        return first + second, "bib", None
+    if name == "without a number":
+        second = _clean(run_times, 1, t0 + 60, "bib")
+        second[3] = (*second[3][:3], "?")
+        return first + second, "bib", None
+    raise AssertionError(name)
+
+
+@pytest.mark.parametrize("name", ["damaged flag", "finish within the debounce of the one before",
+                                  "a start repeated", "too slow after the speed before",
+                                  "after the time-out", "a bib of another descent",
+                                  "without a number"])  # fmt: skip
+def test_the_batch_leaves_each_edge_to_the_general_path(configs, demo_track, run_times, name):
+    """Each condition of the batch's, met where the general path decides otherwise (a flag on
+    the descent, a double trigger collapsed, a repeat not doubled, an impulse rejected): the
+    same every way, and that impulse's event is not a plain kept one."""
+    stream, pairing, channels = _case(run_times, name)
+    lines = [format_alge(c, round(s * 1e6) % DAY_US, n, f) for c, s, n, f in stream]
+    data = ("\r".join(lines) + "\r").encode()
+    got = all_ways(configs("alge", channels, pairing), demo_track, data, [])
+    plain = [e for e in got["events"] if e[5] and not e[6]]
+    flagged = [d for d in got["finished"] if d[4]]
+    assert len(plain) < len(stream) or flagged, "the case is no edge: the general path agrees"
+
+
+def test_over_midnight_in_the_batch(configs, demo_track, run_times):
+    """A day of one skier at a time over midnight, in one chunk: the batch moves the clock's
+    day as the general path does (a later time of day unwraps on it)."""
+    stream = [x for k in range(12) for x in _clean(run_times, k, 86_100 + 30 * k, "counter")]
+    lines = [format_alge(c, round(s * 1e6) % DAY_US, n, f) for c, s, n, f in stream]
+    data = ("\r".join(lines) + "\r").encode()
+    got = all_ways(configs("alge", None, "order"), demo_track, data, [])
+    assert got["clock"][1] == 1 and len(got["finished"]) == 12
+
+
 # ----------------------------------------------------------------------------- mutated days
 
 FLAGS = " ?cimdC!x"
+#: time shifts (µs): a double trigger, a slower or faster section, past a time-out, a flipped
+#: hour digit, a day back
+SHIFTS = [1, 250_000, -1_200_000, -2_000_000, 3_500_000, 30_000_000, 87_000_000,
+          3 * 3600 * 10**6, -(10**10)]  # fmt: skip
 
 
 def mutate(lines: list[str], ops: list[tuple[int, int, int]]) -> list[str]:
@@ -281,7 +361,7 @@ def mutate(lines: list[str], ops: list[tuple[int, int, int]]) -> list[str]:
         if what == 0:
             del lines[i]
         elif what == 1:
-            lines.insert(min(len(lines), i + 1 + much % 5), s)  # a repeat, later
+            lines.insert(min(len(lines), i + 1 + much % 40), s)  # a repeat, later
         elif what == 2 and i + 1 < len(lines):
             lines[i], lines[i + 1] = lines[i + 1], s  # out of order
         elif len(s) != 26:
@@ -296,7 +376,7 @@ def mutate(lines: list[str], ops: list[tuple[int, int, int]]) -> list[str]:
             t = AlgeParser().parse(s)
             tod = getattr(t, "tod_us", None)
             if tod is not None:  # small shifts and big jumps (a flipped hour digit)
-                shift = [1, 250_000, -2_000_000, 30_000_000, 3 * 3600 * 10**6, -(10**10)][much % 6]
+                shift = SHIFTS[much % len(SHIFTS)]
                 lines[i] = s[:10] + format_tod((tod + shift) % DAY_US, 4) + s[23:]
         else:
             lines.insert(i, "CLASSEMENT:" if much % 9 == 0 else "garbage " + str(much))
