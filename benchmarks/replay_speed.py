@@ -12,6 +12,13 @@
 2. A 50-descent capture with timing noise, double triggers and running-time lines, replayed
    end to end: parse, assemble, fit every descent, write the results CSV.
 
+OpenBLAS is capped at one thread before numpy loads, as ``station``'s command line caps it
+(``station.cli.main.one_blas_thread``): the command's set-up fits the survey's smoothing spline
+(one 68 × 68 eigh), which a pool of BLAS threads on the shared 2-core machine made 50-90 ms of
+CPU instead of 0.5 ms. This process imports numpy before it calls the command, so without the
+cap it measured a thread pool the command never has (0.5 µs a line of the capture, 1/5 of
+the replay's time).
+
 Run: python benchmarks/replay_speed.py
 """
 
@@ -26,10 +33,14 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+from station.cli.main import one_blas_thread  # noqa: E402
+
+one_blas_thread()  # before numpy loads, as `station replay` does
+
+import numpy as np  # noqa: E402
 
 from station.model.physics import Conditions, Params, StraightRun  # noqa: E402
 from station.session.acquisition import replay  # noqa: E402
@@ -153,7 +164,8 @@ def main() -> int:
     # 1. parse + assemble: station replay --no-fit against a bare loop
     med = measure_replay()
     print(f"replay of 100,800 impulse lines (2.7 MB, 11 200 descents), median of 5, CPU time, "
-          f"load {os.getloadavg()[0]:.1f}")  # fmt: skip
+          f"load {os.getloadavg()[0]:.1f}, OpenBLAS threads "
+          f"{os.environ.get('OPENBLAS_NUM_THREADS', 'default')}")  # fmt: skip
     for k, v in med.items():
         print(f"  {k:<16} {v:>12,.0f} lines/s   1/{med['bare loop'] / v:.1f} of the bare loop")
     for k in ("replay --no-fit", "session --no-fit"):
