@@ -40,6 +40,10 @@ def _no_run(_self, _items, start, _line):
     return start, [], []
 
 
+def _general_lines(self, lines):
+    return [self.parse_general(line) for line in lines]
+
+
 @contextlib.contextmanager
 def way(name: str):
     """The processor and assembler as shipped, without the batch, or the general path only."""
@@ -49,8 +53,9 @@ def way(name: str):
         if name == "general":
             m.setattr(DescentAssembler, "_next_photocell", lambda *_a: None)
             m.setattr(DescentAssembler, "_start", lambda *_a: False)
-            m.setattr(AlgeParser, "parse", AlgeParser.parse_general)
-            m.setattr(TagParser, "parse", TagParser.parse_general)
+            for cls in (AlgeParser, TagParser):
+                m.setattr(cls, "parse", cls.parse_general)
+                m.setattr(cls, "parse_lines", _general_lines)
         yield
 
 

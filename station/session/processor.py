@@ -147,8 +147,7 @@ class Processor:
         """:meth:`_line` for each line of a plain capture's chunk (no host clock), its common
         impulse handled here: a replay of a capture is a hundred thousand of them."""
         done: list[TimedDescent] = []
-        parse = self.parser.parse
-        parsed_lines = [parse(line) for line in lines]  # the parser's state is its own
+        parsed_lines = self.parser.parse_lines(lines)  # (the parser's state is its own)
         asm = self.assembler
         feed, feed_run = asm.feed, asm.feed_run
         start_host, started_judged = self.start_host, self._started
