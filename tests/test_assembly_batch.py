@@ -344,6 +344,15 @@ def test_over_midnight_in_the_batch(configs, demo_track, run_times):
     data = ("\r".join(lines) + "\r").encode()
     got = all_ways(configs("alge", None, "order"), demo_track, data, [])
     assert got["clock"][1] == 1 and len(got["finished"]) == 12
+    # the chunk ends within a descent just past midnight; the next begins with a time from
+    # before midnight at a later photocell (the general path's): unwrapped on the clock's day
+    descent = _clean(run_times, 0, 86_395, "counter")
+    stray = ("C5", 86_398, 99, " ")
+    lines = [format_alge(c, round(s * 1e6) % DAY_US, n, f)
+             for c, s, n, f in [*descent[:4], stray, *descent[4:]]]  # fmt: skip
+    data = ("\r".join(lines) + "\r").encode()
+    got = all_ways(configs("alge", None, "order"), demo_track, data, [4 * 27])
+    assert got["clock"][1] == 1 and len(got["finished"]) == 1
 
 
 # ----------------------------------------------------------------------------- mutated days

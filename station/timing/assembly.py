@@ -598,14 +598,22 @@ class DescentAssembler:
         number = 0
         d_bib = ""
         j = -1  # the index of the open descent's last photocell
-        v_prev: float | None = None  # its speed into it, where this loop computed it
+        last = 0  # and its last time
+        # its speed into photocell j, where the order pairing checks the next one against it:
+        # the speed this loop computed for the impulse before (the very float _why_not has)
+        v_prev: float | None = None
+        line0 = line - start  # the line of items[i]: line0 + i
         if open_:
             d = open_[0]
             photocells, times = d.photocells, d.times_us
             add_pc, add_t, add_ch = photocells.append, times.append, d.channels.append
-            number, d_bib, j = d.number, d.bib, self.order[photocells[-1]]
-        i = start
-        while i < n:
+            number, d_bib, j, last = d.number, d.bib, self.order[photocells[-1]], times[-1]
+            pos = self.positions
+            if by_order and pos is not None and len(times) >= 2 and last > times[-2]:
+                i_before = self.order[photocells[-2]]
+                v_prev = (pos[j] - pos[i_before]) / ((last - times[-2]) / 1e6)
+        next_base = base + day_us
+        for i in range(start, n):
             imp = items[i]
             if type(imp) is not impulse:
                 break
@@ -630,53 +638,44 @@ class DescentAssembler:
                 self.count += 1
                 number = self.count
                 d_bib = "" if by_order or flag == "?" else bib.strip().lstrip("0")
-                d = TimedDescent(number, [pc], [t], first_line=line, channels=[ch], bib=d_bib)
+                d = TimedDescent(number, [pc], [t], first_line=line0 + i, channels=[ch],
+                                 bib=d_bib)  # fmt: skip
                 open_.append(d)
                 started.append(d)
                 photocells, times = d.photocells, d.times_us
                 add_pc, add_t, add_ch = photocells.append, times.append, d.channels.append
-                j = 0
-                v_prev = None
+                j, last, v_prev = 0, t, None
             else:
                 if k != j + 1:
                     break
                 if not by_order and (flag == "?" or not d_bib or bib.strip().lstrip("0") != d_bib):
                     break
-                last = times[-1]
                 gap = t - last
                 if gap <= 0 or gap > timeouts[j]:
                     break
-                v = None
                 if step_m is not None:
                     v = step_m / (gap / 1e6)
                     if v > max_speed:
                         break
-                    if by_order and len(photocells) >= 2:
-                        if v_prev is None:  # the speed into photocell j, as _why_not has it
-                            pos = self.positions
-                            assert pos is not None
-                            dt = (last - times[-2]) / 1e6
-                            if dt > 0:
-                                v_prev = (pos[j] - pos[self.order[photocells[-2]]]) / dt
-                        if v_prev is not None and not (v_prev / ratio <= v <= v_prev * ratio):
-                            break
+                    if v_prev is not None and not v_prev / ratio <= v <= v_prev * ratio:
+                        break
+                    if by_order:
+                        v_prev = v
                 add_pc(pc)
                 add_t(t)
                 add_ch(ch)
-                j = k
-                v_prev = v
+                j, last = k, t
             if damaged:
                 self._move_clock(t)  # (its clock, day and the damaged lines' times)
             clock = t  # (the assembler's is set when the run ends or a descent does)
             low = t - half_day_us
-            if not base <= t < base + day_us:
+            if t >= next_base:  # (t is never before base: base + a time of day)
                 base = t // day_us * day_us
+                next_base = base + day_us
             if seen is None:
                 seen = seen_map[ch] = set()
             seen.add(t)
-            events_append(new_event(event, (line, ch, pc, tod, flag, True, "", number)))
-            i += 1
-            line += 1
+            events_append(new_event(event, (line0 + i, ch, pc, tod, flag, True, "", number)))
             if k == last_k:
                 open_.clear()
                 d.status = "complete" if photocells[0] == first_pc else "incomplete"
@@ -686,6 +685,8 @@ class DescentAssembler:
                 old_max = self._old_max
                 ld_pc, ld_t = pc, t
                 d = None
+        else:
+            i = n
         if i > start:
             self._clock, self._day_offset = clock, clock // day_us
         return i, done, started
