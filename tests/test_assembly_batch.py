@@ -28,6 +28,7 @@ from station.session.config import load_config
 from station.session.processor import Processor
 from station.session.rawlog import Chunk
 from station.timing.assembly import DescentAssembler
+from station.timing.framing import LineFramer
 from station.timing.impulses import DAY_US, format_tod
 from station.timing.wireformats import AlgeParser, TagParser, format_alge, tag_cs16
 from tests.timing_helpers import write_config
@@ -414,6 +415,133 @@ def test_mutated_days_the_same_every_way(configs, demo_track, run_times, seed, n
     data = ("\r".join(lines) + "\r").encode("latin-1")
     all_ways(configs("alge", None, pairing), demo_track, data,
              list(range(chunk, len(data), chunk)))  # fmt: skip
+
+
+# ----------------------------------------------------------------------------- sessions
+
+
+def session_chunks(lines: list[str], seed: int) -> list[Chunk]:
+    """A session's raw log of ``lines``: a record a line, as a recording reads them, at host
+    times that follow the timer's clock (a line whose time does not read, or is far off, comes
+    0.3 s after the one before); now and then two lines in one read, a line split over two
+    reads, a time-out event, a disconnect."""
+    rng = random.Random(seed)
+    parser = AlgeParser()
+    chunks: list[Chunk] = []
+    host = 1_767_600_000.0
+    for line in lines:
+        tod = getattr(parser.parse_general(line), "tod_us", None)
+        guess = 1_767_600_000.0 + (tod or 0) / 1e6 + rng.uniform(0, 0.05)
+        while guess < host - 43_200:
+            guess += 86_400
+        host = guess if tod is not None and abs(guess - host) < 60 else host + 0.3
+        data = (line + "\r").encode("latin-1")
+        roll = rng.random()
+        if roll < 0.03 and chunks and chunks[-1].data:  # two lines in one read
+            chunks[-1] = Chunk(chunks[-1].t, chunks[-1].data + data)
+        elif roll < 0.06:  # a line over two reads
+            chunks += [Chunk(host, data[:10]), Chunk(host + 0.001, data[10:])]
+        else:
+            chunks.append(Chunk(host, data))
+        if rng.random() < 0.03:
+            chunks.append(Chunk(host + rng.uniform(0, 120), b"", "timeout"))
+        if rng.random() < 0.005:
+            chunks.append(Chunk(host + 0.5, b"", "disconnected", "EIO"))
+    return chunks
+
+
+def replayed_session(cfg, track, chunks: list[Chunk], name: str) -> dict:
+    """A session's chunks replayed as ``replay --no-fit`` does (``feed_chunks``, the batch)
+    or a chunk at a time (``feed``, as a recording and a replay with fits do)."""
+    with way(name):
+        proc = Processor(cfg, track)
+        if name == "batch":
+            out = proc.feed_chunks(chunks)
+        else:
+            out = [d for chunk in chunks for d in proc.feed(chunk)]
+        out += proc.finish()
+    asm = proc.assembler
+    return {
+        "events": [tuple(e) for e in asm.events],
+        "per chunk": [[d.number for d in out]],  # (an edit changes a descent after it came out)
+        "finished": [_descent(d) for d in asm.finished],
+        "open": [_descent(d) for d in asm.open],
+        "count": asm.count,
+        "mode": asm.mode,
+        "clock": (asm.clock, asm._day_offset),
+        "lines": (proc.lines, proc.impulses, dict(proc.counts), proc.unparsed),
+        "starts": [proc.start_host.get(n) for n in range(1, asm.count + 1)],
+        "latest start": proc._latest_start,
+        "resolution": proc.resolution_us,
+        "host": (proc.offset_us, list(proc._recent), proc._chunk_t, proc.connection),
+    }
+
+
+def all_ways_session(cfg, track, chunks: list[Chunk]) -> dict:
+    got = {name: replayed_session(cfg, track, chunks, name) for name in WAYS}
+    assert_same(got["batch"], got["general"], "session: batch against the general path")
+    assert_same(got["batch"], got["no batch"], "session: batch against chunk by chunk")
+    return got["batch"]
+
+
+@pytest.mark.parametrize("pairing", ["auto", "bib"])
+@pytest.mark.parametrize("name", ["ALGETdC8001-202002020841.dump", "ALGETdC8001-202002021133.dump"])
+def test_real_days_as_sessions_the_same_every_way(real, configs, demo_track, name, pairing):
+    framer = LineFramer()
+    lines = framer.feed((real / "alge" / name).read_bytes()) + framer.flush()
+    for seed in range(3):
+        got = all_ways_session(configs("alge", ALGE_2, pairing), demo_track,
+                               session_chunks(lines, seed))  # fmt: skip
+        assert got["starts"] and all(h is not None for h in got["starts"][:50])
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize(("numbering", "pairing"), [("bib", "auto"), ("counter", "auto")])
+def test_simulated_sessions_the_same_every_way(configs, demo_track, run_times, seed, numbering,
+                                               pairing):  # fmt: skip
+    lines = simulated_alge(run_times, seed, numbering)
+    got = all_ways_session(configs("alge", None, pairing), demo_track,
+                           session_chunks(lines, seed))  # fmt: skip
+    assert sum(d[3] == "complete" for d in got["finished"]) > 20
+
+
+@settings(max_examples=40, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])  # fmt: skip
+@given(
+    seed=st.integers(0, 10_000),
+    numbering=st.sampled_from(["bib", "counter"]),
+    pairing=st.sampled_from(["auto", "bib", "order"]),
+    ops=st.lists(
+        st.tuples(st.integers(0, 7), st.integers(0, 10**6), st.integers(0, 10**6)), max_size=40
+    ),
+)
+def test_mutated_sessions_the_same_every_way(configs, demo_track, run_times, seed, numbering,
+                                             pairing, ops):  # fmt: skip
+    lines = mutate(simulated_alge(run_times, seed, numbering, n=15), ops)
+    all_ways_session(configs("alge", None, pairing), demo_track, session_chunks(lines, seed))
+
+
+def test_a_clean_session_goes_through_the_batch(configs, demo_track, run_times, monkeypatch):
+    taken = []
+    real_run = DescentAssembler.feed_run
+
+    def counted(self, items, start, line):
+        stop, done, started = real_run(self, items, start, line)
+        taken.append(stop - start)
+        return stop, done, started
+
+    monkeypatch.setattr(DescentAssembler, "feed_run", counted)
+    lines = [format_alge(f"C{i}", 36_000_000_000 + k * 60_000_000 + int(ti * 1e6), 9 * k + i + 1)
+             for k in range(50) for i, ti in enumerate(run_times)]  # fmt: skip
+    host = 1_767_600_000.0
+    chunks = [Chunk(host + 36_000 + k * 60 + ti + 0.01, (line + "\r").encode())
+              for line, (k, ti) in zip(lines, [(k, ti) for k in range(50) for ti in run_times],
+                                       strict=True)]  # fmt: skip
+    proc = Processor(configs("alge"), demo_track)
+    done = proc.feed_chunks(chunks)
+    assert len(done) == 50 and all(d.status == "complete" for d in done)
+    assert proc.impulses == 450 and sum(taken) == 448
+    assert proc.start_host.get(50) == chunks[49 * 9].t
 
 
 # ----------------------------------------------------------------------------- the command

@@ -119,9 +119,8 @@ def _replay_no_fit(args: argparse.Namespace, cfg: Any) -> int:
     was_enabled = gc.isenabled()
     gc.disable()
     try:
-        for chunk in replay_chunks(args.source, None, None, warnings):
-            for d in proc.feed(chunk):
-                ended[d.number] = d
+        for d in proc.feed_chunks(replay_chunks(args.source, None, None, warnings)):
+            ended[d.number] = d
         for d in proc.finish():
             ended[d.number] = d
     finally:
