@@ -155,30 +155,30 @@ class Processor:
         feed, feed_run = asm.feed, asm.feed_run
         start_host, started_judged = self.start_host, self._started
         i, n = 0, len(lines)
+        stopped = -1  # the impulse the batch stopped at: the general path's
         while i < n:
-            if self.resolution_us is not None:
-                # the common impulses from here in one run of the assembler's
-                stop, ended, started = feed_run(parsed_lines, i, self.lines + 1)
-                if stop > i:
-                    self.lines += stop - i
-                    self.impulses += stop - i
-                    for d in started:  # no host clock: each start undated, judged
-                        start_host[d.number] = None
-                        started_judged(d)
-                    done += ended
-                    i = stop
-                    if i == n:
-                        break
-            # the one it stopped at (or the first impulse, which states the resolution)
             parsed = parsed_lines[i]
             if type(parsed) is Impulse and self.resolution_us is not None:
+                if i != stopped:
+                    # the common impulses from here in one run of the assembler's
+                    stop, ended, started = feed_run(parsed_lines, i, self.lines + 1)
+                    if stop > i:
+                        self.lines += stop - i
+                        self.impulses += stop - i
+                        for d in started:  # no host clock: each start undated, judged
+                            start_host[d.number] = None
+                            started_judged(d)
+                        done += ended
+                        i = stopped = stop
+                        continue
+                # one the batch does not take, the general way
                 self.lines += 1
                 self.impulses += 1
                 before = asm.count
                 ended = feed(parsed, self.lines, None)
                 if asm.count > before:  # no host clock: each start undated, judged
                     self._new_descents(before, ended, None, judge=True)
-            else:
+            else:  # any other line, or the first impulse (it states the resolution)
                 ended = self._parsed(lines[i], parsed, None)
             if ended:
                 done += ended
@@ -232,8 +232,9 @@ class Processor:
         asm = self.assembler
         feed_run, recent = asm.feed_run, self._recent
         i, n = 0, len(lines)
+        stopped = -1  # the impulse the batch stopped at: the general path's
         while i < n:
-            if self.resolution_us is not None:
+            if i != stopped and type(parsed_lines[i]) is Impulse and self.resolution_us is not None:
                 first = self.lines + 1  # the line number of parsed_lines[i]
                 stop, ended, started = feed_run(parsed_lines, i, first)
                 if stop > i:
@@ -249,9 +250,8 @@ class Processor:
                         self.start_host[d.number] = hosts[i + d.first_line - first]
                         self._started(d)
                     done += ended
-                    i = stop
-                    if i == n:
-                        break
+                    i = stopped = stop
+                    continue
             ended = self._parsed(lines[i], parsed_lines[i], hosts[i])
             if ended:
                 done += ended
