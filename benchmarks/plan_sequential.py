@@ -20,7 +20,9 @@ fit's 1/se², the estimates' own spread), correlations, dof, the spread of z aga
 
 The fits do not depend on the rule: ``--cache FILE`` keeps every look's (Δμ̂, se, dof) so the
 rule can be judged again without fitting again (the cache is keyed by setup, scatter, Δμ, day).
-``--seed0`` moves the equal-ski days to other seeds.
+``--seed0`` moves the equal-ski days to other seeds. ``--variants``: remedies inside the rule
+(looks only from 3, 4 or 5 descents a ski; a t at the descents' own degrees of freedom) judged
+on the same looks (:func:`variants`).
 
 Measured (load 4–5, 2 processes, about 6 minutes of fits per 600 days): winners between equal
 skis on 12.0 % of 600 days at 0.5 %, 11.0 % of 600 at 1 %, 12.2 % of 1200 at 2 % (95 % upper
@@ -30,6 +32,7 @@ than its t at two descents per item and up to 7 % in the middle of the day (READ
 
 Run: python benchmarks/plan_sequential.py [--days 200] [--days-diff 100] [--jobs 2]
      [--setup demo|sparse|both] [--cache FILE] [--scatter S] [--seed0 N] [--per-look]
+     [--variants]
 """
 
 from __future__ import annotations
@@ -165,6 +168,44 @@ def per_look(eq_looks: list[list[Look]], draws: int = 200_000) -> list[str]:
     return out
 
 
+def variants(eq_looks: list[list[Look]], df_looks: list[list[Look]]) -> list[str]:
+    """Remedies inside the rule, judged on the same looks (issue 21): looks only from m
+    descents a ski on (the spending starting there, Lan–DeMets at the same information times),
+    and a t boundary at the pair's descents − 4 degrees of freedom (items, drift and the
+    skier's CdA taken from the descents) where that is fewer than the fit's."""
+    from scipy.special import ndtr, stdtrit
+
+    fr = look_fractions(ORDER, "A", "B", HORIZON)
+
+    def judge_with(first: int, between: bool):
+        idx = [j for j in range(len(fr)) if j + 4 >= 2 * first]
+        c = dict(zip(idx, look_boundaries([fr[j] for j in idx]), strict=True))
+
+        def judge_day(looks: list[Look]) -> tuple[int, int | None]:
+            for j in idx:
+                delta, se, dof = looks[j]
+                nu = min(dof, max(j + 4 - 4, 0.5)) if between else dof
+                if abs(delta) >= float(stdtrit(nu, 1 - ndtr(-c[j]))) * se:
+                    return (1 if delta < 0 else -1), (j + 5) // 2
+            return 0, None
+
+        return judge_day
+
+    out = []
+    for name, first, between in [("looks from 3 a ski", 3, False), ("from 4", 4, False),
+                                 ("from 5", 5, False), ("t at descents − 4", 2, True)]:  # fmt: skip
+        j = judge_with(first, between)
+        eq = [j(x) for x in eq_looks]
+        df = [j(x) for x in df_looks]
+        firsts = [f for w, f in df if f is not None]
+        med = np.median(firsts) if firsts else float("nan")
+        out.append(f"  {name:>20}: equal skis {100 * np.mean([w != 0 for w, _ in eq]):.1f} %; "
+                   f"Δμ 0.001: wrong {sum(w == -1 for w, _ in df)}, decided "
+                   f"{100 * np.mean([w == 1 for w, _ in df]):.0f} %, at {med:.1f} a ski "
+                   "(median)")  # fmt: skip
+    return out
+
+
 def upper95(hits: int, n: int) -> float:
     """The one-sided 95 % Clopper–Pearson upper bound of a rate."""
     from scipy.special import betaincinv
@@ -184,6 +225,8 @@ def main() -> int:
     ap.add_argument("--per-look", action="store_true",
                     help="also the equal-ski days look by look: α spent and declared, information, "
                          "dof, spread of z")  # fmt: skip
+    ap.add_argument("--variants", action="store_true",
+                    help="also remedies inside the rule judged on the same looks")  # fmt: skip
     args = ap.parse_args()
     setups = ["demo", "sparse"] if args.setup == "both" else [args.setup]
     cache: dict[str, list[Look]] = {}
@@ -236,6 +279,8 @@ def main() -> int:
                       f"{med:>25}")  # fmt: skip
                 if args.per_look:
                     print("\n".join(per_look(eq_looks)) + "\n")
+                if args.variants:
+                    print("\n".join(variants(eq_looks, df_looks)) + "\n")
     print(f"\n{time.perf_counter() - t_all:.0f} s in all")
     return 0
 
