@@ -119,7 +119,8 @@ def per_look(eq_looks: list[list[Look]], draws: int = 200_000) -> list[str]:
     the t's 90 % point. Then the rule itself on Brownian motion in information time with the
     timing noise re-estimated at every look (χ² increments at the fit's degrees of freedom):
     the rule's error when the fit's z is exactly t, and when each look's z is spread by its
-    measured SD over the t's."""
+    measured SD over the t's; and how much more often than the t says z lies beyond its 10,
+    5, 2 and 1 % two-sided points (the tails the rule's boundaries sit in)."""
     from scipy.special import ndtr, stdtrit
 
     fr = np.array(look_fractions(ORDER, "A", "B", HORIZON))
@@ -162,6 +163,12 @@ def per_look(eq_looks: list[list[Look]], draws: int = 200_000) -> list[str]:
     exact = np.mean((np.abs(zt) >= ct).any(axis=1))
     spread = np.mean((np.abs(zt * ratio) >= ct).any(axis=1))
     days = np.mean(first < n_looks)
+    tails = []
+    for level in (0.10, 0.05, 0.02, 0.01):
+        q = np.array([float(stdtrit(v, 1 - level / 2)) for v in dof])
+        tails.append(f"{level:g}: {np.mean(np.abs(z) >= q) / level:.2f}")
+    out.append("beyond the t's two-sided level, times the level (mean over the looks): "
+               + ", ".join(tails))  # fmt: skip
     out.append(f"the rule on Brownian motion with the t's noise ({draws} draws): "
                f"{100 * exact:.1f} %; with each look's z spread as measured (SD z / SD t): "
                f"{100 * spread:.1f} %; on the days: {100 * days:.1f} %")  # fmt: skip
