@@ -597,11 +597,9 @@ class Acquisition:
             else:
                 a = job.annotation
                 effect = _effect_now(day, a) if job.applied else day.annotate(a)
+                # a refit after later descents gives the replay's fit: the survey covariance
+                # each descent takes does not hang on the order of the fits (Analyser)
                 fit_jobs = [day.fit_job(day.results[n].descent) for n in effect.refit]
-                if effect.refit:
-                    # a refit after later descents: the survey covariance handed on, and
-                    # the order of the fits, may not be a replay's
-                    self._not_as_replayed("descents fitted again during the recording")
         fitted = [day.analyser.run(j) for j in fit_jobs]  # outside the lock: the reader goes on
         kept = fitted if self.keep_curves else [r.lean() for r in fitted]
         with self.lock:

@@ -9,9 +9,9 @@ skier or the snow temperature the metadata columns of the descents they are for.
 are changed in place and the file written once. An annotation that changes a fit (a model; a
 mass, air or wind for listed descents) fits those descents alone, with their crossing times
 from ``SESSION/results.descents.json`` (the replay's descents in the order it fitted them, and
-the survey covariance the first good fit on a set of photocells hands on to the later ones),
-when none of them is that first fit or comes before it; otherwise, and for such a change from
-descent N on, the day is replayed as before (its fits from the fit store but those changed).
+the survey covariance of each set of photocells, which no annotation moves:
+:class:`station.session.analysis.Analyser`); a change from descent N on is replayed as
+before (its fits from the fit store but those changed).
 
 The state says, for one results CSV:
 
@@ -375,30 +375,19 @@ def write_state_of_recording(
 
 def fitted_of(day: Any) -> Fitted:
     """A day's descents (:class:`station.session.day.Day`) in the order they were fitted, and
-    the descent on each set of photocells whose fit handed the survey's covariance on to the
-    later ones (the analyser's rule: the first good fit with one)."""
-    order = [day.results[n] for n in day.results]  # fitted once each, in this order
-    sources: dict[tuple[str, ...], tuple[int, Any]] = {}
-    for r in order:
-        if r.descent.photocells in sources:
-            continue  # found: the fit is not read (a recording keeps it in the store only)
-        fit = r.fit
-        if fit is not None and fit.status == "ok" and fit.survey_time_cov is not None:
-            sources[r.descent.photocells] = (r.number, fit.survey_time_cov)
-    return Fitted(
-        [r.descent for r in order],
-        [(ids, n, cov) for ids, (n, cov) in sources.items()],
-        day.timer_precision_s(),
-    )
+    the descent on each set of photocells whose reference fit gave the survey's covariance the
+    later ones take (the analyser's rule: :class:`station.session.analysis.Analyser`)."""
+    order = [day.results[n].descent for n in day.results]  # fitted once each, in this order
+    return Fitted(order, day.analyser.survey_sources(), day.timer_precision_s())
 
 
 @dataclass
 class Fitted:
     """A replay's descents as it fitted them: in the order it fitted them (the crossing times,
     :class:`DescentTimes`), the survey covariance of each set of photocells and the descent
-    whose fit handed it on (the first good fit on them: the later ones use it), and the
-    timer's precision. A descent after that one on its photocells can be fitted again alone
-    and gets the fit the replay would give it."""
+    whose reference fit gave it (the later ones take it; those before it computed their
+    own), and the timer's precision. Any descent can then be fitted again alone and gets the
+    fit the replay would give it."""
 
     order: list[Any]  # DescentTimes
     sources: list[tuple[tuple[str, ...], int, Any]]  # photocells, descent, covariance
@@ -685,9 +674,10 @@ def _refit(
 ) -> dict[int, tuple[bytes, str]] | None:
     """The rows of the descents ``start_times`` names (with their start times as the CSV has
     them) fitted again as a replay would fit them now, with the session's annotations: each
-    one's new row and its fit's status; None when one of them cannot be fitted alone (the
-    first good fit on its photocells, or one before it, hands the survey covariance on to the
-    later ones: a replay then). Loads the fit (numpy, scipy): only here."""
+    one's new row and its fit's status; None when one of them cannot be fitted alone (not in
+    the descents file, or a file of another version: a replay then). The survey covariance
+    each takes is the one the replay's fit took (the descents file's: no annotation moves
+    it). Loads the fit (numpy, scipy): only here."""
     from dataclasses import replace
 
     import numpy as np
@@ -732,14 +722,18 @@ def _refit(
             d = from_json(DescentTimes, order[i])
         except Exception:  # noqa: BLE001 - not this version's: replayed
             return None
+        # the survey covariance the replay's fit of it took: that of its photocells when it
+        # ended after the descent whose reference fit gave it (or is that one), else its own
         source = sources.get(d.photocells)
-        if source is None or source[0] in start_times or where.get(source[0], i) >= i:
-            return None  # its fit hands the survey's covariance on, or is handed it: replayed
-        try:
-            cov = from_json(np.ndarray, source[1])
-        except Exception:  # noqa: BLE001
-            return None
-        analyser._survey_cov[d.photocells] = cov  # noqa: SLF001 - as the replay hands it on
+        at = where.get(source[0]) if source is not None else None
+        if source is None or at is None or at > i:
+            analyser.own_survey(n)
+        else:
+            try:
+                cov = from_json(np.ndarray, source[1])
+            except Exception:  # noqa: BLE001 - not this version's: replayed
+                return None
+            analyser.hand_on(d.photocells, source[0], cov)
         # the day's own job, with the start time of the CSV and the day's timer precision
         # (the replay's processor knows both; here there is none; no items: see in_place)
         job = day.job(d, started, precision)
