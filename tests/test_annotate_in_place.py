@@ -186,7 +186,9 @@ def test_a_descent_fitted_before_its_photocells_had_the_survey_is_fitted_again_i
 ):
     """Descent 1 ended before its photocells had a survey covariance (its own fit poor):
     fitted again alone it computes its own, as the replay's fit of it did; descent 2, whose
-    reference fit gave the covariance, and a later one take the replay's."""
+    reference fit gave the covariance, and a later one take the replay's. (Descent 1's row
+    does not show which covariance it took: a poor fit's intervals are its timing-only ones.
+    tests/test_survey_handed_on.py compares its fit to the bit; descent 2's row shows it.)"""
     session = tmp_path / "session"
     shutil.copytree(poor_first, session)
     rows = csv_of(session).decode().splitlines()

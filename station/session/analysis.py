@@ -204,7 +204,9 @@ class Analyser:
         self._survey_cov: dict[tuple[str, ...], np.ndarray] = {}
         #: the descent whose reference fit gave each set of photocells its covariance
         self.survey_source: dict[tuple[str, ...], int] = {}
-        self._own_survey: set[int] = set()  # descents fitted before their photocells had one
+        #: (descent, its photocells) fitted before those photocells had one (an edit at the
+        #: timer may change a descent's photocells: each set is judged by itself)
+        self._own_survey: set[tuple[int, tuple[str, ...]]] = set()
         #: fits stored with the session, when it has them: a fit found there is not computed
         self.fits: FitCache | None = None
         self._stored: dict[float, StoredFit] = {}  # what a result keeps of it, by precision
@@ -237,10 +239,15 @@ class Analyser:
         gave it, and the covariance (the descents file of the in-place annotate keeps them)."""
         return [(ids, n, self._survey_cov[ids]) for ids, n in self.survey_source.items()]
 
-    def own_survey(self, number: int) -> None:
-        """Descent ``number`` ended before its photocells had a survey covariance: its fit
-        computes its own (the in-place annotate, from the replay's order of the descents)."""
-        self._own_survey.add(number)
+    def own_survey(self, number: int, ids: tuple[str, ...]) -> None:
+        """Descent ``number`` on the photocells ``ids`` was first fitted before they had a
+        survey covariance: its fit computes its own (the in-place annotate has it from the
+        replay's descents file)."""
+        self._own_survey.add((number, ids))
+
+    def computes_own(self, number: int, ids: tuple[str, ...]) -> bool:
+        """Whether descent ``number``'s fit on ``ids`` computes its own survey covariance."""
+        return (number, ids) in self._own_survey
 
     def _run_of(self, ids: tuple[str, ...]) -> tuple[StraightRun, np.ndarray]:
         run = self._runs.get(ids)
@@ -269,7 +276,7 @@ class Analyser:
         descent's own fit too."""
         d = job.descent
         ids = d.photocells
-        if d.status == DescentStatus.ABORTED or d.number in self._own_survey:
+        if d.status == DescentStatus.ABORTED or (d.number, ids) in self._own_survey:
             return None, None
         cov = self._survey_cov.get(ids)
         if cov is not None:
@@ -279,7 +286,7 @@ class Analyser:
         try:
             computed: tuple[FitResult, str | None] | None = self._computed(ref_job, run, None)
         except Exception:
-            self._own_survey.add(d.number)
+            self._own_survey.add((d.number, ids))
             if alike:
                 raise  # the descent's own fit failed: its error
             computed = None  # no reference: the descent computes its own
@@ -288,7 +295,7 @@ class Analyser:
         if ref is not None and ref.status == FitStatus.OK and ref.survey_time_cov is not None:
             self.hand_on(ids, d.number, ref.survey_time_cov)
             return ref.survey_time_cov, same
-        self._own_survey.add(d.number)
+        self._own_survey.add((d.number, ids))
         return None, same
 
     def _computed(

@@ -378,7 +378,9 @@ def fitted_of(day: Any) -> Fitted:
     the descent on each set of photocells whose reference fit gave the survey's covariance the
     later ones take (the analyser's rule: :class:`station.session.analysis.Analyser`)."""
     order = [day.results[n].descent for n in day.results]  # fitted once each, in this order
-    return Fitted(order, day.analyser.survey_sources(), day.timer_precision_s())
+    an = day.analyser
+    own = [d.number for d in order if an.computes_own(d.number, d.photocells)]
+    return Fitted(order, an.survey_sources(), day.timer_precision_s(), own)
 
 
 @dataclass
@@ -386,12 +388,13 @@ class Fitted:
     """A replay's descents as it fitted them: in the order it fitted them (the crossing times,
     :class:`DescentTimes`), the survey covariance of each set of photocells and the descent
     whose reference fit gave it (the later ones take it; those before it computed their
-    own), and the timer's precision. Any descent can then be fitted again alone and gets the
-    fit the replay would give it."""
+    own), the descents whose fit computed its own, and the timer's precision. Any descent can
+    then be fitted again alone and gets the fit the replay would give it."""
 
     order: list[Any]  # DescentTimes
     sources: list[tuple[tuple[str, ...], int, Any]]  # photocells, descent, covariance
     timer_precision_s: float
+    own: list[int] = field(default_factory=list)  # descents whose fit computed its own
 
 
 def _write_descents(session: str, fitted: Fitted) -> dict[str, Any]:
@@ -400,6 +403,7 @@ def _write_descents(session: str, fitted: Fitted) -> dict[str, Any]:
     rec = {
         "order": [to_json(d) for d in fitted.order],
         "sources": [[list(ids), n, to_json(cov)] for ids, n, cov in fitted.sources],
+        "own": fitted.own,
     }
     data = json.dumps(rec, separators=(",", ":")).encode()
     digest = _replace(os.path.join(session, DESCENTS), [data])
@@ -701,6 +705,7 @@ def _refit(
         order = rec["order"]
         where = {d["number"]: i for i, d in enumerate(order)}
         sources = {tuple(ids): (n, cov) for ids, n, cov in rec["sources"]}
+        own = set(rec["own"])
         track = build_track(load_survey(config.survey_path))
         analyser = Analyser(config, track)
         analyser.speed_curves = False
@@ -722,12 +727,13 @@ def _refit(
             d = from_json(DescentTimes, order[i])
         except Exception:  # noqa: BLE001 - not this version's: replayed
             return None
-        # the survey covariance the replay's fit of it took: that of its photocells when it
-        # ended after the descent whose reference fit gave it (or is that one), else its own
+        # the survey covariance the replay's fit of it took: its own (it was first fitted
+        # before its photocells had one), else that of its photocells
         source = sources.get(d.photocells)
-        at = where.get(source[0]) if source is not None else None
-        if source is None or at is None or at > i:
-            analyser.own_survey(n)
+        if n in own:
+            analyser.own_survey(n, d.photocells)
+        elif source is None:
+            return None  # a descents file that does not say: replayed
         else:
             try:
                 cov = from_json(np.ndarray, source[1])
