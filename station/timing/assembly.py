@@ -248,6 +248,10 @@ class DescentAssembler:
         self._seen_old: dict[str, array[int]] = {}
         self._old_max = -1
         self._damaged: list[_Damage] = []  # unread lines that may have been a start
+        #: the impulses come from the timer's memory (a download merged by ``station import``,
+        #: or sent between TAG ``DS`` and ``DE``, an ALGE ``m`` line): one no open descent
+        #: takes may be the rest of a descent that ended for want of it (the cable was out)
+        self.from_memory = False
 
     @property
     def current(self) -> TimedDescent | None:
@@ -588,6 +592,8 @@ class DescentAssembler:
             _flag_damaged(d, imp, line)
             return done
         chosen, reason = self._choose(pc, k, t, bib)
+        if chosen is None and self.from_memory:
+            chosen = self._rejoin(pc, k, t, bib)
         if chosen is None:
             rec, why = self._recover(imp, line, pc, k, t, bib)
             if rec is not None:
@@ -626,6 +632,47 @@ class DescentAssembler:
             done.append(d)
         done += self._expire(t)
         return done
+
+    def _rejoin(self, pc: str, k: int, t: int, bib: str) -> TimedDescent | None:
+        """A descent that ended short of photocell ``k`` (timed out, the timer disconnected,
+        the recording ended) and that an impulse from the timer's memory continues plausibly:
+        open again to take it and the rest, its crossing times all the timer's own. The
+        nearest in time of those that can; None: none can."""
+        best: tuple[int, TimedDescent] | None = None
+        for d in reversed(self.finished):
+            if not d.times_us or d.times_us[-1] >= t:
+                continue
+            if t - d.times_us[-1] > max(self.timeout_us) * len(self.photocells):
+                break  # the older ones ended earlier still (a day is in time order)
+            if d.status not in ("incomplete", "aborted") or self.order[d.photocells[-1]] >= k:
+                continue
+            if self.mode != "order" and bib and d.bib and d.bib != bib:
+                continue
+            if self._why_not(d, pc, k, t, by_order=True) is not None:
+                continue
+            gap = t - d.times_us[-1]
+            if best is None or gap < best[0]:
+                best = (gap, d)
+        if best is None:
+            return None
+        d = best[1]
+        d.thaw()
+        last = d.photocells[-1]
+        tail = self.photocells[self.order[last] + 1 :]
+        ended = f"; missing {', '.join(tail)}"
+        for i in range(len(d.flags) - 1, -1, -1):  # how it ended no longer holds
+            f = d.flags[i]
+            if f.endswith(ended) or (len(d.photocells) == 1 and f.startswith("lone ")):
+                del d.flags[i]
+                break
+        d.missing = [p for p in d.missing if p not in tail]
+        d.flags.append(f"joined: {last} recorded live, {pc} on from the timer's memory")
+        d.status = "open"
+        self.finished.remove(d)
+        if self._last_done is d:
+            self._last_done = None
+        self.open.append(d)
+        return d
 
     def _near(self, bib: str) -> int | None:
         """The descent an impulse was nearest to joining, for the events list."""
@@ -851,7 +898,13 @@ class DescentAssembler:
         if e.kind == "repeated from memory":
             # ALGE `m`: an impulse from the timer's memory (a download): kept unless it is
             # already (a live impulse the memory repeats is not doubled)
-            return self.feed(Impulse(e.channel, e.tod_us, 100, e.flag, e.bib, e.day, e.line), line)
+            was, self.from_memory = self.from_memory, True
+            try:
+                return self.feed(
+                    Impulse(e.channel, e.tod_us, 100, e.flag, e.bib, e.day, e.line), line
+                )
+            finally:
+                self.from_memory = was
         self._event(e, line, pc, False, f"{e.kind}: repeats an earlier impulse; nothing changed")
         return []
 
