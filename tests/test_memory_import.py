@@ -239,6 +239,7 @@ def test_the_cp540s_download_joins_the_descent_whose_start_was_recorded_live(
                     session)  # fmt: skip
     assert r.returncode == 0, r.stderr
     assert "1 already in the session" in r.stderr
+    assert "descent 1: joined: PC1 recorded live, PC2 on from the timer's memory" in r.stderr
     df = pd.read_csv(session / "results.csv", comment="#")
     first = df.iloc[0]
     assert first["photocells_used"] == 2 and first["descent_status"] == "complete"
@@ -358,6 +359,7 @@ def test_a_descent_split_by_an_unplugged_cable_is_whole_after_the_memory_import(
     r = run_station("import", memory, "--config", cfg, "--into", session)
     assert r.returncode == 0, r.stderr
     assert "27 impulses" in r.stderr and "22 already in the session, 5 added" in r.stderr
+    assert "descent 2: joined: PC4 recorded live, PC5 on from the timer's memory" in r.stderr
     df = pd.read_csv(session / "results.csv", comment="#")
     assert list(df["descent"]) == [1, 2, 3]
     assert list(df["photocells_used"]) == [9, 9, 9] and list(df["status"]) == ["ok"] * 3

@@ -133,6 +133,7 @@ class Processor:
                 self.assembler.from_memory = True
             if chunk.event == "disconnected":
                 self.assembler.disconnected(chunk.detail)
+                self.assembler.from_memory = False  # a download on the line ends with it
             return []
         lines = self.framer.feed(chunk.data)
         t: float | None = chunk.t  # None: a plain capture (replay_chunks)

@@ -110,6 +110,8 @@ class TimedDescent:
                 setattr(self, name, list(v))
 
 
+#: how the flag of a descent the timer's memory completed begins (``station import`` says it)
+JOINED = "joined: "
 #: the fields of a descent that are lists while the assembler may change them
 _LISTS = ("photocells", "times_us", "flags", "missing", "channels")
 #: kept times a channel holds in its set before the older ones move to its sorted array
@@ -666,7 +668,7 @@ class DescentAssembler:
                 del d.flags[i]
                 break
         d.missing = [p for p in d.missing if p not in tail]
-        d.flags.append(f"joined: {last} recorded live, {pc} on from the timer's memory")
+        d.flags.append(f"{JOINED}{last} recorded live, {pc} on from the timer's memory")
         d.status = "open"
         self.finished.remove(d)
         if self._last_done is d:
