@@ -374,3 +374,38 @@ def test_a_descent_split_by_an_unplugged_cable_is_whole_after_the_memory_import(
     out = tmp_path / "replay.csv"
     assert run_station("replay", session, "--csv", out).returncode == 0
     assert out.read_bytes() == (session / "results.csv").read_bytes()
+
+
+def test_two_descents_split_by_two_unplugs_are_both_joined_by_one_import(tmp_path, demo_track):
+    """Descents 1 and 3 each lost their last crossings (the cable out twice), descent 2 is
+    whole; the import (after an ``import`` event, as ``station import --into`` appends it)
+    brings both rests, in the timer's order: each joins its own descent, and no descent of
+    its own is made of them."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    days = [_descent_lines(demo_track, 36_000 + 600 * k, k + 1, "TN", 9 * k + 1) for k in range(3)]
+    host = 1_767_520_800.0
+    chunks = []
+    for k, cut in enumerate((5, 9, 3)):
+        t0 = host + 600 * k
+        chunks += [Chunk(t0 + 0.01 * i, x.encode()) for i, x in enumerate(days[k][:cut])]
+        if cut < 9:
+            chunks += [Chunk(t0 + 1.0, b"", "disconnected", "unplugged"),
+                       Chunk(t0 + 300.0, b"", "timeout")]  # fmt: skip
+    rest = days[0][5:] + days[2][3:]
+    chunks += [Chunk(host + 2000.0, b"", "import", "imports/download.txt")]
+    chunks += [Chunk(host + 2000.0, b"\r\n" + b"".join(x.encode() for x in rest))]
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+    done += proc.finish()
+    final = {d.number: d for d in done}
+    assert sorted(final) == [1, 2, 3] and proc.assembler.count == 3
+    for n in (1, 3):
+        d = final[n]
+        assert d.status == "complete" and len(d.photocells) == 9 and not d.missing, d
+        assert any(f.startswith("joined: ") for f in d.flags)

@@ -254,6 +254,9 @@ class DescentAssembler:
         #: or sent between TAG ``DS`` and ``DE``, an ALGE ``m`` line): one no open descent
         #: takes may be the rest of a descent that ended for want of it (the cable was out)
         self.from_memory = False
+        #: the descents that ended short of the last photocell (timed out, disconnected, a new
+        #: start of the bib, the end): those the timer's memory may complete
+        self._short: list[TimedDescent] = []
 
     @property
     def current(self) -> TimedDescent | None:
@@ -641,13 +644,12 @@ class DescentAssembler:
         open again to take it and the rest, its crossing times all the timer's own. The
         nearest in time of those that can; None: none can."""
         best: tuple[int, TimedDescent] | None = None
-        for d in reversed(self.finished):
-            if not d.times_us or d.times_us[-1] >= t:
+        reach = max(self.timeout_us)
+        for d in self._short:
+            if not d.times_us or not d.times_us[-1] < t <= d.times_us[-1] + reach:
                 continue
-            if t - d.times_us[-1] > max(self.timeout_us) * len(self.photocells):
-                break  # the older ones ended earlier still (a day is in time order)
             if d.status not in ("incomplete", "aborted") or self.order[d.photocells[-1]] >= k:
-                continue
+                continue  # (changed by an edit since)
             if self.mode != "order" and bib and d.bib and d.bib != bib:
                 continue
             if self._why_not(d, pc, k, t, by_order=True) is not None:
@@ -671,6 +673,7 @@ class DescentAssembler:
         d.flags.append(f"{JOINED}{last} recorded live, {pc} on from the timer's memory")
         d.status = "open"
         self.finished.remove(d)
+        self._short.remove(d)
         if self._last_done is d:
             self._last_done = None
         self.open.append(d)
@@ -864,6 +867,7 @@ class DescentAssembler:
             tail = self.photocells[last + 1 :]
             d.missing += tail
             d.flags.append(f"{why}; missing {', '.join(tail)}")
+        self._short.append(d)
         self._done(d)
         return [d]
 
