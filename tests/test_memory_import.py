@@ -409,3 +409,41 @@ def test_two_descents_split_by_two_unplugs_are_both_joined_by_one_import(tmp_pat
         d = final[n]
         assert d.status == "complete" and len(d.photocells) == 9 and not d.missing, d
         assert any(f.startswith("joined: ") for f in d.flags)
+
+
+def test_a_descent_whose_first_crossings_are_only_in_the_memory_takes_its_live_rest(
+    tmp_path, demo_track
+):
+    """The other split: the cable was out for descent 1's first four crossings and back in for
+    the rest, which the recording rejected as without a start; the import brings PC1 … PC4,
+    and the descent they make takes its live rest: whole, with a note, no descent of its own
+    left short."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    body = _descent_lines(demo_track, 36_000, 1, "TN", 1)
+    after = _descent_lines(demo_track, 36_600, 2, "TN", 10)  # descent 2, whole and live
+    host = 1_767_520_800.0
+    chunks = [
+        Chunk(host - 5.0, b"", "disconnected", "unplugged"),
+        Chunk(host + 9.0, b"", "connected"),
+    ]
+    chunks += [Chunk(host + 10.0 + 0.01 * i, x.encode()) for i, x in enumerate(body[4:])]
+    chunks += [Chunk(host + 600.0 + 0.01 * i, x.encode()) for i, x in enumerate(after)]
+    chunks += [Chunk(host + 2000.0, b"", "import", "imports/download.txt")]
+    chunks.append(Chunk(host + 2000.0, b"\r\n" + b"".join(x.encode() for x in body[:4])))
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+    live_rejected = [e for e in proc.events if not e.kept]
+    assert len(live_rejected) == 5 and "without a start" in live_rejected[0].reason
+    done += proc.finish()
+    final = {d.number: d for d in done}
+    assert sorted(final) == [1, 2]
+    d = final[2]  # numbered after the live descent: it was made by the import
+    assert d.status == "complete" and len(d.photocells) == 9 and not d.missing, d
+    assert "joined: PC4 from the timer's memory, PC5 on recorded live" in d.flags
+    assert not any("missing" in f for f in d.flags)

@@ -16,9 +16,10 @@ cable out. A plain capture or a memory download (ALGE ``RSM`` print-out, TAG ``#
 Impulses appended by a merge form descents of their own, but one that continues a descent the
 live recording has the first crossings of (the cable came out during it) joins that descent:
 the processor replays them after the ``import`` event as from the timer's memory
-(:attr:`station.timing.assembly.DescentAssembler.from_memory`). Known limit: a descent whose
-first crossings are only in the download and the rest live is not joined (the live ones
-were rejected as without a start when they came, and the log is not rewritten).
+(:attr:`station.timing.assembly.DescentAssembler.from_memory`); and a descent of the download
+that ends short takes the live impulses the recording rejected as without a start, when they
+continue it plausibly (the cable came back in during it). The raw log is never rewritten:
+a replay joins them again.
 """
 
 from __future__ import annotations

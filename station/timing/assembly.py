@@ -112,6 +112,8 @@ class TimedDescent:
 
 #: how the flag of a descent the timer's memory completed begins (``station import`` says it)
 JOINED = "joined: "
+#: live impulses no descent took, remembered for a descent from the memory to take
+MAX_ORPHANS = 200
 #: the fields of a descent that are lists while the assembler may change them
 _LISTS = ("photocells", "times_us", "flags", "missing", "channels")
 #: kept times a channel holds in its set before the older ones move to its sorted array
@@ -257,6 +259,10 @@ class DescentAssembler:
         #: the descents that ended short of the last photocell (timed out, disconnected, a new
         #: start of the bib, the end): those the timer's memory may complete
         self._short: list[TimedDescent] = []
+        #: live impulses no descent took (past a start the cable lost): (photocell, its index,
+        #: time, channel), the latest MAX_ORPHANS; a descent from the timer's memory that ends
+        #: short of them takes those that continue it
+        self._orphans: list[tuple[str, int, int, str]] = []
 
     @property
     def current(self) -> TimedDescent | None:
@@ -615,6 +621,9 @@ class DescentAssembler:
             if why:
                 reason = f"{reason}; {why}"
             self._event(imp, line, pc, False, reason, self._near(bib))
+            if not self.from_memory:
+                self._orphans.append((pc, k, t, imp.channel))
+                del self._orphans[:-MAX_ORPHANS]
             return done
         d = chosen
         j = self.order[d.photocells[-1]]
@@ -857,6 +866,10 @@ class DescentAssembler:
 
     def _finish(self, d: TimedDescent, why: str) -> list[TimedDescent]:
         self.open.remove(d)
+        if self.from_memory and self._orphans and self._adopt(d):
+            d.status = "complete" if d.photocells[0] == self.photocells[0] else "incomplete"
+            self._done(d)
+            return [d]
         if len(d.photocells) == 1:
             d.status = "aborted"
             lone = "start impulse" if d.photocells[0] == self.photocells[0] else "impulse"
@@ -870,6 +883,32 @@ class DescentAssembler:
         self._short.append(d)
         self._done(d)
         return [d]
+
+    def _adopt(self, d: TimedDescent) -> bool:
+        """A descent from the timer's memory ending short: the live impulses no descent took
+        that continue it plausibly (the cable came back in during it), taken into it, with a
+        flag. True when it then reaches the last photocell."""
+        last = d.photocells[-1] if d.photocells else None
+        taken = []
+        for o in sorted(self._orphans, key=lambda o: o[2]):
+            pc, k, t, ch = o
+            if not d.photocells or self._why_not(d, pc, k, t, by_order=True) is not None:
+                continue
+            skipped = self.photocells[self.order[d.photocells[-1]] + 1 : k]
+            if skipped:
+                d.flags.append(f"missed {', '.join(skipped)}")
+                d.missing += skipped
+            d.photocells.append(pc)
+            d.times_us.append(t)
+            d.channels.append(ch)
+            self._keep(ch, t)
+            taken.append(o)
+        if not taken:
+            return False
+        for o in taken:
+            self._orphans.remove(o)
+        d.flags.append(f"{JOINED}{last} from the timer's memory, {taken[0][0]} on recorded live")
+        return d.photocells[-1] == self.photocells[-1]
 
     # -- edits
 
