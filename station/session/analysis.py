@@ -220,8 +220,9 @@ class Analyser:
             job = replace(job, gravity=self.gravity.value)
         if job.problem:
             # the covariance a later descent takes cannot hang on this one's annotations
-            with contextlib.suppress(Exception):
-                self._survey_for(job, self._run_of(job.descent.photocells))
+            if job.descent.status != DescentStatus.ABORTED:
+                with contextlib.suppress(Exception):
+                    self._survey_for(job, self._run_of(job.descent.photocells))
             return error_result(job, job.problem)
         try:
             return self._fit(job)
