@@ -447,3 +447,22 @@ def test_a_descent_whose_first_crossings_are_only_in_the_memory_takes_its_live_r
     assert d.status == "complete" and len(d.photocells) == 9 and not d.missing, d
     assert "joined: PC4 from the timer's memory, PC5 on recorded live" in d.flags
     assert not any("missing" in f for f in d.flags)
+
+
+def test_a_descent_ended_again_by_the_memory_counts_once_for_max_descents(tmp_path, demo_track):
+    """The recorder's loop: descent 1 ended short, then whole by the download on the line, is
+    one descent for ``record --max-descents`` (counted twice, the recording stopped a
+    descent early, and lost that one), and its result is the whole descent's."""
+    from station.session.acquisition import Acquisition
+    from station.session.config import load_config
+    from station.session.day import Day
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    acq = Acquisition(Day.start(cfg, demo_track), threaded=False)
+    for chunk in _live_then_download(demo_track, 4, download=True):
+        acq.receive(chunk)
+    acq.end_of_input()
+    assert acq.finished_descents == 1
+    (res,) = acq.results()
+    assert res.row.photocells_used == 9 and res.row.status == "ok"
+    assert any(f.startswith("joined: ") for f in res.row.flags)
