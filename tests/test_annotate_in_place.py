@@ -199,6 +199,22 @@ def test_a_descent_fitted_before_its_photocells_had_the_survey_is_fitted_again_i
     assert csv_of(session) == from_scratch(session)
 
 
+def test_a_model_change_of_an_aborted_descent_is_in_place(tmp_path, replays):
+    """Descent 1 a lone start (its other crossings cut from the raw log): no fit, no survey
+    covariance for its one photocell; its model changed in place all the same."""
+    session = make_session(tmp_path, order="ABBA")
+    raw = session / store.RAW
+    lines = raw.read_text().splitlines(keepends=True)
+    assert json.loads(lines[2])["rx"].startswith(" 0002 C1 ")
+    raw.write_text("".join(lines[:2] + lines[10:]))
+    RecordedSession(str(session)).annotate([InvalidMark(4, "gate", 1.0)])  # replayed: a state
+    assert '"aborted"' in csv_of(session).decode().splitlines()[-4]
+    replays.clear()
+    RecordedSession(str(session)).annotate([ModelChange(1, FitModel.VELOCITY, 2.0)])
+    assert replays == []
+    assert csv_of(session) == from_scratch(session)
+
+
 def damage_missing(session: Path) -> None:
     os.unlink(session / store.RESULTS)
 

@@ -689,7 +689,7 @@ def _refit(
     from station.session.analysis import Analyser
     from station.session.day import Day
     from station.session.fitstore import from_json
-    from station.session.records import DescentTimes
+    from station.session.records import DescentStatus, DescentTimes
     from station.survey.load import load_survey
     from station.survey.track import build_track
 
@@ -733,7 +733,8 @@ def _refit(
         if n in own:
             analyser.own_survey(n, d.photocells)
         elif source is None:
-            return None  # a descents file that does not say: replayed
+            if d.status != DescentStatus.ABORTED:  # (an aborted one is not fitted)
+                return None  # a descents file that does not say: replayed
         else:
             try:
                 cov = from_json(np.ndarray, source[1])
