@@ -28,6 +28,9 @@ from station.timing.wireformats import make_parser
 #: unparsed lines listed (line, reason, first 100 characters): a day of line noise stays within
 #: tens of MB; beyond it one entry says that more were not listed
 MAX_UNPARSED = 100_000
+#: the timer's own marks of a memory download on the line (TAG ``DS`` … ``DE``): between
+#: them the impulses are from its memory (:attr:`DescentAssembler.from_memory`)
+MEMORY_DOWNLOAD = {"memory download starts": True, "memory download ends": False}
 #: the lines last handed to the assembler whose host times are kept: a start it holds (a time
 #: far from its clock waits for the next impulse to confirm it) is at most a few lines back
 #: (edits may come between); one further back is dated by the line that started it
@@ -128,8 +131,12 @@ class Processor:
                 # adds are earlier than the recording's last by nature; the timer's clock is
                 # judged afresh from its first start (a reset within it is still flagged)
                 self._latest_start = None
+                # and an impulse of it may be the rest of a descent the recording has the
+                # first crossings of (the cable came out during it): joined to it
+                self.assembler.from_memory = True
             if chunk.event == "disconnected":
                 self.assembler.disconnected(chunk.detail)
+                self.assembler.from_memory = False  # a download on the line ends with it
             return []
         lines = self.framer.feed(chunk.data)
         t: float | None = chunk.t  # None: a plain capture (replay_chunks)
@@ -296,6 +303,8 @@ class Processor:
             return done
         if isinstance(parsed, Skip):
             self.counts["skipped"] += 1
+            if parsed.reason in MEMORY_DOWNLOAD:  # TAG DS … DE sent over the line
+                self.assembler.from_memory = MEMORY_DOWNLOAD[parsed.reason]
         elif isinstance(parsed, Unparsed):
             self.counts["unparsed"] += 1
             # it may have been a skier's start: the assembler may start that descent later

@@ -111,6 +111,10 @@ class TimedDescent:
                 setattr(self, name, list(v))
 
 
+#: how the flag of a descent the timer's memory completed begins (``station import`` says it)
+JOINED = "joined: "
+#: live impulses no descent took, remembered for a descent from the memory to take
+MAX_ORPHANS = 200
 #: the fields of a descent that are lists while the assembler may change them
 _LISTS = ("photocells", "times_us", "flags", "missing", "channels")
 #: kept times a channel holds in its set before the older ones move to its sorted array
@@ -249,6 +253,17 @@ class DescentAssembler:
         self._seen_old: dict[str, array[int]] = {}
         self._old_max = -1
         self._damaged: list[_Damage] = []  # unread lines that may have been a start
+        #: the impulses come from the timer's memory (a download merged by ``station import``,
+        #: or sent between TAG ``DS`` and ``DE``, an ALGE ``m`` line): one no open descent
+        #: takes may be the rest of a descent that ended for want of it (the cable was out)
+        self.from_memory = False
+        #: the descents that ended short of the last photocell (timed out, disconnected, a new
+        #: start of the bib, the end): those the timer's memory may complete
+        self._short: list[TimedDescent] = []
+        #: live impulses no descent took (past a start the cable lost): (photocell, its index,
+        #: time, channel), the latest MAX_ORPHANS; a descent from the timer's memory that ends
+        #: short of them takes those that continue it
+        self._orphans: list[tuple[str, int, int, str]] = []
 
     @property
     def current(self) -> TimedDescent | None:
@@ -749,6 +764,8 @@ class DescentAssembler:
             _flag_damaged(d, imp, line)
             return done
         chosen, reason = self._choose(pc, k, t, bib)
+        if chosen is None and self.from_memory:
+            chosen = self._rejoin(pc, k, t, bib)
         if chosen is None:
             rec, why = self._recover(imp, line, pc, k, t, bib)
             if rec is not None:
@@ -765,6 +782,9 @@ class DescentAssembler:
             if why:
                 reason = f"{reason}; {why}"
             self._event(imp, line, pc, False, reason, self._near(bib))
+            if not self.from_memory:
+                self._orphans.append((pc, k, t, imp.channel))
+                del self._orphans[:-MAX_ORPHANS]
             return done
         d = chosen
         j = self.order[d.photocells[-1]]
@@ -787,6 +807,47 @@ class DescentAssembler:
             done.append(d)
         done += self._expire(t)
         return done
+
+    def _rejoin(self, pc: str, k: int, t: int, bib: str) -> TimedDescent | None:
+        """A descent that ended short of photocell ``k`` (timed out, the timer disconnected,
+        the recording ended) and that an impulse from the timer's memory continues plausibly:
+        open again to take it and the rest, its crossing times all the timer's own. The
+        nearest in time of those that can; None: none can."""
+        best: tuple[int, TimedDescent] | None = None
+        reach = max(self.timeout_us)
+        for d in self._short:
+            if not d.times_us or not d.times_us[-1] < t <= d.times_us[-1] + reach:
+                continue
+            if d.status not in ("incomplete", "aborted") or self.order[d.photocells[-1]] >= k:
+                continue  # (changed by an edit since)
+            if self.mode != "order" and bib and d.bib and d.bib != bib:
+                continue
+            if self._why_not(d, pc, k, t, by_order=True) is not None:
+                continue
+            gap = t - d.times_us[-1]
+            if best is None or gap < best[0]:
+                best = (gap, d)
+        if best is None:
+            return None
+        d = best[1]
+        d.thaw()
+        last = d.photocells[-1]
+        tail = self.photocells[self.order[last] + 1 :]
+        ended = f"; missing {', '.join(tail)}"
+        for i in range(len(d.flags) - 1, -1, -1):  # how it ended no longer holds
+            f = d.flags[i]
+            if f.endswith(ended) or (len(d.photocells) == 1 and f.startswith("lone ")):
+                del d.flags[i]
+                break
+        d.missing = [p for p in d.missing if p not in tail]
+        d.flags.append(f"{JOINED}{last} recorded live, {pc} on from the timer's memory")
+        d.status = "open"
+        self.finished.remove(d)
+        self._short.remove(d)
+        if self._last_done is d:
+            self._last_done = None
+        self.open.append(d)
+        return d
 
     def _near(self, bib: str) -> int | None:
         """The descent an impulse was nearest to joining, for the events list."""
@@ -972,6 +1033,10 @@ class DescentAssembler:
 
     def _finish(self, d: TimedDescent, why: str) -> list[TimedDescent]:
         self.open.remove(d)
+        if self.from_memory and self._orphans and self._adopt(d):
+            d.status = "complete" if d.photocells[0] == self.photocells[0] else "incomplete"
+            self._done(d)
+            return [d]
         if len(d.photocells) == 1:
             d.status = "aborted"
             lone = "start impulse" if d.photocells[0] == self.photocells[0] else "impulse"
@@ -982,8 +1047,35 @@ class DescentAssembler:
             tail = self.photocells[last + 1 :]
             d.missing += tail
             d.flags.append(f"{why}; missing {', '.join(tail)}")
+        self._short.append(d)
         self._done(d)
         return [d]
+
+    def _adopt(self, d: TimedDescent) -> bool:
+        """A descent from the timer's memory ending short: the live impulses no descent took
+        that continue it plausibly (the cable came back in during it), taken into it, with a
+        flag. True when it then reaches the last photocell."""
+        last = d.photocells[-1] if d.photocells else None
+        taken = []
+        for o in sorted(self._orphans, key=lambda o: o[2]):
+            pc, k, t, ch = o
+            if not d.photocells or self._why_not(d, pc, k, t, by_order=True) is not None:
+                continue
+            skipped = self.photocells[self.order[d.photocells[-1]] + 1 : k]
+            if skipped:
+                d.flags.append(f"missed {', '.join(skipped)}")
+                d.missing += skipped
+            d.photocells.append(pc)
+            d.times_us.append(t)
+            d.channels.append(ch)
+            self._keep(ch, t)
+            taken.append(o)
+        if not taken:
+            return False
+        for o in taken:
+            self._orphans.remove(o)
+        d.flags.append(f"{JOINED}{last} from the timer's memory, {taken[0][0]} on recorded live")
+        return d.photocells[-1] == self.photocells[-1]
 
     # -- edits
 
@@ -1018,7 +1110,13 @@ class DescentAssembler:
         if e.kind == "repeated from memory":
             # ALGE `m`: an impulse from the timer's memory (a download): kept unless it is
             # already (a live impulse the memory repeats is not doubled)
-            return self.feed(Impulse(e.channel, e.tod_us, 100, e.flag, e.bib, e.day, e.line), line)
+            was, self.from_memory = self.from_memory, True
+            try:
+                return self.feed(
+                    Impulse(e.channel, e.tod_us, 100, e.flag, e.bib, e.day, e.line), line
+                )
+            finally:
+                self.from_memory = was
         self._event(e, line, pc, False, f"{e.kind}: repeats an earlier impulse; nothing changed")
         return []
 
