@@ -17,7 +17,7 @@ from collections.abc import Iterable
 
 from station.errors import InputError
 from station.session.config import StationConfig
-from station.session.rawlog import Chunk
+from station.session.rawlog import Chunk, Lines
 from station.session.records import LineCounts
 from station.survey.track import Track
 from station.timing.assembly import DescentAssembler, ImpulseEvent, TimedDescent
@@ -185,17 +185,34 @@ class Processor:
             i += 1
         return done
 
-    def feed_chunks(self, chunks: Iterable[Chunk]) -> list[TimedDescent]:
+    def feed_chunks(self, chunks: Iterable[Chunk | Lines]) -> list[TimedDescent]:
         """:meth:`feed` of each chunk in turn, for a bulk replay (``replay --no-fit``): the
         descents they finished, in order. A session's one-line chunks with a host time (a
         recording's every read) are framed as they come and handed on together, up to
-        ``SESSION_RUN`` lines, to the assembler's batch (:meth:`_session_lines`); every other
-        chunk goes through :meth:`feed` once the lines before it are."""
+        ``SESSION_RUN`` lines, to the assembler's batch (:meth:`_session_lines`); so are the
+        runs of them a bulk read of the raw log gives (:class:`Lines`, framed in one call);
+        every other chunk goes through :meth:`feed` once the lines before it are."""
         done: list[TimedDescent] = []
         lines: list[str] = []
         hosts: list[float] = []
         framer = self.framer
         for chunk in chunks:
+            if isinstance(chunk, Lines):  # one-line chunks, each with its host time
+                got, times = framer.feed_lines(chunk.text), chunk.t
+                self._chunk_t = times[-1]
+                k, n = 0, len(got)
+                while k < n:  # the same runs for the batch as chunk by chunk
+                    room = SESSION_RUN - len(lines)
+                    if k == 0 and not lines and n <= room:
+                        lines, hosts = list(got), list(times)
+                    else:
+                        lines += got[k : k + room]
+                        hosts += times[k : k + room]
+                    k += room
+                    if len(lines) >= SESSION_RUN:
+                        done += self._session_lines(lines, hosts)
+                        lines, hosts = [], []
+                continue
             t = chunk.t
             if not chunk.event and t is not None and t == t:
                 got = framer.feed(chunk.data)

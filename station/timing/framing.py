@@ -42,6 +42,20 @@ class LineFramer:
         self._tail = tail
         return parts
 
+    def feed_lines(self, lines: list[str]) -> list[str]:
+        """What :meth:`feed` gives for each of ``lines`` fed in turn, each with its CR: lines
+        of printable ASCII, a raw log's common records (``station.session.rawlog.Lines``). The
+        first finishes the unfinished line (or is the LF of a CR LF: printable, it is not);
+        each is a line then. ``lines`` itself when nothing was unfinished: a run of records
+        framed without a call a record."""
+        if not lines:
+            return lines
+        self._after_cr = True
+        if self._tail:
+            lines = [self._tail + lines[0], *lines[1:]]
+            self._tail = ""
+        return lines
+
     def flush(self) -> list[str]:
         """The unfinished last line, at the end of a capture."""
         tail, self._tail = self._tail, ""
