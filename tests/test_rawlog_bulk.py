@@ -28,7 +28,7 @@ import station.session.replay as replay_mod
 from station.errors import InputError
 from station.session.processor import Processor
 from station.session.rawlog import Chunk, Lines, RawLogWriter, read_rawlog, read_rawlog_bulk
-from station.timing.framing import LineFramer
+from station.timing.framing import MAX_LINE, LineFramer
 from station.timing.wireformats import format_alge
 from tests import test_assembly_batch as batch
 from tests.test_assembly_batch import ALGE_2, mutate, session_chunks, simulated_alge
@@ -42,10 +42,16 @@ def expand(items: list) -> list[Chunk]:
     out: list[Chunk] = []
     for item in items:
         if type(item) is Lines:
-            assert item.t and len(item.t) == len(item.text)  # no empty run
+            assert item.t and len(item.t) == len(item.rx)  # no empty run
             assert all(type(t) is float for t in item.t)
-            out += [Chunk(t, (x + "\r").encode("ascii")) for t, x in zip(item.t, item.text,
-                                                                         strict=True)]  # fmt: skip
+            chunks = item.chunks()
+            assert all(c.data and b"\r" not in c.data[:-1] for c in chunks)
+            if item.ends is None:
+                assert all(c.data.endswith(b"\r") for c in chunks)
+            else:
+                assert "".join(c.data.decode() for c in chunks) == item.text
+                assert item.ends == [c.t for c in chunks if c.data.endswith(b"\r")]
+            out += chunks
         else:
             assert type(item) is Chunk
             out.append(item)
@@ -104,14 +110,25 @@ def writer_log(path, seed: int, n: int = 120) -> None:
         elif roll < 0.85:
             w.write(t, line[:7].encode())  # half a line, the rest in the next read
             w.write(t + 0.001, (line[7:] + "\r").encode())
+        elif roll < 0.87:  # reads as a USB adapter gives them: pieces of lines
+            data = (line + "\r" + line[: rng.randrange(len(line))]).encode()
+            cuts = sorted(rng.sample(range(1, len(data)), 3))
+            for x, y in zip([0, *cuts], [*cuts, len(data)], strict=True):
+                w.write(t, data[x:y])
+                t += 0.004
         elif roll < 0.88:
             w.write(t, b"TN  1 \t00AB\r\n")
         elif roll < 0.91:
             w.write(t, bytes(rng.randrange(256) for _ in range(rng.randrange(12))))
         elif roll < 0.94:
             w.event(t, rng.choice(["timeout", "disconnected", "connected"]), "EIO")
-        else:
-            w.write(float(rng.randrange(3)) if roll > 0.98 else t, b"12:00:00.0\r")
+        elif roll < 0.96:
+            w.write(float(rng.randrange(3)) if roll > 0.95 else t, b"12:00:00.0\r")
+        else:  # a line longer than the framer keeps, over reads
+            for _ in range(rng.randrange(1, 4)):
+                w.write(t, b"x" * rng.randrange(100, 400))
+            w.write(t, b"\r")
+    w.write(t + 1, b" 0999 C0  10:00")  # the last line unfinished (it ends the replay)
     w.close()
 
 
@@ -202,16 +219,31 @@ def test_the_log_grown_past_its_limit_stops_both_at_the_same_line(tmp_path, monk
     assert careful == bulk and careful[2] is not None and "larger than" in careful[2]
 
 
-def test_a_run_is_framed_after_an_unfinished_line():
-    """``LineFramer.feed_lines``: what ``feed`` gives line by line, after half a line too."""
-    for before in ([b"half"], [b"x\r"], [b"x\r\n"], [b"x\r", b"\n"], [b""], []):
-        for lines in (["a", "", "b c"], [""], ["a"]):
-            f, g = LineFramer(), LineFramer()
-            got = [x for b in before for x in f.feed(b)] + f.feed_lines(list(lines))
-            want = [x for b in before for x in g.feed(b)]
-            want += [x for s in lines for x in g.feed((s + "\r").encode())]
-            assert got == want
-            assert f.feed(b"\nz\r") == g.feed(b"\nz\r") and f.flush() == g.flush()
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(st.binary(max_size=6), max_size=4),
+    st.lists(st.text(alphabet="ab 09:", min_size=1, max_size=200), max_size=8),
+    st.lists(st.booleans(), min_size=8, max_size=8),
+)
+def test_a_run_is_framed_as_read_by_read(before, reads, ends):
+    """``LineFramer.feed_run``: what ``feed`` gives read by read, after any bytes (half a line,
+    a CR, a CR LF, a line too long); None and nothing changed when ``feed`` would cut a line
+    too long where a read ended."""
+    reads = [r + "\r" if e else r for r, e in zip(reads, ends, strict=False)]
+    f, g = LineFramer(), LineFramer()
+    got = [x for b in before for x in f.feed(b)]
+    want = [x for b in before for x in g.feed(b)]
+    state = (f._tail, f._after_cr)
+    run = f.feed_run("".join(reads))
+    want += [x for r in reads for x in g.feed(r.encode())]
+    if run is None:
+        assert (f._tail, f._after_cr) == state
+        assert max(len(x) for x in (f._tail + "".join(reads)).split("\r")) > MAX_LINE
+        got += [x for r in reads for x in f.feed(r.encode())]
+    else:
+        got += run
+    assert got == want
+    assert f.feed(b"\nz\r") == g.feed(b"\nz\r") and f.flush() == g.flush()
 
 
 # ----------------------------------------------------------------------------- replays
@@ -271,6 +303,17 @@ def test_real_days_as_sessions_replay_the_same(real, configs, demo_track, tmp_pa
         got = assert_same_replays(configs("alge", ALGE_2, pairing), demo_track, path,
                                   monkeypatch, block, run)  # fmt: skip
         assert len(got["finished"]) > 20 and all(h is not None for h in got["starts"][:50])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_written_logs_replay_the_same(configs, demo_track, tmp_path, monkeypatch, seed):
+    """The writer's logs above (lines in pieces, lines too long for the framer over several
+    reads, events, every byte value) replayed in blocks down to a few records."""
+    path = tmp_path / "raw.jsonl"
+    writer_log(path, seed, n=600)
+    for block, run in ((256 * 1024, 4096), (997, 33), (150, 5)):
+        got = assert_same_replays(configs("alge"), demo_track, path, monkeypatch, block, run)
+        assert got["lines"][1] > 300
 
 
 @settings(max_examples=40, deadline=None,

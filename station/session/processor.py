@@ -190,50 +190,61 @@ class Processor:
         descents they finished, in order. A session's one-line chunks with a host time (a
         recording's every read) are framed as they come and handed on together, up to
         ``SESSION_RUN`` lines, to the assembler's batch (:meth:`_session_lines`); so are the
-        runs of them a bulk read of the raw log gives (:class:`Lines`, framed in one call);
-        every other chunk goes through :meth:`feed` once the lines before it are."""
+        lines of the runs of reads a bulk read of the raw log gives (:class:`Lines`, framed
+        in one split, each line dated by the read that ended it); every other chunk goes
+        through :meth:`feed` once the lines before it are."""
         done: list[TimedDescent] = []
         lines: list[str] = []
         hosts: list[float] = []
         framer = self.framer
-        for chunk in chunks:
-            if isinstance(chunk, Lines):  # one-line chunks, each with its host time
-                got, times = framer.feed_lines(chunk.text), chunk.t
-                self._chunk_t = times[-1]
-                k, n = 0, len(got)
-                while k < n:  # the same runs for the batch as chunk by chunk
-                    room = SESSION_RUN - len(lines)
-                    if k == 0 and not lines and n <= room:
-                        lines, hosts = list(got), list(times)
-                    else:
-                        lines += got[k : k + room]
-                        hosts += times[k : k + room]
-                    k += room
-                    if len(lines) >= SESSION_RUN:
+        for item in chunks:
+            group: Iterable[Chunk]
+            if isinstance(item, Lines):  # reads of printable ASCII, with host times
+                if item.ends is None:  # a line a read
+                    got, ends = framer.feed_lines(item.rx), item.t
+                else:  # the host time of each line: the read that ended it
+                    got, ends = framer.feed_run(item.text), item.ends
+                if got is None:  # a line too long: read by read
+                    group = item.chunks()
+                else:
+                    self._chunk_t = item.t[-1]
+                    k, n = 0, len(got)
+                    while k < n:  # runs of SESSION_RUN lines for the batch
+                        room = SESSION_RUN - len(lines)
+                        if k == 0 and not lines and n <= room:
+                            lines, hosts = list(got), list(ends)
+                        else:
+                            lines += got[k : k + room]
+                            hosts += ends[k : k + room]
+                        k += room
+                        if len(lines) >= SESSION_RUN:
+                            done += self._session_lines(lines, hosts)
+                            lines, hosts = [], []
+                    continue
+            else:
+                group = (item,)
+            for chunk in group:
+                t = chunk.t
+                if not chunk.event and t is not None and t == t:
+                    got = framer.feed(chunk.data)
+                    self._chunk_t = t
+                    if len(got) == 1:
+                        lines.append(got[0])
+                        hosts.append(t)
+                        if len(lines) >= SESSION_RUN:
+                            done += self._session_lines(lines, hosts)
+                            lines, hosts = [], []
+                        continue
+                    if lines:
                         done += self._session_lines(lines, hosts)
                         lines, hosts = [], []
-                continue
-            t = chunk.t
-            if not chunk.event and t is not None and t == t:
-                got = framer.feed(chunk.data)
-                self._chunk_t = t
-                if len(got) == 1:
-                    lines.append(got[0])
-                    hosts.append(t)
-                    if len(lines) >= SESSION_RUN:
-                        done += self._session_lines(lines, hosts)
-                        lines, hosts = [], []
+                    for line in got:  # as feed does with a chunk of several lines (or none)
+                        done += self._line(line, t)
                     continue
                 if lines:
                     done += self._session_lines(lines, hosts)
                     lines, hosts = [], []
-                for line in got:  # as feed does with a chunk of several lines (or none)
-                    done += self._line(line, t)
-                continue
-            if lines:
-                done += self._session_lines(lines, hosts)
-                lines, hosts = [], []
-            done += self.feed(chunk)
+                done += self.feed(chunk)
         if lines:
             done += self._session_lines(lines, hosts)
         return done

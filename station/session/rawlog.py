@@ -40,6 +40,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterator
+from itertools import compress, repeat
 from typing import BinaryIO, NamedTuple
 
 from station.errors import InputError
@@ -522,66 +523,112 @@ def read_rawlog(path: str, warnings: list[str] | None = None) -> Iterator[Chunk]
 
 
 class Lines(NamedTuple):
-    """A run of common records (:func:`read_rawlog_bulk`): record ``k`` is the chunk
-    ``Chunk(t[k], (text[k] + "\\r").encode())``, one line of printable ASCII and its CR, a
-    live recording's every read of an ALGE or Microgate timer. Two lists, not a chunk a
-    record: a replay hands the lines on as they are, its framer and parser take lists."""
+    """A run of common records (:func:`read_rawlog_bulk`): reads of printable ASCII, none
+    empty, each ending in a CR or not, with no other CR (a live recording's every read of an
+    ALGE or Microgate timer: a whole line, or part of one as the port gave it). A replay takes
+    the lines (or the run's bytes) and the host times of the reads that ended them, with no
+    object a record; :meth:`chunks` gives the records as the careful reader does."""
 
+    #: each record's host time
     t: list[float]
-    text: list[str]
+    #: each record's text: without its CR when ``ends`` is None (every record is one line and
+    #: its CR: its line), else as written in the log (a CR as the two characters ``\r``)
+    rx: list[str]
+    #: None: every record ends in a CR; else the host time of each that does, in order
+    ends: list[float] | None
+    #: the run's bytes (latin-1), CRs as CRs, when ``ends`` is not None
+    text: str
+
+    def chunks(self) -> list[Chunk]:
+        """The run as the careful reader gives it, a chunk a record."""
+        if self.ends is None:
+            return [Chunk(t, (rx + "\r").encode("ascii"))
+                    for t, rx in zip(self.t, self.rx, strict=True)]  # fmt: skip
+        return [Chunk(t, rx.replace("\\r", "\r").encode("ascii"))
+                for t, rx in zip(self.t, self.rx, strict=True)]  # fmt: skip
 
 
 #: the bulk reader's block: a few thousand records; a line not ended within ``BULK_LONG``
 #: is read the careful way, from the file
 BULK_BLOCK = 256 * 1024
 BULK_LONG = 4 * MiB
-#: a block's whole rest is checked again after this many of its lines that are not common
-#: records (the session's header, an event): once more would cost a scan of the block each
+#: a block's whole rest is checked again after a line that is not a common record when the
+#: block's first check missed at most this many lines (the session's header, an event); each
+#: check costs a scan of the block
 BULK_RETRIES = 2
 _NUM = r"(?:0|[1-9][0-9]{0,9})(?:\.[0-9]{1,20})?"  # as in _ONE_LINE: a plain decimal below 1e10
 _TXT = r"[ !#-\[\]-~]*"  # printable ASCII but " and \
-#: a common record is ``{"t":NUM,"rx":"TXT\r"}`` and its line end; after a line end, its
-#: head (and the line end before it) ...
+#: a common record is ``{"t":NUM,"rx":"TXT"}`` or ``{"t":NUM,"rx":"TXT\r"}`` (not empty) and
+#: its line end; after a line end, its head (and the line end before it) ...
 _HEAD = re.compile(r'\n\{"t":(' + _NUM + r'),"rx"').findall
-#: ... and its tail, which ends the line: ``:"TXT\r"}`` and the line end
-_TAIL = re.compile(r':"(' + _TXT + r')\\r"\}\n').findall
-#: a run of common records from where it is matched on (each line as ``_ONE_LINE`` takes it)
-_RUN = re.compile(r'(?:\{"t":' + _NUM + r',"rx":"' + _TXT + r'\\r"\}\n)+').match
+#: ... and its tail, which ends the line: ``:"TXT\r"}`` and the line end (the text: the line),
+#: or any common record's, ``:"TXT"}`` too (the text as written, its CR escaped)
+_TAIL_LINE = re.compile(r':"(' + _TXT + r')\\r"\}\n').findall
+_TAIL = re.compile(r':"(' + _TXT + r'(?:\\r)?)"\}\n').findall
+_ENDS_CR = '\\r"}\n'  # (only at a line's end)
+_EMPTY = ':""}\n'
+#: a run of common records from where it is matched on
+_RUN = re.compile(r'(?:\{"t":' + _NUM + r',"rx":"(?=[^"])' + _TXT + r'(?:\\r)?"\}\n)+').match
 
 
-def _common_run(text: str, a: int, b: int) -> Lines | None:
+def _run_of(t: list[float], rxs: list[str], one_line: bool) -> Lines:
+    """The run of the common records of host times ``t`` and texts ``rxs`` (the lines, when
+    ``one_line``; else as written)."""
+    if one_line:
+        return Lines(t, rxs, None, "")
+    text = "".join(rxs)
+    if "\\" in text:  # (only in the escape of a CR)
+        text = text.replace("\\r", "\r")
+    return Lines(t, rxs, list(compress(t, map(str.endswith, rxs, repeat("\\r")))), text)
+
+
+def _common_run(text: str, a: int, b: int) -> Lines | int:
     """The lines ``text[a:b]`` (``text[a - 1]`` a line end, ``text[b - 1]`` another) as one
-    run when every one is a common record, else None: two scans and a sum, no Python a line.
+    run when every one is a common record, else about how many are not (at least 1): a few
+    scans and sums, no Python a line.
 
     Why the counts and lengths suffice: a head starts at a line end and holds no other, so
     with ``n`` lines (the ``n`` line ends before them are at ``a - 1`` and the first ``n - 1``
     within; the last cannot start one before ``b``) ``n`` heads are one at each line's
-    start. A tail holds one line end, its last: ``n`` tails are one at each line's end.
-    A line's tail cannot start before its head ends (it holds no ``"`` but its second and
-    its last but three characters, where the head's last ``"`` and the ``x`` before it
-    cannot be), so the heads (10 characters and the time) and tails (7 and the text) add up
-    to the lines' length only when each line is its head and its tail and nothing between:
-    the common record, exactly."""
+    start. A tail holds one line end, its last: ``n`` tails are one at each line's end. A
+    line's tail cannot start before its head ends (it holds a ``"`` only as its second and its
+    last but two characters, it starts with a ``:``, and the head ends ``,"rx"``), so the
+    heads (10 characters and the time) and tails (5 and the text as written) add up to the
+    lines' length only when each line is its head and its tail and nothing between: a common
+    record, or an empty one (``:""}``: none is common)."""
     n = text.count("\n", a, b)
     ts = _HEAD(text, a - 1, b)
     if len(ts) != n:
-        return None
-    rxs = _TAIL(text, a, b)
-    if len(rxs) != n or 17 * n + len("".join(ts)) + len("".join(rxs)) != b - a:
-        return None
-    return Lines(list(map(float, ts)), rxs)
+        return max(1, n - len(ts))
+    one_line = text.count(_ENDS_CR, a, b) == n
+    rxs = (_TAIL_LINE if one_line else _TAIL)(text, a, b)
+    if len(rxs) != n:
+        return max(1, n - len(rxs))
+    if (17 if one_line else 15) * n + len("".join(ts)) + len("".join(rxs)) != b - a:
+        return 1
+    if not one_line and text.find(_EMPTY, a, b) >= 0:
+        return 1
+    return _run_of(list(map(float, ts)), rxs, one_line)
+
+
+def _found_run(text: str, a: int, b: int) -> Lines:
+    """The run of common records ``text[a:b]`` found by ``_RUN``: their heads and tails, one
+    of each a line."""
+    one_line = text.count(_ENDS_CR, a, b) == text.count("\n", a, b)
+    rxs = (_TAIL_LINE if one_line else _TAIL)(text, a, b)
+    return _run_of(list(map(float, _HEAD(text, a - 1, b))), rxs, one_line)
 
 
 def read_rawlog_bulk(path: str, warnings: list[str] | None = None) -> Iterator[Chunk | Lines]:
     """What :func:`read_rawlog` reads, the same chunks and warnings, with runs of the common
-    record (one line of printable ASCII and its CR) as :class:`Lines`: for a bulk replay
-    (``replay SESSION --no-fit``), where reading a record at a time was the most of it.
+    record (a read of printable ASCII, ending in a CR or not) as :class:`Lines`: for a bulk
+    replay (``replay SESSION --no-fit``), where reading a record at a time was the most of it.
 
     The log is read in blocks of ``BULK_BLOCK``; the whole records of a block are checked to
     be common records all at once (:func:`_common_run`), and are one run then. Otherwise the
-    runs among them are found by one match each, and every other line (an event, a chunk of
-    several lines or half a line, a damaged or torn record, a byte beyond ASCII) is read the
-    careful way (:class:`_Records`, as :func:`read_rawlog` reads it). A record cut by a
+    runs among them are found by one match each, and every other line (an event, a read of
+    several lines, of a CR LF or of nothing, a damaged or torn record, a byte beyond ASCII)
+    is read the careful way (:class:`_Records`, as :func:`read_rawlog` reads it). A record cut by a
     block's end waits for the next block; one not ended within ``BULK_LONG``, and every
     line once the log has grown past its limit while read, is read from the file as
     :func:`read_rawlog` reads it."""
@@ -628,27 +675,26 @@ def read_rawlog_bulk(path: str, warnings: list[str] | None = None) -> Iterator[C
                     pos = nl
                 continue
             run = _common_run(text, 1, end)
-            if run is not None:
+            if isinstance(run, Lines):
                 records.i += len(run.t)
                 records.total += end - 1
                 yield run
                 continue
             pos = 1
-            retries = BULK_RETRIES
+            retries = BULK_RETRIES if run <= BULK_RETRIES else 0
             while pos < end:
                 if retries and pos > 1:  # the rest of the block all common, after a line?
                     retries -= 1
                     run = _common_run(text, pos, end)
-                    if run is not None:
+                    if isinstance(run, Lines):
                         records.i += len(run.t)
                         records.total += end - pos
                         yield run
                         break
                 m = _RUN(text, pos, end)
-                if m is not None:
+                if m is not None:  # common records
                     b = m.end()
-                    run = _common_run(text, pos, b)
-                    assert run is not None  # (the same records, found another way)
+                    run = _found_run(text, pos, b)
                     records.i += len(run.t)
                     records.total += b - pos
                     yield run
