@@ -556,6 +556,15 @@ BULK_LONG = 4 * MiB
 #: block's first check missed at most this many lines (the session's header, an event); each
 #: check costs a scan of the block
 BULK_RETRIES = 2
+#: a block whose first check missed more than one line in ``BULK_DENSE`` is read the careful
+#: way, and so are the next 1, 3, 7 … (at most ``BULK_BACKOFF``) unchecked: a log of other
+#: records (a TAG timer's CR LF) costs a check no more than a few blocks in a hundred
+BULK_DENSE = 8
+BULK_BACKOFF = 7
+#: a run of common records shorter than this among others is read the careful way (a run
+#: costs a few microseconds, a record one)
+BULK_SHORT = 8
+_LINES = re.compile(rb"[^\n]*\n").findall  # each whole line, its line end kept
 _NUM = r"(?:0|[1-9][0-9]{0,9})(?:\.[0-9]{1,20})?"  # as in _ONE_LINE: a plain decimal below 1e10
 _TXT = r"[ !#-\[\]-~]*"  # printable ASCII but " and \
 #: a common record is ``{"t":NUM,"rx":"TXT"}`` or ``{"t":NUM,"rx":"TXT\r"}`` (not empty) and
@@ -636,8 +645,9 @@ def read_rawlog_bulk(path: str, warnings: list[str] | None = None) -> Iterator[C
     with fh:
         records = _Records(path, fh, warnings)
         record = records.record
-        rest = ""  # the unended line at the end of what was read
+        rest = b""  # the unended line at the end of what was read
         offset = 0  # the file's offset of ``rest``
+        backoff = skip = 0  # blocks read the careful way unchecked: after many other records
         while True:
             try:
                 # no line longer than a careful read of one (it would cut it at the limit)
@@ -646,14 +656,14 @@ def read_rawlog_bulk(path: str, warnings: list[str] | None = None) -> Iterator[C
                 raise InputError(f"cannot read raw log: {_why(exc)}", path=path) from None
             if not block:
                 if rest:  # the unended last line
-                    chunk = record(rest.encode("latin-1"))
+                    chunk = record(rest)
                     if chunk is not None:
                         yield chunk
                 break
-            text = "\n" + rest + block.decode("latin-1")  # a line end before the first line
-            end = text.rfind("\n") + 1
-            if end <= 1:  # no line ended yet
-                rest = text[1:]
+            data = rest + block
+            cut = data.rfind(b"\n") + 1  # the whole lines: data[:cut]
+            if not cut:  # no line ended yet
+                rest = data
                 if len(rest) > min(BULK_LONG, MAX_RECORD):  # from the file, as read_rawlog does
                     fh.seek(offset)
                     raw = records.readline()
@@ -661,27 +671,40 @@ def read_rawlog_bulk(path: str, warnings: list[str] | None = None) -> Iterator[C
                     if chunk is not None:
                         yield chunk
                     offset = fh.tell()
-                    rest = ""
+                    rest = b""
                 continue
-            rest = text[end:]
-            offset += end - 1
-            if records.total + end - 1 > MAX_RAWLOG:  # grew while read: said at its line
-                pos = 1
-                while pos < end:
-                    nl = text.index("\n", pos) + 1
-                    chunk = record(text[pos:nl].encode("latin-1"))
+            rest = data[cut:]
+            offset += cut
+            # every line the careful way: the log grew past its limit while read (said at its
+            # line), or the blocks before held many other records (a TAG timer's CR LF)
+            careful = records.total + cut > MAX_RAWLOG or skip > 0
+            if not careful:
+                # text[k + 1] is data[k]: a line end before the first line
+                text = "\n" + data[:cut].decode("latin-1")
+                end = cut + 1
+                run = _common_run(text, 1, end)
+                if isinstance(run, Lines):
+                    records.i += len(run.t)
+                    records.total += cut
+                    backoff = 0
+                    yield run
+                    continue
+                misses = run
+                if misses * BULK_DENSE > text.count("\n", 1, end):  # many other records: this
+                    careful = True  # block and the next 1, 3, 7 … careful, unchecked
+                    skip = backoff = min(2 * backoff + 1, BULK_BACKOFF)
+                else:
+                    backoff = 0
+            else:
+                skip = max(0, skip - 1)
+            if careful:
+                for raw in _LINES(data, 0, cut):
+                    chunk = record(raw)
                     if chunk is not None:
                         yield chunk
-                    pos = nl
-                continue
-            run = _common_run(text, 1, end)
-            if isinstance(run, Lines):
-                records.i += len(run.t)
-                records.total += end - 1
-                yield run
                 continue
             pos = 1
-            retries = BULK_RETRIES if run <= BULK_RETRIES else 0
+            retries = 0 if misses > BULK_RETRIES else BULK_RETRIES
             while pos < end:
                 if retries and pos > 1:  # the rest of the block all common, after a line?
                     retries -= 1
@@ -692,17 +715,18 @@ def read_rawlog_bulk(path: str, warnings: list[str] | None = None) -> Iterator[C
                         yield run
                         break
                 m = _RUN(text, pos, end)
-                if m is not None:  # common records
+                if m is not None:  # common records: a run of them, unless a few
                     b = m.end()
-                    run = _found_run(text, pos, b)
-                    records.i += len(run.t)
-                    records.total += b - pos
-                    yield run
-                    pos = b
-                    if pos == end:
-                        break
+                    if text.count("\n", pos, b) >= BULK_SHORT:
+                        run = _found_run(text, pos, b)
+                        records.i += len(run.t)
+                        records.total += b - pos
+                        yield run
+                        pos = b
+                        if pos == end:
+                            break
                 nl = text.index("\n", pos) + 1
-                chunk = record(text[pos:nl].encode("latin-1"))
+                chunk = record(data[pos - 1 : nl - 1])
                 if chunk is not None:
                     yield chunk
                 pos = nl

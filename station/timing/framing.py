@@ -63,6 +63,8 @@ class LineFramer:
         one split. None, and nothing fed, when a line (or the unfinished one) is longer than
         ``MAX_LINE``: :meth:`feed` cuts an unfinished line where a read ends, so such reads go
         one at a time. (No LF: the one after a CR needs no care.)"""
+        if not text:
+            return []
         parts = (self._tail + text).split("\r")
         if max(map(len, parts)) > MAX_LINE:
             return None
