@@ -466,3 +466,52 @@ def test_a_descent_ended_again_by_the_memory_counts_once_for_max_descents(tmp_pa
     (res,) = acq.results()
     assert res.row.photocells_used == 9 and res.row.status == "ok"
     assert any(f.startswith("joined: ") for f in res.row.flags)
+
+
+def test_two_skiers_cut_short_at_the_same_photocell_each_get_their_own_rest(tmp_path, demo_track):
+    """Order pairing, two skiers on the run half a second apart (after a whole descent that
+    gives the typical times); the cable comes out when both have passed PC4. The download
+    brings both rests in the timer's order: each joins the skier it belongs to, not the one
+    whose last crossing was latest (the nearer in time: the skier behind would take the
+    first skier's PC5, and the first skier the second's)."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(
+        str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS,
+                         extra="descent: {pairing: order}\n"))
+    )  # fmt: skip
+    proc = Processor(cfg, demo_track)
+    first = _descent_lines(demo_track, 36_000, 1, "TN", 1)
+    a = _descent_lines(demo_track, 36_100, 2, "TN", 10)
+    b = _descent_lines(demo_track, 36_100.5, 3, "TN", 19)
+    host = 1_767_520_800.0
+    chunks = [Chunk(host + 0.01 * i, x.encode()) for i, x in enumerate(first)]
+    # live: every crossing of A and B before 36 110 s (both past PC4, neither at PC5)
+    both = sorted(a + b, key=lambda s: s.split()[4])
+    cut = 36_110.0
+    live = [x for x in both if float(x.split()[4].split(":")[2]) < cut - 36_060]
+    rest = [x for x in both if x not in live]
+    assert len(live) == 8 and len(rest) == 10
+    chunks += [Chunk(host + 100 + 0.1 * i, x.encode()) for i, x in enumerate(live)]
+    chunks += [Chunk(host + 110.0, b"", "disconnected", "unplugged"),
+               Chunk(host + 300.0, b"", "timeout")]  # fmt: skip
+    chunks += [Chunk(host + 2000.0, b"", "import", "imports/download.txt")]
+    chunks.append(Chunk(host + 2000.0, b"\r\n" + b"".join(x.encode() for x in rest)))
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+    done += proc.finish()
+    final = {d.number: d for d in done}
+    assert sorted(final) == [1, 2, 3] and proc.assembler.count == 3
+
+    def tod(line: str) -> int:
+        h, m, s = line.split()[4].split(":")
+        return round((int(h) * 3600 + int(m) * 60 + float(s)) * 1e6)
+
+    for n, lines in ((2, a), (3, b)):
+        d = final[n]
+        assert d.status == "complete" and len(d.photocells) == 9, d
+        assert [t % (86_400 * 10**6) for t in d.times_us] == [tod(x) for x in lines], n
+        assert any(f.startswith("joined: ") for f in d.flags)

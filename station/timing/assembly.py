@@ -811,9 +811,11 @@ class DescentAssembler:
     def _rejoin(self, pc: str, k: int, t: int, bib: str) -> TimedDescent | None:
         """A descent that ended short of photocell ``k`` (timed out, the timer disconnected,
         the recording ended) and that an impulse from the timer's memory continues plausibly:
-        open again to take it and the rest, its crossing times all the timer's own. The
-        nearest in time of those that can; None: none can."""
-        best: tuple[int, TimedDescent] | None = None
+        open again to take it and the rest, its crossing times all the timer's own. Of those
+        that can, the one the order pairing would choose (:meth:`_score`: nearest the time
+        it was expected there); None: none can. (The one whose last crossing was latest took
+        the crossing of the skier ahead when two were cut short at one photocell.)"""
+        best: tuple[tuple[float, int], TimedDescent] | None = None
         reach = max(self.timeout_us)
         for d in self._short:
             if not d.times_us or not d.times_us[-1] < t <= d.times_us[-1] + reach:
@@ -824,9 +826,9 @@ class DescentAssembler:
                 continue
             if self._why_not(d, pc, k, t, by_order=True) is not None:
                 continue
-            gap = t - d.times_us[-1]
-            if best is None or gap < best[0]:
-                best = (gap, d)
+            score = self._score(d, k, t)
+            if best is None or score < best[0]:
+                best = (score, d)
         if best is None:
             return None
         d = best[1]
@@ -923,17 +925,7 @@ class DescentAssembler:
             if why is not None:
                 reasons.append(why)
                 continue
-            exp = self._expected(d, k)
-            # a photocell skipped is rare: a descent that would miss one to take this is less
-            # likely than one that reaches it next
-            skipped = 0.5 * (k - self.order[d.photocells[-1]] - 1)
-            if exp is not None:
-                score = abs(t - exp[0]) / max(exp[0] - exp[1], 1)
-                scored.append((score + skipped, d.number, d))
-            else:
-                # no speed yet and no earlier descent to compare with: of two lone starts the
-                # later one (a walk through the start beam comes before the real start)
-                scored.append((0.75 + skipped, -d.number, d))
+            scored.append((*self._score(d, k, t), d))
         if scored:
             return min(scored, key=lambda s: (s[0], s[1]))[2], ""
         if len(reasons) == 1:
@@ -941,6 +933,19 @@ class DescentAssembler:
         if reasons:
             return None, f"no open descent can take {pc} plausibly ({'; '.join(reasons)})"
         return None, f"{pc} without a start at {self.photocells[0]}"
+
+    def _score(self, d: TimedDescent, k: int, t: int) -> tuple[float, int]:
+        """How well descent ``d`` taking photocell ``k`` at ``t`` fits (lower: better; then
+        the tie-break): the order pairing's choice among descents that can take it."""
+        exp = self._expected(d, k)
+        # a photocell skipped is rare: a descent that would miss one to take this is less
+        # likely than one that reaches it next
+        skipped = 0.5 * (k - self.order[d.photocells[-1]] - 1)
+        if exp is not None:
+            return abs(t - exp[0]) / max(exp[0] - exp[1], 1) + skipped, d.number
+        # no speed yet and no earlier descent to compare with: of two lone starts the later
+        # one (a walk through the start beam comes before the real start)
+        return 0.75 + skipped, -d.number
 
     def _expire(self, t: int) -> list[TimedDescent]:
         done: list[TimedDescent] = []
