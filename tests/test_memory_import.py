@@ -515,3 +515,80 @@ def test_two_skiers_cut_short_at_the_same_photocell_each_get_their_own_rest(tmp_
         assert d.status == "complete" and len(d.photocells) == 9, d
         assert [t % (86_400 * 10**6) for t in d.times_us] == [tod(x) for x in lines], n
         assert any(f.startswith("joined: ") for f in d.flags)
+
+
+def test_a_descent_from_the_memory_takes_no_live_crossing_of_another_bib(tmp_path, demo_track):
+    """Bib pairing; the cable was out while bibs 5 and 7 started; bib 5 fell after PC4, bib 7
+    went on, its PC5 … PC9 recorded live and rejected (no open descent of bib 7). The import
+    brings both starts: bib 7's descent takes its own live rest, and bib 5's (which ends
+    short first) none of it, though bib 7's crossings would continue it plausibly by time."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(
+        str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS,
+                         extra="descent: {pairing: bib}\n"))
+    )  # fmt: skip
+    proc = Processor(cfg, demo_track)
+    first = _descent_lines(demo_track, 36_000, 1, "TN", 1)
+    b5 = _descent_lines(demo_track, 36_100, 5, "TN", 10)[:4]  # fell after PC4
+    b7 = _descent_lines(demo_track, 36_102, 7, "TN", 14)
+    host = 1_767_520_800.0
+    chunks = [Chunk(host + 0.01 * i, x.encode()) for i, x in enumerate(first)]
+    chunks += [Chunk(host + 90.0, b"", "disconnected", "unplugged"),
+               Chunk(host + 111.0, b"", "connected")]  # fmt: skip
+    chunks += [Chunk(host + 112.0 + 0.1 * i, x.encode()) for i, x in enumerate(b7[4:])]
+    memory = sorted(b5 + b7[:4], key=lambda s: s.split()[4])
+    chunks += [Chunk(host + 2000.0, b"", "import", "imports/download.txt")]
+    chunks.append(Chunk(host + 2000.0, b"\r\n" + b"".join(x.encode() for x in memory)))
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+    assert sum(not e.kept for e in proc.events) == 5  # bib 7's live rest, without a start
+    done += proc.finish()
+    final = {d.number: d for d in done}
+    assert sorted(final) == [1, 2, 3]
+    by_bib = {d.bib: d for d in final.values()}
+    assert len(by_bib["5"].photocells) == 4 and by_bib["5"].status == "incomplete"
+    assert not any(f.startswith("joined: ") for f in by_bib["5"].flags)
+    seven = by_bib["7"]
+    assert seven.status == "complete" and len(seven.photocells) == 9, seven
+    assert "joined: PC4 from the timer's memory, PC5 on recorded live" in seven.flags
+
+
+def test_the_last_live_crossing_held_for_confirmation_is_not_lost_to_the_import(
+    tmp_path, demo_track
+):
+    """The cable was out for descent 1's first four crossings; its live rest came far from
+    the clock (nothing kept since the day before), so each waits for the next impulse to
+    confirm its time, and the finish still waits when the import's event comes. It is taken
+    as it is then, as at the end of a capture: the memory's first impulse, earlier by nature,
+    called it a corrupted time, and the joined descent lost its finish."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    before = _descent_lines(demo_track, 35_000, 1, "TN", 1)  # a descent an hour before
+    body = _descent_lines(demo_track, 36_000, 2, "TN", 10)
+    host = 1_767_517_200.0
+    chunks = [Chunk(host + 0.01 * i, x.encode()) for i, x in enumerate(before)]
+    chunks += [
+        Chunk(host + 995.0, b"", "disconnected", "unplugged"),
+        Chunk(host + 1009.0, b"", "connected"),
+    ]
+    chunks += [Chunk(host + 1010.0 + 0.01 * i, x.encode()) for i, x in enumerate(body[4:])]
+    chunks += [Chunk(host + 2000.0, b"", "import", "imports/download.txt")]
+    chunks.append(Chunk(host + 2000.0, b"\r\n" + b"".join(x.encode() for x in body[:4])))
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+    done += proc.finish()
+    final = {d.number: d for d in done}
+    assert sorted(final) == [1, 2]
+    d = final[2]
+    assert d.status == "complete" and len(d.photocells) == 9 and not d.missing, d
+    assert "joined: PC4 from the timer's memory, PC5 on recorded live" in d.flags
+    assert not any("corrupted time" in e.reason for e in proc.events)

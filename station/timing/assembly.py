@@ -261,9 +261,9 @@ class DescentAssembler:
         #: start of the bib, the end): those the timer's memory may complete
         self._short: list[TimedDescent] = []
         #: live impulses no descent took (past a start the cable lost): (photocell, its index,
-        #: time, channel), the latest MAX_ORPHANS; a descent from the timer's memory that ends
-        #: short of them takes those that continue it
-        self._orphans: list[tuple[str, int, int, str]] = []
+        #: time, channel, bib), the latest MAX_ORPHANS; a descent from the timer's memory that
+        #: ends short of them takes those that continue it (of its own bib, when bibs pair)
+        self._orphans: list[tuple[str, int, int, str, str]] = []
 
     @property
     def current(self) -> TimedDescent | None:
@@ -783,7 +783,7 @@ class DescentAssembler:
                 reason = f"{reason}; {why}"
             self._event(imp, line, pc, False, reason, self._near(bib))
             if not self.from_memory:
-                self._orphans.append((pc, k, t, imp.channel))
+                self._orphans.append((pc, k, t, imp.channel, bib))
                 del self._orphans[:-MAX_ORPHANS]
             return done
         d = chosen
@@ -972,6 +972,18 @@ class DescentAssembler:
             done += self._finish(d, "the recording ended")
         return done
 
+    def memory_follows(self) -> list[TimedDescent]:
+        """The impulses that follow are from the timer's memory (:attr:`from_memory`): a live
+        impulse still held for the next one to confirm its time is taken as it is first, as
+        at the end of a capture (:meth:`close`); the descents that ended."""
+        done: list[TimedDescent] = []
+        if self._pending is not None:
+            p_imp, p_line, p_t = self._pending
+            self._pending = None
+            done += self._accept(p_imp, p_line, p_t, None)
+        self.from_memory = True
+        return done
+
     def disconnected(self, detail: str = "") -> None:
         """The connection to the timer broke: the open descents say so."""
         for d in self.open:
@@ -1059,11 +1071,15 @@ class DescentAssembler:
     def _adopt(self, d: TimedDescent) -> bool:
         """A descent from the timer's memory ending short: the live impulses no descent took
         that continue it plausibly (the cable came back in during it), taken into it, with a
-        flag. True when it then reaches the last photocell."""
+        flag. True when it then reaches the last photocell. An impulse of another bib is not
+        taken when bibs pair (it was: a skier who fell took the live rest of the one behind)."""
         last = d.photocells[-1] if d.photocells else None
+        by_bib = self.mode != "order"
         taken = []
         for o in sorted(self._orphans, key=lambda o: o[2]):
-            pc, k, t, ch = o
+            pc, k, t, ch, bib = o
+            if by_bib and bib and d.bib and bib != d.bib:
+                continue
             if not d.photocells or self._why_not(d, pc, k, t, by_order=True) is not None:
                 continue
             skipped = self.photocells[self.order[d.photocells[-1]] + 1 : k]
