@@ -592,3 +592,44 @@ def test_the_last_live_crossing_held_for_confirmation_is_not_lost_to_the_import(
     assert d.status == "complete" and len(d.photocells) == 9 and not d.missing, d
     assert "joined: PC4 from the timer's memory, PC5 on recorded live" in d.flags
     assert not any("corrupted time" in e.reason for e in proc.events)
+
+
+def test_in_order_pairing_a_descent_from_the_memory_leaves_the_live_rest_to_its_skier(
+    tmp_path, demo_track
+):
+    """The same day paired by order (no bibs to tell): skier 1 fell after PC4, skier 2 went on
+    two seconds behind, its PC5 … PC9 live and rejected. Both descents from the memory end
+    at the end, skier 1's first: the live rest goes to the descent that would reach it when
+    expected (skier 2's), as the pairing of skiers on the run chooses, not to the first to
+    end that could take it."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(
+        str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS,
+                         extra="descent: {pairing: order}\n"))
+    )  # fmt: skip
+    proc = Processor(cfg, demo_track)
+    first = _descent_lines(demo_track, 36_000, 1, "TN", 1)
+    fell = _descent_lines(demo_track, 36_100, 5, "TN", 10)[:4]
+    on = _descent_lines(demo_track, 36_102, 7, "TN", 14)
+    host = 1_767_520_800.0
+    chunks = [Chunk(host + 0.01 * i, x.encode()) for i, x in enumerate(first)]
+    chunks += [Chunk(host + 90.0, b"", "disconnected", "unplugged"),
+               Chunk(host + 111.0, b"", "connected")]  # fmt: skip
+    chunks += [Chunk(host + 112.0 + 0.1 * i, x.encode()) for i, x in enumerate(on[4:])]
+    memory = sorted(fell + on[:4], key=lambda s: s.split()[4])
+    chunks += [Chunk(host + 2000.0, b"", "import", "imports/download.txt")]
+    chunks.append(Chunk(host + 2000.0, b"\r\n" + b"".join(x.encode() for x in memory)))
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+    done += proc.finish()
+    final = {d.number: d for d in done}
+    assert sorted(final) == [1, 2, 3]
+    assert len(final[2].photocells) == 4 and final[2].status == "incomplete", final[2]
+    assert not any(f.startswith("joined: ") for f in final[2].flags)
+    d = final[3]
+    assert d.status == "complete" and len(d.photocells) == 9, d
+    assert "joined: PC4 from the timer's memory, PC5 on recorded live" in d.flags

@@ -1082,6 +1082,8 @@ class DescentAssembler:
                 continue
             if not d.photocells or self._why_not(d, pc, k, t, by_order=True) is not None:
                 continue
+            if self._rival(d, pc, k, t, bib if by_bib else ""):
+                continue  # an open descent would reach it when expected: its skier's
             skipped = self.photocells[self.order[d.photocells[-1]] + 1 : k]
             if skipped:
                 d.flags.append(f"missed {', '.join(skipped)}")
@@ -1097,6 +1099,18 @@ class DescentAssembler:
             self._orphans.remove(o)
         d.flags.append(f"{JOINED}{last} from the timer's memory, {taken[0][0]} on recorded live")
         return d.photocells[-1] == self.photocells[-1]
+
+    def _rival(self, d: TimedDescent, pc: str, k: int, t: int, bib: str) -> bool:
+        """Another open descent (of the bib ``bib``, when given) can take photocell ``k`` at
+        ``t`` and is nearer the time expected there than ``d`` (:meth:`_score`): the live
+        rest of a skier whose start was in the timer's memory too, when ``d``'s skier fell."""
+        mine = self._score(d, k, t)
+        for e in self.open:
+            if e is d or not e.photocells or (bib and e.bib and e.bib != bib):
+                continue
+            if self._why_not(e, pc, k, t, by_order=True) is None and self._score(e, k, t) < mine:
+                return True
+        return False
 
     # -- edits
 
