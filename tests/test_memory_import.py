@@ -641,3 +641,45 @@ def test_in_order_pairing_a_descent_from_the_memory_leaves_the_live_rest_to_its_
     d = final[3]
     assert d.status == "complete" and len(d.photocells) == 9, d
     assert "joined: PC4 from the timer's memory, PC5 on recorded live" in d.flags
+
+
+def test_alge_m_lines_give_a_descent_whose_start_the_cable_lost_its_live_rest(tmp_path, demo_track):
+    """ALGE: the cable out for a descent's first four crossings, its live rest rejected as
+    without a start (the last one still held for confirmation: nothing kept moved the clock
+    for an hour), then the timer's memory recalled on the line (``m`` lines, each from the
+    memory alone). The descent the ``m`` lines start takes its live rest when it ends, and
+    the held finish is not called a corrupted time by the memory's earlier ones."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+    from station.timing.wireformats import format_alge
+
+    xs = np.array([pc.x for pc in demo_track.photocells])
+    t = (
+        StraightRun(demo_track.profile, xs)
+        .solve(Params(0.22, 0.0085, 3.4), Conditions(88, 1.079))
+        .t
+    )
+
+    def lines(start_s: float, flag: str = " ") -> list[bytes]:
+        return [(format_alge(f"C{i}", round((start_s + ti) * 1e6), 0, flag) + "\r").encode()
+                for i, ti in enumerate(t)]  # fmt: skip
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "alge")))
+    proc = Processor(cfg, demo_track)
+    host = 1_767_520_800.0
+    chunks = [Chunk(host + 0.01 * i, x) for i, x in enumerate(lines(36_000))]
+    chunks += [Chunk(host + 3590.0, b"", "disconnected", "unplugged"),
+               Chunk(host + 3609.0, b"", "connected")]  # fmt: skip
+    chunks += [Chunk(host + 3600.0 + t[i], x) for i, x in enumerate(lines(39_600)) if i >= 4]
+    chunks += [Chunk(host + 3700.0 + 0.01 * i, x) for i, x in enumerate(lines(39_600, "m")[:4])]
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+    done += proc.finish()
+    final = {d.number: d for d in done}
+    assert sorted(final) == [1, 2]
+    d = final[2]
+    assert d.status == "complete" and len(d.photocells) == 9 and not d.missing, d
+    assert "joined: PC4 from the timer's memory, PC5 on recorded live" in d.flags
+    assert not any("corrupted time" in e.reason for e in proc.events)

@@ -264,6 +264,9 @@ class DescentAssembler:
         #: time, channel, bib), the latest MAX_ORPHANS; a descent from the timer's memory that
         #: ends short of them takes those that continue it (of its own bib, when bibs pair)
         self._orphans: list[tuple[str, int, int, str, str]] = []
+        #: descents started by an impulse from the timer's memory (ALGE ``m`` lines end with
+        #: the line: such a descent still takes the live rest when it ends short later)
+        self._memory_starts: set[int] = set()
 
     @property
     def current(self) -> TimedDescent | None:
@@ -757,6 +760,8 @@ class DescentAssembler:
             self.count += 1
             d = TimedDescent(self.count, [pc], [t], first_line=line, channels=[imp.channel],
                              bib=bib if self.mode != "order" else "", day=imp.day)  # fmt: skip
+            if self.from_memory:
+                self._memory_starts.add(d.number)
             self.open.append(d)
             self._move_clock(t)
             self._keep(imp.channel, t)
@@ -976,13 +981,18 @@ class DescentAssembler:
         """The impulses that follow are from the timer's memory (:attr:`from_memory`): a live
         impulse still held for the next one to confirm its time is taken as it is first, as
         at the end of a capture (:meth:`close`); the descents that ended."""
-        done: list[TimedDescent] = []
-        if self._pending is not None:
-            p_imp, p_line, p_t = self._pending
-            self._pending = None
-            done += self._accept(p_imp, p_line, p_t, None)
+        done = self._take_held()
         self.from_memory = True
         return done
+
+    def _take_held(self) -> list[TimedDescent]:
+        """The impulse held for the next one to confirm its time, taken as it is (a memory
+        impulse, earlier by nature, would call it a corrupted time)."""
+        if self._pending is None:
+            return []
+        p_imp, p_line, p_t = self._pending
+        self._pending = None
+        return self._accept(p_imp, p_line, p_t, None)
 
     def disconnected(self, detail: str = "") -> None:
         """The connection to the timer broke: the open descents say so."""
@@ -1050,7 +1060,8 @@ class DescentAssembler:
 
     def _finish(self, d: TimedDescent, why: str) -> list[TimedDescent]:
         self.open.remove(d)
-        if self.from_memory and self._orphans and self._adopt(d):
+        from_memory = self.from_memory or d.number in self._memory_starts
+        if from_memory and self._orphans and self._adopt(d):
             d.status = "complete" if d.photocells[0] == self.photocells[0] else "incomplete"
             self._done(d)
             return [d]
@@ -1145,9 +1156,14 @@ class DescentAssembler:
         if e.kind == "repeated from memory":
             # ALGE `m`: an impulse from the timer's memory (a download): kept unless it is
             # already (a live impulse the memory repeats is not doubled)
+            held: list[TimedDescent] = []
+            if self._pending is not None and self._time(e.tod_us, e.day) < self._pending[2]:
+                # a live impulse held for confirmation: the memory's earlier time neither
+                # confirms nor refutes it (it called it corrupted: a live finish was lost)
+                held = self._take_held()
             was, self.from_memory = self.from_memory, True
             try:
-                return self.feed(
+                return held + self.feed(
                     Impulse(e.channel, e.tod_us, 100, e.flag, e.bib, e.day, e.line), line
                 )
             finally:
