@@ -930,7 +930,18 @@ class DescentAssembler:
             if why is not None:
                 reasons.append(why)
                 continue
-            scored.append((*self._score(d, k, t), d))
+            exp = self._expected(d, k)
+            # a photocell skipped is rare: a descent that would miss one to take this is less
+            # likely than one that reaches it next (as :meth:`_score`, inline: the general
+            # path's every impulse with several skiers on the run)
+            skipped = 0.5 * (k - self.order[d.photocells[-1]] - 1)
+            if exp is not None:
+                score = abs(t - exp[0]) / max(exp[0] - exp[1], 1)
+                scored.append((score + skipped, d.number, d))
+            else:
+                # no speed yet and no earlier descent to compare with: of two lone starts the
+                # later one (a walk through the start beam comes before the real start)
+                scored.append((0.75 + skipped, -d.number, d))
         if scored:
             return min(scored, key=lambda s: (s[0], s[1]))[2], ""
         if len(reasons) == 1:
@@ -941,7 +952,8 @@ class DescentAssembler:
 
     def _score(self, d: TimedDescent, k: int, t: int) -> tuple[float, int]:
         """How well descent ``d`` taking photocell ``k`` at ``t`` fits (lower: better; then
-        the tie-break): the order pairing's choice among descents that can take it."""
+        the tie-break): the order pairing's choice among descents that can take it, as
+        :meth:`_choose` scores them."""
         exp = self._expected(d, k)
         # a photocell skipped is rare: a descent that would miss one to take this is less
         # likely than one that reaches it next
