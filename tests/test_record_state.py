@@ -179,3 +179,55 @@ def test_a_recording_whose_results_csv_was_not_written_leaves_no_state(tmp_path,
     assert replays == [str(session)]
     assert csv_of(session) == from_scratch(session)
     assert (session / STATE).exists()
+
+
+def test_a_descent_joined_by_a_download_on_the_line_is_vouched_for_as_a_replay_gives_it(
+    tmp_path, demo_track, replays
+):
+    """TAG, the recorder's own loop: descent 1 whole; descent 2 cut short by the cable (it is
+    fitted short, and its four photocells get their survey covariance from it); the timer's
+    memory sent on the line (``DS`` … ``DE``) ends it again whole; descent 3 whole. The
+    recording leaves a state; annotates of descent 2 and of descent 1 then run in place and
+    write what a replay from scratch writes."""
+    from station.session.config import load_config
+    from station.session.rawlog import Chunk, RawLogWriter
+    from tests.test_memory_import import TAG_CHANNELS, _descent_lines, _frame
+
+    cfg_path = write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)
+    source = tmp_path / "src"
+    store.create(load_config(str(cfg_path)), str(source))
+    host = 1_767_520_800.0
+    days = [_descent_lines(demo_track, 36_000 + s, k + 1, "TN", 9 * k + 1)
+            for k, s in enumerate((0, 120, 400))]  # fmt: skip
+    chunks = [Chunk(host + 0.01 * i, x.encode()) for i, x in enumerate(days[0])]
+    chunks += [Chunk(host + 120 + 0.01 * i, x.encode()) for i, x in enumerate(days[1][:4])]
+    chunks += [
+        Chunk(host + 121.0, b"", "disconnected", "unplugged"),
+        Chunk(host + 300.0, b"", "timeout"),
+        Chunk(host + 310.0, b"", "connected"),
+    ]
+    memory = [_frame("DS 01  00 START - FINISH     ")]
+    memory += [_frame(s.split("\t")[0].replace("TN", "AN", 1)) for s in days[1]]
+    memory.append(_frame("DE 01"))
+    chunks += [Chunk(host + 320.0 + 0.01 * i, x.encode()) for i, x in enumerate(memory)]
+    chunks += [Chunk(host + 400 + 0.01 * i, x.encode()) for i, x in enumerate(days[2])]
+    log = RawLogWriter(str(source / store.RAW), header={"port": "/dev/null"})
+    for c in chunks:
+        if c.event:
+            log.event(c.t, c.event, c.detail)
+        else:
+            log.write(c.t, c.data)
+    log.close()
+
+    session = tmp_path / "rec"
+    acq = record_chunks(source, session)
+    assert acq.not_as_replayed is None
+    rows = csv_of(session).decode().splitlines()
+    assert "joined: PC4 recorded live" in rows[-2]
+    assert (session / STATE).exists() and csv_of(session) == from_scratch(session)
+    RecordedSession(str(session)).annotate(
+        [MetadataAnnotation(Metadata(mass_kg=70.0), descents=(2,), t=2.0)]
+    )
+    RecordedSession(str(session)).annotate([ModelChange(1, FitModel.VELOCITY, 3.0)])
+    assert replays == []
+    assert csv_of(session) == from_scratch(session)
