@@ -231,3 +231,52 @@ def test_a_descent_joined_by_a_download_on_the_line_is_vouched_for_as_a_replay_g
     RecordedSession(str(session)).annotate([ModelChange(1, FitModel.VELOCITY, 3.0)])
     assert replays == []
     assert csv_of(session) == from_scratch(session)
+
+
+def test_an_edit_that_changes_descent_1s_photocells_after_later_ones_is_as_replayed(
+    tmp_path, demo_track, replays
+):
+    """TAG, the recorder's own loop: descents 1-3 whole; then PC5 of descent 1 cancelled at
+    the timer (``TC``): descent 1 ends again on eight photocells, the first on them, and its
+    reference fit gives them their survey covariance; descent 4 missed PC5 and takes it. The
+    recording leaves a state; annotates of descents 1 and 4 run in place and write what a
+    replay from scratch writes."""
+    from station.session.config import load_config
+    from station.session.rawlog import Chunk, RawLogWriter
+    from station.timing.wireformats import format_tag
+    from tests.test_memory_import import DAY, TAG_CHANNELS, _descent_lines
+
+    cfg_path = write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)
+    source = tmp_path / "src"
+    store.create(load_config(str(cfg_path)), str(source))
+    host = 1_767_520_800.0
+    days = [_descent_lines(demo_track, 36_000 + 120 * k, k + 1, "TN", 9 * k + 1) for k in range(4)]
+    del days[3][4]  # descent 4 missed PC5
+    chunks = []
+    for k in range(3):
+        chunks += [Chunk(host + 120 * k + 0.01 * i, x.encode()) for i, x in enumerate(days[k])]
+    pc5 = days[0][4].split()
+    tod = pc5[4].split(":")
+    tod_us = round((int(tod[0]) * 3600 + int(tod[1]) * 60 + float(tod[2])) * 1e6)
+    cancel = format_tag("5", tod_us, 5, 1, DAY, "TC") + "\r\n"
+    chunks.append(Chunk(host + 300.0, cancel.encode()))
+    chunks += [Chunk(host + 360 + 0.01 * i, x.encode()) for i, x in enumerate(days[3])]
+    log = RawLogWriter(str(source / store.RAW), header={"port": "/dev/null"})
+    for c in chunks:
+        log.write(c.t, c.data)
+    log.close()
+
+    session = tmp_path / "rec"
+    acq = record_chunks(source, session)
+    assert acq.not_as_replayed is None
+    an = acq.day.analyser
+    eight = ("PC1", "PC2", "PC3", "PC4", "PC6", "PC7", "PC8", "PC9")
+    assert acq.day.results[1].descent.photocells == eight
+    assert an.survey_source[eight] == 1 and acq.day.results[4].descent.photocells == eight
+    assert (session / STATE).exists() and csv_of(session) == from_scratch(session)
+    RecordedSession(str(session)).annotate([ModelChange(1, FitModel.VELOCITY, 2.0)])
+    RecordedSession(str(session)).annotate(
+        [MetadataAnnotation(Metadata(mass_kg=70.0), descents=(1, 4), t=3.0)]
+    )
+    assert replays == []
+    assert csv_of(session) == from_scratch(session)
