@@ -683,3 +683,8 @@ def test_alge_m_lines_give_a_descent_whose_start_the_cable_lost_its_live_rest(tm
     assert d.status == "complete" and len(d.photocells) == 9 and not d.missing, d
     assert "joined: PC4 from the timer's memory, PC5 on recorded live" in d.flags
     assert not any("corrupted time" in e.reason for e in proc.events)
+    # the events list says where the live rest went, after its "without a start"
+    went = [
+        (e.photocell, e.descent) for e in proc.events if e.kept and e.reason.startswith("joined")
+    ]
+    assert went == [(f"PC{i}", 2) for i in range(5, 10)]

@@ -261,9 +261,10 @@ class DescentAssembler:
         #: start of the bib, the end): those the timer's memory may complete
         self._short: list[TimedDescent] = []
         #: live impulses no descent took (past a start the cable lost): (photocell, its index,
-        #: time, channel, bib), the latest MAX_ORPHANS; a descent from the timer's memory that
-        #: ends short of them takes those that continue it (of its own bib, when bibs pair)
-        self._orphans: list[tuple[str, int, int, str, str]] = []
+        #: time, channel, bib, and the line, time of day and flag its event had), the latest
+        #: MAX_ORPHANS; a descent from the timer's memory that ends short of them takes those
+        #: that continue it (of its own bib, when bibs pair)
+        self._orphans: list[tuple[str, int, int, str, str, int, int, str]] = []
         #: descents started by an impulse from the timer's memory (ALGE ``m`` lines end with
         #: the line: such a descent still takes the live rest when it ends short later)
         self._memory_starts: set[int] = set()
@@ -788,7 +789,7 @@ class DescentAssembler:
                 reason = f"{reason}; {why}"
             self._event(imp, line, pc, False, reason, self._near(bib))
             if not self.from_memory:
-                self._orphans.append((pc, k, t, imp.channel, bib))
+                self._orphans.append((pc, k, t, imp.channel, bib, line, imp.tod_us, imp.flag))
                 del self._orphans[:-MAX_ORPHANS]
             return done
         d = chosen
@@ -1100,7 +1101,7 @@ class DescentAssembler:
         by_bib = self.mode != "order"
         taken = []
         for o in sorted(self._orphans, key=lambda o: o[2]):
-            pc, k, t, ch, bib = o
+            pc, k, t, ch, bib, line, tod, flag = o
             if by_bib and bib and d.bib and bib != d.bib:
                 continue
             if not d.photocells or self._why_not(d, pc, k, t, by_order=True) is not None:
@@ -1116,6 +1117,10 @@ class DescentAssembler:
             d.channels.append(ch)
             self._keep(ch, t)
             taken.append(o)
+            # its event said "without a start": a second one says where it went (--events)
+            self.events.append(ImpulseEvent(line, ch, pc, tod, flag, True, f"{JOINED}taken by "
+                                            f"descent {d.number}, begun in the timer's memory",
+                                            d.number))  # fmt: skip
         if not taken:
             return False
         for o in taken:
