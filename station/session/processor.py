@@ -28,6 +28,9 @@ from station.timing.wireformats import make_parser
 #: unparsed lines listed (line, reason, first 100 characters): a day of line noise stays within
 #: tens of MB; beyond it one entry says that more were not listed
 MAX_UNPARSED = 100_000
+#: the timer's own marks of a memory download on the line (TAG ``DS`` … ``DE``): between
+#: them the impulses are from its memory (:attr:`DescentAssembler.from_memory`)
+MEMORY_DOWNLOAD = {"memory download starts": True, "memory download ends": False}
 #: the lines last handed to the assembler whose host times are kept: a start it holds (a time
 #: far from its clock waits for the next impulse to confirm it) is at most a few lines back
 #: (edits may come between); one further back is dated by the line that started it
@@ -126,10 +129,13 @@ class Processor:
             if chunk.event == "import":
                 # a download of the timer's memory follows (`station import`): the times it
                 # adds are earlier than the recording's last by nature; the timer's clock is
-                # judged afresh from its first start (a reset within it is still flagged)
-                self._latest_start = None
+                # judged afresh from its first start (a reset within it is still flagged);
+                # and an impulse of it may be the rest of a descent the recording has the
+                # first crossings of (the cable came out during it): joined to it
+                return self._memory_follows(chunk.t, fresh_clock=True)
             if chunk.event == "disconnected":
                 self.assembler.disconnected(chunk.detail)
+                self.assembler.from_memory = False  # a download on the line ends with it
             return []
         lines = self.framer.feed(chunk.data)
         t: float | None = chunk.t  # None: a plain capture (replay_chunks)
@@ -324,6 +330,10 @@ class Processor:
             return done
         if isinstance(parsed, Skip):
             self.counts["skipped"] += 1
+            if parsed.reason in MEMORY_DOWNLOAD:  # TAG DS … DE sent over the line
+                if MEMORY_DOWNLOAD[parsed.reason]:
+                    return self._memory_follows(t, fresh_clock=False)
+                self.assembler.from_memory = False
         elif isinstance(parsed, Unparsed):
             self.counts["unparsed"] += 1
             # it may have been a skier's start: the assembler may start that descent later
@@ -335,6 +345,21 @@ class Processor:
                     (self.lines, "this and later unparsed lines not listed; see the raw log", "")
                 )
         return []
+
+    def _memory_follows(self, t: float | None, fresh_clock: bool) -> list[TimedDescent]:
+        """Impulses from the timer's memory follow: a live impulse still held for the next
+        one to confirm its time is taken first, as at the end of a capture (the memory's
+        first impulse, earlier by nature, called it a corrupted time and it joined nothing:
+        the live finish of a descent split by an unplugged cable was lost); then the
+        assembler is told (:attr:`DescentAssembler.from_memory`)."""
+        asm = self.assembler
+        before = asm.count
+        done = asm.memory_follows()
+        if asm.count > before:
+            self._new_descents(before, done, t, judge=True)
+        if fresh_clock:
+            self._latest_start = None
+        return done
 
     def _new_descents(
         self, before: int, done: list[TimedDescent], t: float | None, judge: bool
