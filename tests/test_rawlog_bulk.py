@@ -280,6 +280,13 @@ def test_a_run_is_framed_as_read_by_read(before, reads, ends):
         got += run
     assert got == want
     assert f.feed(b"\nz\r") == g.feed(b"\nz\r") and f.flush() == g.flush()
+    if all(r.endswith("\r") for r in reads):  # a line a read: feed_lines, the lines as they are
+        f, g = LineFramer(), LineFramer()
+        got = [x for b in before for x in f.feed(b)] + f.feed_lines([r[:-1] for r in reads])
+        want = [x for b in before for x in g.feed(b)]
+        want += [x for r in reads for x in g.feed(r.encode())]
+        assert got == want
+        assert f.feed(b"\nz\r") == g.feed(b"\nz\r") and f.flush() == g.flush()
 
 
 # ----------------------------------------------------------------------------- replays
