@@ -12,14 +12,17 @@ strip), and text in a cell is text: a note "[kg]" is not taken for markup.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
 
 from rich.cells import set_cell_size
 from rich.segment import Segment
 from rich.style import Style
 from textual.cache import LRUCache
+from textual.geometry import Size
 from textual.strip import Strip
 from textual.widgets import DataTable
+from textual.widgets.data_table import RowKey
 
 
 class ResultsTable(DataTable[str]):
@@ -35,6 +38,26 @@ class ResultsTable(DataTable[str]):
         super()._clear_caches()
         self._plain_cells.clear()
         self._plain_lines.clear()
+
+    def _update_dimensions(self, new_rows: Iterable[RowKey]) -> None:
+        """The table's size after rows were added. DataTable measures every cell of each new
+        row for the widths of auto-sized columns and keeps what it measured (11 Rich Texts a
+        row, kept for the last 1000 rows: objects every full garbage collection walks). The
+        station's columns have fixed widths and its rows one line: nothing to measure."""
+        rows = list(new_rows)
+        fixed = not any(c.auto_width for c in self.columns.values())
+        plain = all(
+            (row := self.rows.get(k)) is None or (row.label is None and not row.auto_height)
+            for k in rows
+        )
+        if not (fixed and plain):
+            super()._update_dimensions(rows)
+            return
+        width = sum(c.get_render_width(self) for c in self.columns.values())
+        header = self.header_height if self.show_header else 0
+        self.virtual_size = Size(
+            width + self._row_label_column_width, self._total_row_height + header
+        )
 
     def _render_line(self, y: int, x1: int, x2: int, base_style: Style) -> Strip:
         """A line of the table, kept by what it shows: the row's cells, whether the cursor
