@@ -43,6 +43,7 @@ from station.session.records import (
 )
 from station.session.store import RESULTS, is_session
 from station.timing.impulses import format_tod
+from station.ui.collector import IdleCollector
 from station.ui.comparison import ComparisonProcess
 from station.ui.messages import (
     AcquisitionWarning,
@@ -78,6 +79,14 @@ NARROW = 130
 NARROW_TABLE = 130
 #: the vertical scrollbar of the table, kept free so the last column is never under it
 SCROLLBAR = 2
+#: a full garbage collection is looked for COLLECT_AFTER_S after each fit (on the screen by
+#: then: with a dialog open it takes two refreshes, and a callback after the first ran before
+#: the fit's frame; the next descent's end is furthest away then) and, every COLLECT_EVERY_S,
+#: when no fit came for QUIET_S and no descent is open (s): a collection at any other moment
+#: may fall on the next fit's path
+COLLECT_AFTER_S = 0.2
+COLLECT_EVERY_S = 5.0
+QUIET_S = 30.0
 
 
 def table_columns(width: int) -> list[Column]:
@@ -266,6 +275,8 @@ class StationApp(App):
         self.config = config
         self.acq: Acquisition | None = None
         self.comparer: ComparisonProcess | None = None
+        self.collector = IdleCollector()
+        self._fitted_at = 0.0  # time.monotonic() of the latest fit
         self.photocell_ids: tuple[str, ...] = ()
         # what the messages brought: the UI's own snapshots of the day
         self.results: dict[int, DescentResult] = {}
@@ -308,6 +319,10 @@ class StationApp(App):
         # every two descents, ~150 ms of the UI's process each, whatever descent it fell in)
         gc.collect()
         gc.freeze()
+        # and the full collections, which walk the day's objects (100–300 ms at descent 800),
+        # run between descents, not whenever an allocation tips Python's count
+        self.collector.start()
+        self.set_interval(COLLECT_EVERY_S, self._collect_if_quiet)
         if self.mode == "replay" and self.recorded is not None:
             self.acq = self.recorded.start_replay(PostingListener(self), speed=self.speed)
         else:
@@ -468,6 +483,8 @@ class StationApp(App):
             if following:
                 table.move_cursor(row=table.row_count - 1, scroll=True)
         self.latest = n
+        self._fitted_at = time.monotonic()
+        self.set_timer(COLLECT_AFTER_S, self._collect_after_fit)
         if self._comparison_due:  # the comparison that waited for this fit, after its frame
             self.call_after_refresh(self._show_comparison)
         # the panel shows the selected row, and only it: "the descent" is one descent
@@ -508,6 +525,17 @@ class StationApp(App):
         self._comparison_due = False
         if isinstance(self.screen, ComparisonScreen):
             self.screen.update(self.comparison_text)
+
+    def _collect_after_fit(self) -> None:
+        """A full garbage collection, if one is due and no other descent is about to end."""
+        if not self._fit_imminent():
+            self.collector.collect_if_due()
+
+    def _collect_if_quiet(self) -> None:
+        """A full garbage collection, if one is due and no descent has come for a while."""
+        p = self.progress
+        if (p is None or p.number is None) and time.monotonic() - self._fitted_at > QUIET_S:
+            self.collector.collect_if_due()
 
     def _fit_imminent(self) -> bool:
         """The open descent has passed all but its last photocell: its fit is due any moment,
@@ -749,3 +777,4 @@ class StationApp(App):
             self.comparer.close()
         if self.sim is not None:
             self.sim.stop(timeout=0.05)
+        self.collector.stop()

@@ -1,0 +1,129 @@
+"""What keeps the UI's work off a fit's way to the screen: full garbage collections only
+between descents (station/ui/collector.py), and a table that keeps nothing per row it does
+not draw (station/ui/table.py). The latency itself is measured by
+benchmarks/ui_fit_latency.py, not here."""
+
+from __future__ import annotations
+
+import asyncio
+import gc
+
+import pytest
+from textual.app import App, ComposeResult
+
+from station.ui import collector as collector_module
+from station.ui.collector import NEVER, IdleCollector
+from station.ui.table import ResultsTable
+from tests.test_ui import replay_app, wait_for, wait_for_replay
+
+
+@pytest.fixture
+def full_collections():
+    """The full collections that ran, whoever started them."""
+    seen: list[int] = []
+
+    def note(phase: str, info: dict) -> None:
+        if phase == "stop" and info["generation"] == 2:
+            seen.append(1)
+
+    gc.callbacks.append(note)
+    yield seen
+    gc.callbacks.remove(note)
+
+
+def grow(n: int) -> list[list[int]]:
+    """Objects that live on (as a day's do): they pass through the young generations."""
+    return [[i] for i in range(n)]
+
+
+def test_python_starts_no_full_collection_while_the_ui_decides(full_collections):
+    saved = gc.get_threshold()
+    col = IdleCollector()
+    col.start()
+    try:
+        assert gc.get_threshold() == (saved[0], saved[1], NEVER)
+        kept = grow(400_000)  # ~57 middle collections: Python would start full ones
+        assert gc.get_count()[2] > saved[2]
+        assert full_collections == []
+        assert col.collect_if_due() and len(full_collections) == 1  # when the UI asks
+        assert gc.get_count()[2] == 0
+        assert not col.collect_if_due()  # none due right after one
+        del kept
+    finally:
+        col.stop()
+    assert gc.get_threshold() == saved
+    kept = grow(400_000)
+    assert full_collections != [1]  # Python's own again (the check above means something)
+    del kept
+
+
+def test_a_full_collection_waits_ten_times_its_length(monkeypatch, full_collections):
+    col = IdleCollector()
+    col.start()
+    clock = [100.0]
+    monkeypatch.setattr(collector_module.time, "monotonic", lambda: clock[0])
+    real_collect = gc.collect
+
+    def collect(generation: int = 2) -> int:
+        clock[0] += 0.2  # a full collection of 0.2 s
+        return real_collect(generation)
+
+    monkeypatch.setattr(collector_module.gc, "collect", collect)
+    try:
+        kept = grow(200_000)
+        assert col.collect_if_due()
+        kept += grow(200_000)
+        assert gc.get_count()[2] > col.saved[2]  # due by Python's count, not yet by time
+        clock[0] += 1.9
+        assert not col.collect_if_due()
+        clock[0] += 0.2  # past 2 s after the end of the last one: 10 × 0.2 s
+        assert col.collect_if_due() and col.collections == 2
+        assert col.seconds == pytest.approx(0.4)
+        del kept
+    finally:
+        col.stop()
+
+
+def test_the_app_decides_while_it_runs_and_gives_python_its_thresholds_back(tmp_path, demo_track):
+    saved = gc.get_threshold()
+    app = replay_app(tmp_path, demo_track)
+
+    async def run() -> None:
+        async with app.run_test(size=(100, 30)) as pilot:
+            await wait_for_replay(pilot, app)
+            assert gc.get_threshold()[2] == NEVER
+            grow(400_000)  # a long day's worth of middle collections, then a fit
+            await pilot.press("v")  # a refit of the selected descent: a fit after the count
+            await wait_for(pilot, lambda: app.collector.collections >= 1, timeout=20)
+
+    asyncio.run(run())
+    assert gc.get_threshold() == saved
+
+
+class OneTable(App):
+    def compose(self) -> ComposeResult:
+        yield ResultsTable(cursor_type="row", cell_padding=0)
+
+
+def test_the_table_measures_and_keeps_nothing_for_fixed_width_columns():
+    """DataTable measured every new row's cells and kept their Rich Texts (the last 1000 rows,
+    11 Texts each: objects every full collection walked); the size is the same without."""
+
+    async def run() -> tuple:
+        app = OneTable()
+        async with app.run_test(size=(80, 24)) as pilot:
+            table = app.query_one(ResultsTable)
+            for key, width in (("n", 4), ("mu", 8), ("notes", 20)):
+                table.add_column(key, key=key, width=width)
+            for i in range(30):
+                table.add_row(f"{i:>4}", f"{0.0085 + i / 1e5:8.5f}", "a note [kg]", key=str(i))
+            await pilot.pause(0.2)
+            kept = len(table._row_renderable_cache)
+            size = table.virtual_size
+            # DataTable's own measure, for the same rows: the same size
+            super(ResultsTable, table)._update_dimensions(list(table.rows))
+            return kept, size, table.virtual_size
+
+    kept, ours, datatable = asyncio.run(run())
+    assert kept == 0
+    assert ours == datatable and ours.width == 4 + 8 + 20 and ours.height == 31
