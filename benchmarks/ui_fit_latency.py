@@ -279,9 +279,10 @@ def main() -> int:
         for w in windows(n):
             ms = [f["latency_ms"][k] for k in w]
             med = statistics.median(ms)
+            p90 = statistics.quantiles(ms, n=10, method="inclusive")[-1]
             cpu = statistics.median(f["cpu_ms"][k] for k in w)
             print(f"  descents {w.start:>4}–{w.stop - 1:<4}: last impulse → fit on screen "
-                  f"median {med:6.1f} ms, max {max(ms):6.1f} ms "
+                  f"median {med:6.1f} ms, p90 {p90:6.1f} ms, max {max(ms):6.1f} ms "
                   f"({med / TARGET_MS:.2f}× the {TARGET_MS:.0f} ms target); "
                   f"CPU of the UI's process meanwhile: median {cpu:5.1f} ms")  # fmt: skip
         end[which] = statistics.median(f["latency_ms"][k] for k in windows(n)[-1])
