@@ -127,3 +127,44 @@ def test_the_table_measures_and_keeps_nothing_for_fixed_width_columns():
     kept, ours, datatable = asyncio.run(run())
     assert kept == 0
     assert ours == datatable and ours.width == 4 + 8 + 20 and ours.height == 31
+
+
+def test_the_table_extends_its_rows_in_order_as_datatable_lists_them():
+    """The rows in order and the row on each line, extended as rows are added (DataTable
+    built both again after every update: 2000 rows at descent 2000), are DataTable's own,
+    also after a clear, a sort, a removal and with a row two lines high."""
+    from textual.widgets import DataTable
+
+    def same(table: ResultsTable) -> None:
+        assert table.ordered_rows == DataTable.ordered_rows.fget(table)
+        assert table._y_offsets == DataTable._y_offsets.fget(table)
+        for i in range(table.row_count + 1):
+            assert table._get_row_region(i) == DataTable._get_row_region(table, i)
+
+    async def run() -> None:
+        app = OneTable()
+        async with app.run_test(size=(80, 24)) as pilot:
+            table = app.query_one(ResultsTable)
+            table.add_column("n", key="n", width=4)
+            table.add_column("mu", key="mu", width=8)
+            for i in range(5):
+                table.add_row(f"{i:>4}", f"{i / 1e3:8.5f}", key=str(i))
+            first = table.ordered_rows
+            same(table)
+            table.add_row("   5", " 0.00500", key="5")
+            table.update_cell("2", "mu", " 0.00999")
+            await pilot.pause(0.1)
+            assert table.ordered_rows is first  # extended, not built again
+            same(table)
+            table.sort("mu", reverse=True)
+            same(table)
+            table.remove_row("3")
+            same(table)
+            table.add_row("   6", " 0.00600", key="6", height=2)
+            same(table)
+            table.clear()
+            table.add_row("   7", " 0.00700", key="7")
+            await pilot.pause(0.1)
+            same(table)
+
+    asyncio.run(run())
