@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import gc
+import os
 
 import pytest
 from textual.app import App, ComposeResult
@@ -168,3 +169,85 @@ def test_the_table_extends_its_rows_in_order_as_datatable_lists_them():
             same(table)
 
     asyncio.run(run())
+
+
+def descent_lines(demo_track, k: int) -> list[bytes]:
+    """The ALGE lines of descent ``k`` on the demo run, one per photocell."""
+    import numpy as np
+
+    from station.model.physics import Conditions, Params, StraightRun
+    from station.timing.wireformats import format_alge
+
+    xs = np.array([pc.x for pc in demo_track.photocells])
+    t = (
+        StraightRun(demo_track.profile, xs)
+        .solve(Params(0.22, 0.0085, 3.4), Conditions(88, 1.079))
+        .t
+    )
+    t0 = 10 * 3600 * 10**6 + k * 60_000_000
+    return [
+        (format_alge(f"C{i}", t0 + round(ti * 1e6), k * 10 + i) + "\r").encode()
+        for i, ti in enumerate(t)
+    ]
+
+
+@pytest.mark.parametrize("fit_s", [0.15, 0.8])
+def test_a_descents_last_impulse_is_drawn_with_its_fit(tmp_path, demo_track, monkeypatch, fit_s):
+    """The last impulse's log line, the counts and the progress wait for the descent's fit and
+    are drawn in its frame (a frame of their own came first, while the fit was computed);
+    when the fit takes longer than HOLD_S they are drawn without it."""
+    import time
+
+    from station.session.acquisition import Acquisition
+    from station.session.analysis import Analyser
+    from station.session.config import load_config
+    from station.session.rawlog import Chunk
+    from station.ui import app as app_module
+    from station.ui.app import StationApp
+    from tests.timing_helpers import write_config
+
+    fit = Analyser.run
+
+    def slow_fit(self, job):  # a fit on a busy laptop
+        time.sleep(fit_s)
+        return fit(self, job)
+
+    monkeypatch.setattr(Analyser, "run", slow_fit)
+    monkeypatch.setattr(Acquisition, "start_serial", lambda self, serial=None: None)
+    frames: list[tuple[float, bool, int]] = []  # when, the last impulse in the log, rows
+
+    class Watched(StationApp):
+        CSS_PATH = os.path.join(os.path.dirname(app_module.__file__), "station.tcss")
+
+        def _display(self, screen, renderable) -> None:
+            super()._display(screen, renderable)
+            if renderable is not None and self.columns:
+                log = self.main.query_one("#log")
+                shown = any(last in line.text for line in log.lines)
+                frames.append((time.monotonic(), shown, self.main.query_one("#table").row_count))
+
+    cfg = load_config(str(write_config(tmp_path, "loop://")))
+    app = Watched(cfg, mode="live")
+    lines = descent_lines(demo_track, 1)
+    last = f"C{len(lines) - 1}→"  # the last photocell's channel, in the log
+
+    async def run() -> float:
+        async with app.run_test(size=(120, 40)) as pilot:
+            await wait_for(pilot, lambda: app.acq is not None)
+            for line in lines[:-1]:
+                app.acq.receive(Chunk(time.time(), line))
+            await wait_for(pilot, lambda: app._fit_imminent())
+            await pilot.pause(0.2)
+            start = time.monotonic()
+            app.acq.receive(Chunk(time.time(), lines[-1]))
+            await wait_for(pilot, lambda: any(shown for _, shown, _ in frames))
+            await wait_for(pilot, lambda: app.main.query_one("#table").row_count == 1)
+            await pilot.pause(0.2)
+            return start
+
+    start = asyncio.run(run())
+    first = next(f for f in frames if f[1])  # the first frame with the last impulse in it
+    if fit_s < app_module.HOLD_S:
+        assert first[2] == 1, "the last impulse was drawn before its fit"
+    else:  # no fit within HOLD_S: drawn without it, not held until it came
+        assert first[2] == 0 and first[0] - start < fit_s

@@ -85,6 +85,9 @@ SCROLLBAR = 2
 #: when no fit came for QUIET_S and no descent is open (s): a collection at any other moment
 #: may fall on the next fit's path
 COLLECT_AFTER_S = 0.2
+#: what arrives while a descent's fit is due (its last impulse in the log, the counts, the
+#: progress) is drawn with the fit, in one frame, or after this long if no fit comes (s)
+HOLD_S = 0.3
 COLLECT_EVERY_S = 5.0
 QUIET_S = 30.0
 
@@ -277,6 +280,11 @@ class StationApp(App):
         self.comparer: ComparisonProcess | None = None
         self.collector = IdleCollector()
         self._fitted_at = 0.0  # time.monotonic() of the latest fit
+        #: drawn with the fit that is due (HOLD_S): the log's lines, the progress's text
+        self._held_log: list[str] = []
+        self._held_progress: str | None = None
+        self._holding = False
+        self._hold_timer: Any = None
         self.photocell_ids: tuple[str, ...] = ()
         # what the messages brought: the UI's own snapshots of the day
         self.results: dict[int, DescentResult] = {}
@@ -432,14 +440,42 @@ class StationApp(App):
 
     def on_impulses_arrived(self, msg: ImpulsesArrived) -> None:
         self.counts = msg.counts
-        self._update_status()
         lines = []
         for e in msg.events:
             where = f"{e.channel}→{e.photocell}" if e.photocell else e.channel
             fate = f"#{e.descent}" if e.kept else f"✗ {e.reason}"
             lines.append(f"{format_tod(e.tod_us, 4)} {where:<8} {fate}")
+        if self._holding or self._fit_imminent():
+            self._hold(lines)
+            return
+        self._update_status()
         if lines:  # one write: the log (500 lines at most) is drawn once for the chunk
             self.main.query_one("#log", RichLog).write("\n".join(lines))
+
+    def _hold(self, lines: list[str]) -> None:
+        """The last impulse of a descent, and what comes with it, drawn with its fit: a frame
+        of their own (the whole screen behind a dialog, ~6 ms at 120×40) took the UI's
+        thread while the fit was being computed, and the fit's frame came after it."""
+        if not self._holding:
+            self._holding = True
+            self._hold_timer = self.set_timer(HOLD_S, self._release)
+        self._held_log += lines
+
+    def _release(self) -> None:
+        """What was held for the fit, drawn (with it, or HOLD_S later if none came)."""
+        if not self._holding:
+            return
+        self._holding = False
+        if self._hold_timer is not None:
+            self._hold_timer.stop()
+            self._hold_timer = None
+        lines, self._held_log = self._held_log, []
+        text, self._held_progress = self._held_progress, None
+        self._update_status()
+        if lines:
+            self.main.query_one("#log", RichLog).write("\n".join(lines))
+        if text is not None:
+            self.main.query_one("#progress", Static).update(text, layout=False)
 
     def on_descent_progress(self, msg: DescentProgress) -> None:
         p = self.progress = msg.progress
@@ -455,7 +491,10 @@ class StationApp(App):
                 f"descent {p.number} running: {len(p.passed)}/{len(ids)} · "
                 f"{last} +{(passed[last] - t0) / 1e6:.2f} s\n{marks}"
             )
-        self.main.query_one("#progress", Static).update(text, layout=False)  # 2 lines, fixed
+        if self._holding:  # the descent's end: shown with its fit
+            self._held_progress = text
+        else:
+            self.main.query_one("#progress", Static).update(text, layout=False)  # 2 lines, fixed
         if isinstance(self.screen, MetadataScreen):  # a descent started while it is open
             self.screen.set_next(p.next_number)
         if self._comparison_due and not self._fit_imminent():  # no fit came (aborted)
@@ -490,6 +529,7 @@ class StationApp(App):
         # the panel shows the selected row, and only it: "the descent" is one descent
         if self._cursor_number() == n:
             self._show(res)
+        self._release()  # the last impulse, the counts and the progress, in the fit's frame
 
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
         if event.row_key is None or event.row_key.value is None:
