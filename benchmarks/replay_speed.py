@@ -12,6 +12,13 @@
 2. A 50-descent capture with timing noise, double triggers and running-time lines, replayed
    end to end: parse, assemble, fit every descent, write the results CSV.
 
+BLAS is capped at one thread while the replays run (threadpoolctl), as ``station``'s command
+line caps it before numpy loads (``station.cli.main.one_blas_thread``): the command's set-up
+fits the survey's smoothing spline (one 68 × 68 eigh), which a pool of BLAS threads on the
+shared 2-core machine made 50-90 ms of CPU instead of 0.5 ms. This process (and
+speed_table.py) has numpy loaded before it calls the command, so without the cap it measured
+a thread pool the command never has (0.5 µs a line of the capture, 1/5 of the replay's time).
+
 Run: python benchmarks/replay_speed.py
 """
 
@@ -27,6 +34,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -137,11 +145,12 @@ def measure_replay(runs: int = 5) -> dict[str, float]:
     rates: dict[str, list[float]] = {
         "replay --no-fit": [], "session --no-fit": [], "parser alone": [], "bare loop": []
     }  # fmt: skip
-    for _ in range(runs):
-        rates["bare loop"].append(len(lines) / cpu(lambda: bare_loop(big)))
-        rates["replay --no-fit"].append(len(lines) / cpu(lambda: no_fit(big, cfg.path)))
-        rates["session --no-fit"].append(len(lines) / cpu(lambda: no_fit(session, cfg.path)))
-        rates["parser alone"].append(len(lines) / cpu(lambda: parse_only(data)))
+    with threadpool_limits(limits=1, user_api="blas"):  # as the command runs (see above)
+        for _ in range(runs):
+            rates["bare loop"].append(len(lines) / cpu(lambda: bare_loop(big)))
+            rates["replay --no-fit"].append(len(lines) / cpu(lambda: no_fit(big, cfg.path)))
+            rates["session --no-fit"].append(len(lines) / cpu(lambda: no_fit(session, cfg.path)))
+            rates["parser alone"].append(len(lines) / cpu(lambda: parse_only(data)))
     return {k: statistics.median(v) for k, v in rates.items()}
 
 
@@ -153,7 +162,7 @@ def main() -> int:
     # 1. parse + assemble: station replay --no-fit against a bare loop
     med = measure_replay()
     print(f"replay of 100,800 impulse lines (2.7 MB, 11 200 descents), median of 5, CPU time, "
-          f"load {os.getloadavg()[0]:.1f}")  # fmt: skip
+          f"load {os.getloadavg()[0]:.1f}, one BLAS thread")  # fmt: skip
     for k, v in med.items():
         print(f"  {k:<16} {v:>12,.0f} lines/s   1/{med['bare loop'] / v:.1f} of the bare loop")
     for k in ("replay --no-fit", "session --no-fit"):

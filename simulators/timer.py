@@ -344,6 +344,11 @@ def run(args: argparse.Namespace) -> int:
 
     last_running = timer.tod_us() // 1_000_000 * 1_000_000
     unplugged_after: set[int] = set()
+    # --unplug-during K:P: the cable comes out after descent K's P-th impulse and goes back
+    # in --disconnect-s later, while the timer goes on timing into its memory
+    during = tuple(int(v) for v in args.unplug_during.split(":")) if args.unplug_during else None
+    sent: dict[int, int] = {}  # impulses sent per descent
+    replug_at: float | None = None
     try:
         while not stop["now"]:
             while state["k"] < args.descents and (not heap or state["next_start"] <= heap[0].tod):
@@ -357,6 +362,13 @@ def run(args: argparse.Namespace) -> int:
                     last_running += 1_000_000
                     timer.wait_until(last_running)
                     timer.send(format_tod(last_running, 1).encode() + b"\r")
+            if replug_at is not None:  # back in when due, not only at the next impulse
+                due_in = (ev.tod - timer.tod_us()) / 1e6 / args.speed
+                if replug_at <= time.monotonic() + due_in:
+                    time.sleep(max(replug_at - time.monotonic(), 0.0))
+                    port.plug()
+                    replug_at = None
+                    print("station-sim: plugged in again", file=sys.stderr, flush=True)
             timer.wait_until(ev.tod)
             if args.garbage and rng.random() < args.garbage:
                 junk = bytes(rng.integers(0, 256, int(rng.integers(3, 20)), dtype=np.uint8))
@@ -367,6 +379,13 @@ def run(args: argparse.Namespace) -> int:
                 timer.send(timer.line(ev.channel, int(ev.kind[7:]), ev.bib, "insert"))
             else:
                 timer.send(timer.line(ev.channel, ev.tod, ev.bib))
+                sent[ev.k] = sent.get(ev.k, 0) + 1
+                if during is not None and (ev.k + 1, sent[ev.k]) == during:
+                    port.drain()  # what was written is read before the cable comes out
+                    port.unplug()
+                    replug_at = time.monotonic() + args.disconnect_s
+                    print(f"station-sim: unplugged during descent {ev.k + 1}", file=sys.stderr,
+                          flush=True)  # fmt: skip
             remaining[ev.k] -= 1
             if remaining[ev.k] == 0:
                 if truth is not None:
@@ -384,6 +403,12 @@ def run(args: argparse.Namespace) -> int:
                     time.sleep(args.disconnect_s)
                     port.plug()
                     print("station-sim: plugged in again", file=sys.stderr, flush=True)
+        if replug_at is not None:
+            port.plug()  # back in for the end of the day
+        if args.download_to and args.protocol == "tag":
+            # the timer's memory saved by its own download program, for `station import`
+            with open(args.download_to, "wb") as fh:
+                fh.write(timer.download())
         if args.download and args.protocol == "tag" and not stop["now"]:
             timer.send(timer.download())
         # leave the port open a moment so the last bytes are read, unless told to hold it
@@ -468,6 +493,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="TAG: send a memory download (DS, AN …, DE) at the end",
     )
     ap.add_argument(
+        "--download-to",
+        metavar="FILE",
+        help="TAG: write the memory download (DS, AN …, DE) to FILE at the end",
+    )
+    ap.add_argument(
         "--wait-reader",
         type=float,
         default=30.0,
@@ -482,6 +512,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=0,
         metavar="K",
         help="unplug after every K-th descent (soak test of reconnects)",
+    )
+    ap.add_argument(
+        "--unplug-during",
+        metavar="K:P",
+        help="unplug after the P-th impulse of descent K, for --disconnect-s, the timer "
+        "timing on into its memory",
     )
     ap.add_argument("--disconnect-s", type=float, default=2.0)
     ap.add_argument(

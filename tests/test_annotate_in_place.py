@@ -109,9 +109,12 @@ KINDS: dict[str, list[tuple[list[Annotation], bool]]] = {
         ([ValidMark(3, 4.0)], True),
         ([ModelChange(3, FitModel.CONSTANT, 5.0), InvalidMark(4, "gate", 5.0)], True),
     ],
-    "a model change of the first descent, whose fit hands the survey on": [
-        ([ModelChange(1, FitModel.VELOCITY, 2.0)], False),
+    # the survey covariance the later fits take is computed at descent 1's reference fit,
+    # which no annotation moves: descent 1 is fitted again alone (it used to be replayed)
+    "a model change of the first descent, whose reference fit gives the survey covariance": [
+        ([ModelChange(1, FitModel.VELOCITY, 2.0)], True),
         ([InvalidMark(1, "gate", 3.0)], True),
+        ([MetadataAnnotation(Metadata(mass_kg=70.0), descents=(1, 2), t=4.0)], True),
     ],
     "a mass and a ski for listed descents": [
         ([MetadataAnnotation(Metadata(mass_kg=70.0, ski="light"), descents=(5,), t=2.0)], True),
@@ -143,6 +146,73 @@ def test_an_annotation_in_place_writes_what_a_replay_from_scratch_writes(session
         assert said.endswith(f"{session / store.RESULTS} rewritten")
         assert (replays == []) is in_place, (records, replays)
         assert csv_of(session) == from_scratch(session), records
+
+
+def poor_first_descent(session: Path) -> None:
+    """Descent 1's third crossing 5 ms late (the same size): its fit is poor (χ² against the
+    timer's 0.5 ms), so descent 2's reference fit gives its photocells the survey covariance,
+    and descent 1's fit computes its own."""
+    raw = session / store.RAW
+    lines = raw.read_text().splitlines(keepends=True)
+    rec = json.loads(lines[3])
+    assert rec["rx"] == " 0003 C2  10:00:07.0310 00\r", rec  # make_session's seed 1
+    rec["rx"] = " 0003 C2  10:00:07.0360 00\r"
+    lines[3] = json.dumps(rec, separators=(",", ":")) + "\n"
+    raw.write_text("".join(lines))
+
+
+@pytest.fixture(scope="module")
+def poor_first(tmp_path_factory):
+    """Six descents, the first a poor fit (:func:`poor_first_descent`), annotated once by a
+    replay, which leaves the CSV and its state."""
+    session = make_session(tmp_path_factory.mktemp("day"), order="ABBAAB")
+    poor_first_descent(session)
+    RecordedSession(str(session)).annotate([InvalidMark(6, "gate", 1.0)])
+    return session
+
+
+BEFORE_THE_SOURCE = {
+    "a model change of the descent before it": [ModelChange(1, FitModel.VELOCITY, 2.0)],
+    "a model change of the descent that gives it": [ModelChange(2, FitModel.VELOCITY, 2.0)],
+    "a mass for both and a later one": [
+        MetadataAnnotation(Metadata(mass_kg=75.0), descents=(1, 2, 5), t=2.0)
+    ],
+}
+
+
+@pytest.mark.parametrize("kind", list(BEFORE_THE_SOURCE))
+def test_a_descent_fitted_before_its_photocells_had_the_survey_is_fitted_again_in_place(
+    poor_first, tmp_path, replays, kind
+):
+    """Descent 1 ended before its photocells had a survey covariance (its own fit poor):
+    fitted again alone it computes its own, as the replay's fit of it did; descent 2, whose
+    reference fit gave the covariance, and a later one take the replay's. (Descent 1's row
+    does not show which covariance it took: a poor fit's intervals are its timing-only ones.
+    tests/test_survey_handed_on.py compares its fit to the bit; descent 2's row shows it.)"""
+    session = tmp_path / "session"
+    shutil.copytree(poor_first, session)
+    rows = csv_of(session).decode().splitlines()
+    assert '"poor-fit"' in rows[-6] and '"ok"' in rows[-5]
+    said = RecordedSession(str(session)).annotate(BEFORE_THE_SOURCE[kind])
+    assert said.endswith(f"{session / store.RESULTS} rewritten")
+    assert replays == []
+    assert csv_of(session) == from_scratch(session)
+
+
+def test_a_model_change_of_an_aborted_descent_is_in_place(tmp_path, replays):
+    """Descent 1 a lone start (its other crossings cut from the raw log): no fit, no survey
+    covariance for its one photocell; its model changed in place all the same."""
+    session = make_session(tmp_path, order="ABBA")
+    raw = session / store.RAW
+    lines = raw.read_text().splitlines(keepends=True)
+    assert json.loads(lines[2])["rx"].startswith(" 0002 C1 ")
+    raw.write_text("".join(lines[:2] + lines[10:]))
+    RecordedSession(str(session)).annotate([InvalidMark(4, "gate", 1.0)])  # replayed: a state
+    assert '"aborted"' in csv_of(session).decode().splitlines()[-4]
+    replays.clear()
+    RecordedSession(str(session)).annotate([ModelChange(1, FitModel.VELOCITY, 2.0)])
+    assert replays == []
+    assert csv_of(session) == from_scratch(session)
 
 
 def damage_missing(session: Path) -> None:

@@ -150,6 +150,8 @@ def test_the_real_captures_give_the_same_either_way(tmp_path, name, monkeypatch)
             if not fast:  # the parser's general path too, for every line
                 general_only(m)
                 m.setattr(AlgeParser, "parse", AlgeParser.parse_general)
+                m.setattr(AlgeParser, "parse_lines",
+                          lambda self, lines: [self.parse_general(s) for s in lines])  # fmt: skip
             proc = Processor(cfg, track)
             for k in range(0, len(data), 512):
                 proc.feed(Chunk(None, data[k : k + 512]))  # type: ignore[arg-type]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from station.model.physics import Conditions, Params, StraightRun
 from station.timing.wireformats import format_tag, tag_cs16
@@ -199,3 +200,269 @@ def test_an_import_is_dated_by_the_test_day_not_by_today(tmp_path, demo_track, r
         "import", later, "--config", cfg, "--into", tmp_path / "b", "--date", "2026-01-12"
     )
     assert r.returncode == 2 and "--date is for a new session" in r.stderr
+
+
+# -- a descent split between the live log and the timer's memory (the cable came out during it)
+
+
+def _tag_line(data: str) -> str:
+    return f"{data}\t{tag_cs16(data)}\r\n"
+
+
+def test_the_cp540s_download_joins_the_descent_whose_start_was_recorded_live(
+    tmp_path, real, run_station
+):
+    """The real CP540 download (SOURCES.md: bib 1 M1 20:37:44.136, M4 20:37:46.613): the
+    station recorded bib 1's start, then the cable came out; merged, the download's M4 is
+    that descent's finish, by the timer's own clock, and the row says it was joined (it was a
+    lone start, and the finish a descent of its own that went nowhere)."""
+    import datetime as dt
+
+    from station.session import store
+    from station.session.acquisition import replay
+    from station.session.config import load_config
+    from station.session.rawlog import RawLogWriter
+    from station.timing.impulses import DAY_US
+
+    cfg = write_config(tmp_path, "/dev/ttyUSB0", "tag", {"M1": "PC1", "M4": "PC2"})
+    session = tmp_path / "s"
+    store.create(load_config(str(cfg)), str(session))
+    t0 = dt.datetime(2018, 11, 21, 20, 37, 44).timestamp()
+    log = RawLogWriter(str(session / store.RAW), header={"port": "/dev/ttyUSB0"})
+    log.write(t0 + 0.14, _tag_line("TN    1    1 M1 20:37:44.13600  6899").encode())
+    log.event(t0 + 1.0, "disconnected", "[Errno 5] Input/output error")
+    log.event(t0 + 90.0, "timeout")  # the reader's clock ended it: nothing came for 90 s
+    log.close()
+    (session / store.RESULTS).write_text("")
+
+    r = run_station("import", real / "tag" / "cp540_frames.txt", "--config", cfg, "--into",
+                    session)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert "1 already in the session" in r.stderr
+    assert "descent 1: joined: PC1 recorded live, PC2 on from the timer's memory" in r.stderr
+    df = pd.read_csv(session / "results.csv", comment="#")
+    first = df.iloc[0]
+    assert first["photocells_used"] == 2 and first["descent_status"] == "complete"
+    assert "joined: PC1 recorded live, PC2 on from the timer's memory" in first["flags"]
+    assert "lone start" not in first["flags"] and "missing" not in first["flags"]
+    got = replay(str(session), store.load_session_config(str(session)))
+    d = got.day.results[1].descent
+    assert d.photocells == ("PC1", "PC2")
+    assert [t % DAY_US for t in d.times_us] == [74_264_136_000, 74_266_613_000]
+    # the session replays to the CSV it wrote
+    out = tmp_path / "replay.csv"
+    assert run_station("replay", session, "--csv", out).returncode == 0
+    assert out.read_bytes() == (session / "results.csv").read_bytes()
+
+
+def _live_then_download(demo_track, live_cells: int, download: bool) -> list:
+    """Chunks as a recording has them: descent 1's first ``live_cells`` crossings (TAG TN
+    lines), the cable out, the reader's time-out; with ``download`` the timer's memory sent
+    on the line after it (DS, every crossing as AN, DE)."""
+    from station.session.rawlog import Chunk
+
+    body = _descent_lines(demo_track, 36_000, 1, "TN", 1)
+    t0 = 1_767_520_800.0  # 2026-01-04 10:00 UTC: the host clock
+    chunks = [Chunk(t0 + 0.01 * k, line.encode()) for k, line in enumerate(body[:live_cells])]
+    chunks += [Chunk(t0 + 1.0, b"", "disconnected", "unplugged"), Chunk(t0 + 200.0, b"", "timeout")]
+    if download:
+        lines = [_frame("DS 01  00 START - FINISH     ")]
+        lines += [_frame(s.split("\t")[0].replace("TN", "AN", 1)) for s in body]
+        lines.append(_frame("DE 01"))
+        chunks += [Chunk(t0 + 300.0 + 0.01 * k, x.encode()) for k, x in enumerate(lines)]
+    return chunks
+
+
+def test_a_download_sent_on_the_line_joins_the_rest_of_the_descent(tmp_path, demo_track):
+    """The download comes over the serial line (``DS`` … ``DE``) after the cable went back in:
+    its AN lines the station has are not doubled, the rest join the descent they belong to,
+    which is then fitted whole."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    done = []
+    for chunk in _live_then_download(demo_track, 4, download=True):
+        done += proc.feed(chunk)
+    done += proc.finish()
+    assert [d.number for d in done] == [1, 1]  # ended by the time-out, then whole
+    d = done[-1]
+    assert d.status == "complete" and d.photocells == [f"PC{i + 1}" for i in range(9)]
+    assert not d.missing
+    assert "joined: PC4 recorded live, PC5 on from the timer's memory" in d.flags
+    assert any("timer disconnected" in f for f in d.flags)
+    assert not any("missing" in f for f in d.flags)
+    assert proc.assembler.count == 1  # no descent of its own for the rest
+
+
+def test_without_the_timers_memory_an_orphan_crossing_joins_nothing(tmp_path, demo_track):
+    """The same crossings as live impulses (TN, no download around them) after the descent
+    timed out: an impulse without a start, as before; only the timer's memory joins."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    done = []
+    for chunk in _live_then_download(demo_track, 4, download=False):
+        done += proc.feed(chunk)
+    rest = _descent_lines(demo_track, 36_000, 1, "TN", 1)[4:]
+    for k, line in enumerate(rest):
+        done += proc.feed(Chunk(1_767_521_100.0 + k, line.encode()))
+    done += proc.finish()
+    assert [(d.number, d.status, len(d.photocells)) for d in done] == [(1, "incomplete", 4)]
+    assert all(not e.kept for e in proc.events[-5:])
+
+
+@pytest.mark.slow  # a simulated timer on a pty, in real time
+def test_a_descent_split_by_an_unplugged_cable_is_whole_after_the_memory_import(
+    tmp_path, run_station
+):
+    """``station record`` on the simulated CP540; the cable comes out after descent 2's 4th
+    photocell and goes back in before descent 3. The recording has descent 2 short of PC5 …
+    PC9; merged, the timer's memory download (saved by its own program) gives it whole, with
+    the timer's crossing times, fitted, and a note that it was joined; replays agree."""
+    import json
+    import subprocess
+
+    from station.session import store
+    from station.session.acquisition import replay
+    from station.timing.impulses import DAY_US
+    from tests.conftest import station_cmd
+    from tests.timing_helpers import start_sim
+
+    memory = tmp_path / "download.txt"
+    sim, port, truth = start_sim(
+        tmp_path, "--protocol", "tag", "--speed", "10", "--descents", "3", "--interval", "40",
+        "--first-after", "2", "--hold", "1", "--seed", "7", "--unplug-during", "2:4",
+        "--disconnect-s", "2", "--download-to", str(memory),
+    )  # fmt: skip
+    # the time-out by the device clock (the simulator's runs 10 times faster than the host's)
+    cfg = write_config(tmp_path, port, "tag", TAG_CHANNELS, extra="descent: {timeout_s: 15}\n")
+    session = tmp_path / "s"
+    try:
+        rec = subprocess.run(
+            [*station_cmd(), "record", "--config", str(cfg), "--session-dir", str(session),
+             "--max-descents", "3"],
+            capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+    finally:
+        _, err = sim.communicate(timeout=60)
+    assert rec.returncode == 0, rec.stderr
+    assert "unplugged during descent 2" in err and "plugged in again" in err
+    live = pd.read_csv(session / "results.csv", comment="#")
+    assert list(live["photocells_used"]) == [9, 4, 9], live
+    assert live.loc[1, "descent_status"] == "incomplete"
+
+    r = run_station("import", memory, "--config", cfg, "--into", session)
+    assert r.returncode == 0, r.stderr
+    assert "27 impulses" in r.stderr and "22 already in the session, 5 added" in r.stderr
+    assert "descent 2: joined: PC4 recorded live, PC5 on from the timer's memory" in r.stderr
+    df = pd.read_csv(session / "results.csv", comment="#")
+    assert list(df["descent"]) == [1, 2, 3]
+    assert list(df["photocells_used"]) == [9, 9, 9] and list(df["status"]) == ["ok"] * 3
+    assert "joined: PC4 recorded live, PC5 on from the timer's memory" in df.loc[1, "flags"]
+    # every crossing time the timer's own (TAG: 10 µs), the truth the simulator sent
+    sent = [json.loads(x) for x in truth.read_text().splitlines()][1]
+    want = [(sent["start_tod_us"] + round(t * 1e6)) // 10 * 10 for t in sent["t"]]
+    got = replay(str(session), store.load_session_config(str(session)))
+    d = got.day.results[2].descent
+    assert [t % DAY_US for t in d.times_us] == [w % DAY_US for w in want]
+    assert got.day.results[2].row.mu is not None
+    out = tmp_path / "replay.csv"
+    assert run_station("replay", session, "--csv", out).returncode == 0
+    assert out.read_bytes() == (session / "results.csv").read_bytes()
+
+
+def test_two_descents_split_by_two_unplugs_are_both_joined_by_one_import(tmp_path, demo_track):
+    """Descents 1 and 3 each lost their last crossings (the cable out twice), descent 2 is
+    whole; the import (after an ``import`` event, as ``station import --into`` appends it)
+    brings both rests, in the timer's order: each joins its own descent, and no descent of
+    its own is made of them."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    days = [_descent_lines(demo_track, 36_000 + 600 * k, k + 1, "TN", 9 * k + 1) for k in range(3)]
+    host = 1_767_520_800.0
+    chunks = []
+    for k, cut in enumerate((5, 9, 3)):
+        t0 = host + 600 * k
+        chunks += [Chunk(t0 + 0.01 * i, x.encode()) for i, x in enumerate(days[k][:cut])]
+        if cut < 9:
+            chunks += [Chunk(t0 + 1.0, b"", "disconnected", "unplugged"),
+                       Chunk(t0 + 300.0, b"", "timeout")]  # fmt: skip
+    rest = days[0][5:] + days[2][3:]
+    chunks += [Chunk(host + 2000.0, b"", "import", "imports/download.txt")]
+    chunks += [Chunk(host + 2000.0, b"\r\n" + b"".join(x.encode() for x in rest))]
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+    done += proc.finish()
+    final = {d.number: d for d in done}
+    assert sorted(final) == [1, 2, 3] and proc.assembler.count == 3
+    for n in (1, 3):
+        d = final[n]
+        assert d.status == "complete" and len(d.photocells) == 9 and not d.missing, d
+        assert any(f.startswith("joined: ") for f in d.flags)
+
+
+def test_a_descent_whose_first_crossings_are_only_in_the_memory_takes_its_live_rest(
+    tmp_path, demo_track
+):
+    """The other split: the cable was out for descent 1's first four crossings and back in for
+    the rest, which the recording rejected as without a start; the import brings PC1 … PC4,
+    and the descent they make takes its live rest: whole, with a note, no descent of its own
+    left short."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    body = _descent_lines(demo_track, 36_000, 1, "TN", 1)
+    after = _descent_lines(demo_track, 36_600, 2, "TN", 10)  # descent 2, whole and live
+    host = 1_767_520_800.0
+    chunks = [
+        Chunk(host - 5.0, b"", "disconnected", "unplugged"),
+        Chunk(host + 9.0, b"", "connected"),
+    ]
+    chunks += [Chunk(host + 10.0 + 0.01 * i, x.encode()) for i, x in enumerate(body[4:])]
+    chunks += [Chunk(host + 600.0 + 0.01 * i, x.encode()) for i, x in enumerate(after)]
+    chunks += [Chunk(host + 2000.0, b"", "import", "imports/download.txt")]
+    chunks.append(Chunk(host + 2000.0, b"\r\n" + b"".join(x.encode() for x in body[:4])))
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+    live_rejected = [e for e in proc.events if not e.kept]
+    assert len(live_rejected) == 5 and "without a start" in live_rejected[0].reason
+    done += proc.finish()
+    final = {d.number: d for d in done}
+    assert sorted(final) == [1, 2]
+    d = final[2]  # numbered after the live descent: it was made by the import
+    assert d.status == "complete" and len(d.photocells) == 9 and not d.missing, d
+    assert "joined: PC4 from the timer's memory, PC5 on recorded live" in d.flags
+    assert not any("missing" in f for f in d.flags)
+
+
+def test_a_descent_ended_again_by_the_memory_counts_once_for_max_descents(tmp_path, demo_track):
+    """The recorder's loop: descent 1 ended short, then whole by the download on the line, is
+    one descent for ``record --max-descents`` (counted twice, the recording stopped a
+    descent early, and lost that one), and its result is the whole descent's."""
+    from station.session.acquisition import Acquisition
+    from station.session.config import load_config
+    from station.session.day import Day
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    acq = Acquisition(Day.start(cfg, demo_track), threaded=False)
+    for chunk in _live_then_download(demo_track, 4, download=True):
+        acq.receive(chunk)
+    acq.end_of_input()
+    assert acq.finished_descents == 1
+    (res,) = acq.results()
+    assert res.row.photocells_used == 9 and res.row.status == "ok"
+    assert any(f.startswith("joined: ") for f in res.row.flags)

@@ -1,5 +1,6 @@
 """The parsers' fast path (one precompiled pattern for the common impulse line of each protocol)
-returns exactly what the general path returns: on every line of the real captures, in order
+returns exactly what the general path returns, line by line (``parse``) and for a chunk's lines
+in one call (``parse_lines``, a replay's): on every line of the real captures, in order
 (ALGE's parser has the state of a classement print-out), on every single-bit flip of real
 lines, and on formatted lines with bytes replaced, inserted, deleted or flipped. And the fast
 path is taken for the lines it is for (else it would be correct and useless)."""
@@ -34,12 +35,19 @@ def same_both_ways(cls, lines: list[str]) -> int:
     lines the fast path took."""
     fast, general = cls(), cls()
     taken = 0
+    generals = []
     for i, line in enumerate(lines, start=1):
         if _took_fast_path(cls, fast, line):
             taken += 1
         a, b = fast.parse(line), general.parse_general(line)
         assert type(a) is type(b) and a == b, f"line {i}: {line!r}: {a!r} != {b!r}"
         assert getattr(fast, "in_printout", None) == getattr(general, "in_printout", None)
+        generals.append(b)
+    # the lines of a chunk in one call (a replay's): the same, line by line
+    batch = cls()
+    for i, (a, b) in enumerate(zip(batch.parse_lines(lines), generals, strict=True), start=1):
+        assert type(a) is type(b) and a == b, f"parse_lines, line {i}: {a!r} != {b!r}"
+    assert getattr(batch, "in_printout", None) == getattr(general, "in_printout", None)
     return taken
 
 
@@ -139,6 +147,14 @@ def test_formatted_lines_take_the_fast_path():
 )
 def test_lines_that_are_not_the_common_shape_go_the_general_way(protocol, line):
     same_both_ways(CLASSES[protocol], [line])
+
+
+def test_a_print_out_ended_by_an_impulse_line_the_same_both_ways():
+    """A classement print-out whose footer was lost ends at the next impulse line (issue 9):
+    the line after it is read as a line again, not skipped as the print-out's."""
+    lines = ["CLASSEMENT:", " 0001 RTM 00:00:13.39   00 0001", " 0001 C0  09:47:40.3259 00",
+             "not an ALGE line", " 0002 C0  09:48:40.3259 00"]  # fmt: skip
+    assert same_both_ways(AlgeParser, lines) == 1
 
 
 @settings(max_examples=500, deadline=None)

@@ -18,6 +18,7 @@ def cmd_import(args: argparse.Namespace) -> int:
     from station.session import store as sessions
     from station.session.acquisition import replay
     from station.session.config import load_config
+    from station.timing.assembly import JOINED
 
     if args.into and args.date:
         raise InputError("--date is for a new session; --into keeps the session's own dates",
@@ -41,6 +42,10 @@ def cmd_import(args: argparse.Namespace) -> int:
         f"the session, {report.added} added; the file is kept as {report.kept_as}",
         file=sys.stderr,
     )
+    for res in run.results():  # the descents the download completed: said, not only flagged
+        joined = next((f for f in res.row.flags if f.startswith(JOINED)), None)
+        if joined is not None:
+            print(f"descent {res.number}: {joined}", file=sys.stderr)
     if report.dated is not None and not args.date:
         print(f"dated {report.dated.isoformat()} by the file's date; give --date YYYY-MM-DD when "
               "the test day was another", file=sys.stderr)  # fmt: skip

@@ -174,6 +174,7 @@ class Acquisition:
         self.ski_rotation = tuple(ski_rotation)
         self.lock = threading.Lock()  # guards the day: processor, results, annotations
         self.finished_descents = 0  # descents the processor ended, aborted ones not counted
+        self._counted = bytearray()  # 1 at n - 1: descent n counted in finished_descents
         self.source_error: BaseException | None = None
         self._stop = threading.Event()
         self._source: threading.Thread | None = None
@@ -410,10 +411,23 @@ class Acquisition:
         for d in done:
             times = DescentTimes.of(d)
             d.settle(times)  # the assembler keeps the day's one copy of its times, not two
-            if times.status != DescentStatus.ABORTED:
+            if times.status != DescentStatus.ABORTED and self._first_end(times.number):
                 self.finished_descents += 1
             jobs.append(_Fit(times))
         return jobs
+
+    def _first_end(self, number: int) -> bool:
+        """With the lock held: descent ``number`` ends (not aborted) for the first time. An
+        edit at the timer or the timer's memory ends a descent again (refitted): counted
+        twice, ``--max-descents`` stopped the recording a descent early, and that one was
+        lost (one byte a descent)."""
+        counted = self._counted
+        if number > len(counted):
+            counted.extend(bytes(number - len(counted)))
+        if counted[number - 1]:
+            return False
+        counted[number - 1] = 1
+        return True
 
     def _descent_started(self, number: int) -> list[_Job]:
         """The demo's skis: when a descent starts, the next pair is already waiting."""
@@ -597,11 +611,9 @@ class Acquisition:
             else:
                 a = job.annotation
                 effect = _effect_now(day, a) if job.applied else day.annotate(a)
+                # a refit after later descents gives the replay's fit: the survey covariance
+                # each descent takes does not hang on the order of the fits (Analyser)
                 fit_jobs = [day.fit_job(day.results[n].descent) for n in effect.refit]
-                if effect.refit:
-                    # a refit after later descents: the survey covariance handed on, and
-                    # the order of the fits, may not be a replay's
-                    self._not_as_replayed("descents fitted again during the recording")
         fitted = [day.analyser.run(j) for j in fit_jobs]  # outside the lock: the reader goes on
         kept = fitted if self.keep_curves else [r.lean() for r in fitted]
         with self.lock:

@@ -8,6 +8,7 @@ as if nothing happened.
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
 import math
 from collections.abc import Hashable
@@ -189,10 +190,23 @@ class Analyser:
         # station config's, else 9.80665; a config that contradicts the survey is said once
         site, self.site_warning = site_track(track, config)
         self.gravity = gravity_for(site)
-        # the survey's covariance of the crossing times, per set of photocells: computed by
-        # the first good fit on them (linearised at its parameters), then reused, so the
-        # intervals of every descent carry the track without ~60 model solves each
+        # the survey's covariance of the crossing times, per set of photocells: computed once
+        # (~60 model solves, 15 ms; a fit with it given takes 2 ms) and reused, so the
+        # intervals of every descent carry the track. It is linearised at the *reference fit*
+        # of the first descent on them (in the order the descents end) whose reference fit is
+        # good: its times fitted with the station config's model, mass and air, no wind —
+        # nothing an annotation changes. Linearised at the first good fit as annotated, a
+        # model or mass given to descent 1 after later descents took its covariance gave a
+        # live day that a replay (annotations first) did not reproduce (6th digit). The speed
+        # along the run the covariance depends on is what the times say, whichever model and
+        # mass fit them. A descent that ended before its photocells had one computes its own,
+        # at its own fit, now and whenever it is fitted again, as a replay computes it.
         self._survey_cov: dict[tuple[str, ...], np.ndarray] = {}
+        #: the descent whose reference fit gave each set of photocells its covariance
+        self.survey_source: dict[tuple[str, ...], int] = {}
+        #: (descent, its photocells) fitted before those photocells had one (an edit at the
+        #: timer may change a descent's photocells: each set is judged by itself)
+        self._own_survey: set[tuple[int, tuple[str, ...]]] = set()
         #: fits stored with the session, when it has them: a fit found there is not computed
         self.fits: FitCache | None = None
         self._stored: dict[float, StoredFit] = {}  # what a result keeps of it, by precision
@@ -205,11 +219,111 @@ class Analyser:
         if job.gravity is None:  # the site's g, which the row then reports
             job = replace(job, gravity=self.gravity.value)
         if job.problem:
+            # the covariance a later descent takes cannot hang on this one's annotations
+            if job.descent.status != DescentStatus.ABORTED:
+                with contextlib.suppress(Exception):
+                    self._survey_for(job, self._run_of(job.descent.photocells))
             return error_result(job, job.problem)
         try:
             return self._fit(job)
         except Exception as exc:  # noqa: BLE001 - one failed fit must not end the day
             return error_result(job, f"fit failed: {type(exc).__name__}: {exc}")
+
+    def hand_on(self, ids: tuple[str, ...], source: int, cov: np.ndarray) -> None:
+        """The survey covariance of the photocells ``ids``, as descent ``source``'s reference
+        fit gave it (the in-place annotate has it from the replay's descents file)."""
+        self._survey_cov[ids] = cov
+        self.survey_source[ids] = source
+
+    def survey_sources(self) -> list[tuple[tuple[str, ...], int, np.ndarray]]:
+        """Each set of photocells with a survey covariance, the descent whose reference fit
+        gave it, and the covariance (the descents file of the in-place annotate keeps them)."""
+        return [(ids, n, self._survey_cov[ids]) for ids, n in self.survey_source.items()]
+
+    def own_survey(self, number: int, ids: tuple[str, ...]) -> None:
+        """Descent ``number`` on the photocells ``ids`` was first fitted before they had a
+        survey covariance: its fit computes its own (the in-place annotate has it from the
+        replay's descents file)."""
+        self._own_survey.add((number, ids))
+
+    def computes_own(self, number: int, ids: tuple[str, ...]) -> bool:
+        """Whether descent ``number``'s fit on ``ids`` computes its own survey covariance."""
+        return (number, ids) in self._own_survey
+
+    def _run_of(self, ids: tuple[str, ...]) -> tuple[StraightRun, np.ndarray]:
+        run = self._runs.get(ids)
+        xs = np.array([self.track.photocell(p).x for p in ids])
+        if run is None:
+            run = self._runs[ids] = StraightRun(self.track.profile, xs)
+        return run, xs
+
+    def _reference(self, job: FitJob) -> FitJob:
+        """The job of a descent's reference fit: the station config's model, mass and air, no
+        wind (none of them annotated), the day's g and timer precision."""
+        config: StationConfig | None = self.config
+        if config is None:  # an analyser without a config (tests): the job itself
+            return job
+        return replace(
+            job, metadata=Metadata(), model=FitModel(config.model),
+            mass_kg=float(config.mass_kg), air_density=config.air_density,
+            wind_ms=0.0, gravity=self.gravity.value, problem="",
+        )  # fmt: skip
+
+    def _survey_for(
+        self, job: FitJob, run: tuple[StraightRun, np.ndarray]
+    ) -> tuple[np.ndarray | None, tuple[FitResult, str | None] | None]:
+        """The survey covariance descent ``job.descent``'s fit takes (None: it computes its
+        own), and its reference fit (with its key in the fit store) when that is the
+        descent's own fit too."""
+        d = job.descent
+        ids = d.photocells
+        if d.status == DescentStatus.ABORTED or (d.number, ids) in self._own_survey:
+            return None, None
+        cov = self._survey_cov.get(ids)
+        if cov is not None:
+            return cov, None
+        ref_job = self._reference(job)
+        alike = _parts(ref_job) == _parts(job)
+        try:
+            computed: tuple[FitResult, str | None] | None = self._computed(ref_job, run, None)
+        except Exception:
+            self._own_survey.add((d.number, ids))
+            if alike:
+                raise  # the descent's own fit failed: its error
+            computed = None  # no reference: the descent computes its own
+        same = computed if alike else None
+        ref = computed[0] if computed is not None else None
+        if ref is not None and ref.status == FitStatus.OK and ref.survey_time_cov is not None:
+            self.hand_on(ids, d.number, ref.survey_time_cov)
+            return ref.survey_time_cov, same
+        self._own_survey.add((d.number, ids))
+        return None, same
+
+    def _computed(
+        self, job: FitJob, run: tuple[StraightRun, np.ndarray], cov: np.ndarray | None
+    ) -> tuple[FitResult, str | None]:
+        """The fit of ``job`` with the survey covariance ``cov`` (None: its own), from the
+        session's fit store when it has it; and its key there."""
+        assert job.gravity is not None  # set by run()
+        d = job.descent
+        ids = d.photocells
+        straight, xs = run
+        cond = Conditions(job.mass_kg, job.air_density, job.wind_ms, g=job.gravity)
+        t = (np.array(d.times_us) - d.times_us[0]) / 1e6
+        key: str | None = None
+        fit: FitResult | None = None
+        if self.fits is not None:  # everything the fit below depends on but the session's files
+            key = self.fits.key(_parts(job), cov)
+            fit = self.fits.get(key)
+        if fit is None:
+            fit = fit_descent(
+                self.track.profile, xs, t, cond, list(ids), model=job.model.value, run=straight,
+                survey=survey_error(self.track, list(ids)) if cov is None else None,
+                survey_time_cov=cov, timer_precision_s=job.timer_precision_s,
+            )  # fmt: skip
+            if self.fits is not None and key is not None:
+                self.fits.put(key, fit)
+        return fit, key
 
     def _fit(self, job: FitJob) -> DescentResult:
         d = job.descent
@@ -217,35 +331,13 @@ class Analyser:
         cond = Conditions(job.mass_kg, job.air_density, job.wind_ms, g=job.gravity)
         if d.status == DescentStatus.ABORTED:
             return DescentResult(d, None, result_row(job, None))
-        ids = d.photocells
-        run = self._runs.get(ids)
-        xs = np.array([self.track.photocell(p).x for p in ids])
-        if run is None:
-            run = self._runs[ids] = StraightRun(self.track.profile, xs)
-        t = (np.array(d.times_us) - d.times_us[0]) / 1e6
-        cov = self._survey_cov.get(ids)
-        key: str | None = None
-        fit: FitResult | None = None
-        if self.fits is not None:  # everything the fit below depends on but the session's files
-            parts = {
-                "times_us": list(d.times_us), "photocells": list(ids), "model": job.model.value,
-                "mass_kg": job.mass_kg, "air_density": job.air_density, "wind_ms": job.wind_ms,
-                "g": job.gravity, "timer_precision_s": job.timer_precision_s,
-            }  # fmt: skip
-            key = self.fits.key(parts, cov)
-            fit = self.fits.get(key)
-        if fit is None:
-            fit = fit_descent(
-                self.track.profile, xs, t, cond, list(ids), model=job.model.value, run=run,
-                survey=survey_error(self.track, list(ids)) if cov is None else None,
-                survey_time_cov=cov, timer_precision_s=job.timer_precision_s,
-            )  # fmt: skip
-            if self.fits is not None and key is not None:
-                self.fits.put(key, fit)
-        if cov is None and fit.status == FitStatus.OK and fit.survey_time_cov is not None:
-            self._survey_cov[ids] = fit.survey_time_cov
+        run = self._run_of(d.photocells)
+        cov, same = self._survey_for(job, run)
+        # the reference fit is this descent's own when its job is the reference's: the same
+        # numbers as a fit given the covariance (which enters after the search), not fitted twice
+        fit, key = same if same is not None else self._computed(job, run, cov)
         row = result_row(job, fit)
-        curve = _speed_curve(run, fit, cond) if self.speed_curves else None
+        curve = _speed_curve(run[0], fit, cond) if self.speed_curves else None
         speed_x, speed_v = curve if curve is not None else (None, None)
         stored = None
         handle = self.fits.handle(key) if key is not None and self.fits is not None else None
@@ -272,6 +364,16 @@ class Analyser:
         row = res.row
         cond = Conditions(row.mass_kg, row.air_density, row.wind_ms, g=row.gravity)
         return _speed_curve(run, fit, cond)
+
+
+def _parts(job: FitJob) -> dict[str, Any]:
+    """What a descent's fit is computed from, but the session's files (the fit store's key)."""
+    d = job.descent
+    return {
+        "times_us": list(d.times_us), "photocells": list(d.photocells), "model": job.model.value,
+        "mass_kg": job.mass_kg, "air_density": job.air_density, "wind_ms": job.wind_ms,
+        "g": job.gravity, "timer_precision_s": job.timer_precision_s,
+    }  # fmt: skip
 
 
 def _speed_curve(

@@ -1,13 +1,13 @@
 """Fits are computed once: each descent's fit stored with its session (``SESSION/fits.jsonl``),
 so ``annotate``, ``compare``, ``report``, ``export`` and the UI's replay refit only what changed.
 
-A fit depends on the crossing times, the photocells, the model, the skier's mass, the air,
-the wind, g, the survey covariance it was given (the first good fit on a set of photocells
-hands its covariance to the later ones), the session's config and survey files and the code
-that fits. The key of a stored fit is the SHA-256 of all of these (the code by the SHA-256 of
-the source files of the fit's path, so a changed station never reads an older one's fit as its
-own); an annotation that changes a fit (mass, air, wind, a model) changes its key, and that fit
-alone is computed again.
+A fit depends on the crossing times, the photocells, the model, the skier's mass, the air, the
+wind, g, the survey covariance it was given (computed once per set of photocells, at a
+reference fit: :class:`station.session.analysis.Analyser`), the session's config and survey
+files and the code that fits. The key of a stored fit is the SHA-256 of all of these (the code
+by the SHA-256 of the source files of the fit's path, so a changed station never reads an older
+one's fit as its own); an annotation that changes a fit (mass, air, wind, a model) changes its
+key, and that fit alone is computed again.
 
 One JSON record a line, appended: ``{"key": …, "fit": {…}}``. The file is a cache, never the
 day: a record that cannot be read (torn, from another version, hand-edited into nonsense) is

@@ -13,8 +13,13 @@ cable out. A plain capture or a memory download (ALGE ``RSM`` print-out, TAG ``#
   (:func:`station.session.rawlog.repair_tail`), the import's report says so, and the impulses
   the torn record held are taken from the download like any other missing one.
 
-Known limit: impulses appended by a merge form descents of their own; a descent of which the
-live recording holds some impulses and the download the rest is not joined into one.
+Impulses appended by a merge form descents of their own, but one that continues a descent the
+live recording has the first crossings of (the cable came out during it) joins that descent:
+the processor replays them after the ``import`` event as from the timer's memory
+(:attr:`station.timing.assembly.DescentAssembler.from_memory`); and a descent of the download
+that ends short takes the live impulses the recording rejected as without a start, when they
+continue it plausibly (the cable came back in during it). The raw log is never rewritten:
+a replay joins them again.
 """
 
 from __future__ import annotations

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from array import array
 from collections import Counter, deque
+from collections.abc import Iterable
 
 from station.errors import InputError
 from station.session.config import StationConfig
@@ -27,10 +28,15 @@ from station.timing.wireformats import make_parser
 #: unparsed lines listed (line, reason, first 100 characters): a day of line noise stays within
 #: tens of MB; beyond it one entry says that more were not listed
 MAX_UNPARSED = 100_000
+#: the timer's own marks of a memory download on the line (TAG ``DS`` … ``DE``): between
+#: them the impulses are from its memory (:attr:`DescentAssembler.from_memory`)
+MEMORY_DOWNLOAD = {"memory download starts": True, "memory download ends": False}
 #: the lines last handed to the assembler whose host times are kept: a start it holds (a time
 #: far from its clock waits for the next impulse to confirm it) is at most a few lines back
 #: (edits may come between); one further back is dated by the line that started it
 RECENT_LINES = 16
+#: a bulk replay of a session hands the assembler this many lines at most at once
+SESSION_RUN = 4096
 
 
 class StartHosts:
@@ -125,8 +131,12 @@ class Processor:
                 # adds are earlier than the recording's last by nature; the timer's clock is
                 # judged afresh from its first start (a reset within it is still flagged)
                 self._latest_start = None
+                # and an impulse of it may be the rest of a descent the recording has the
+                # first crossings of (the cable came out during it): joined to it
+                self.assembler.from_memory = True
             if chunk.event == "disconnected":
                 self.assembler.disconnected(chunk.detail)
+                self.assembler.from_memory = False  # a download on the line ends with it
             return []
         lines = self.framer.feed(chunk.data)
         t: float | None = chunk.t  # None: a plain capture (replay_chunks)
@@ -147,22 +157,112 @@ class Processor:
         """:meth:`_line` for each line of a plain capture's chunk (no host clock), its common
         impulse handled here: a replay of a capture is a hundred thousand of them."""
         done: list[TimedDescent] = []
-        parse = self.parser.parse
+        parsed_lines = self.parser.parse_lines(lines)  # (the parser's state is its own)
         asm = self.assembler
-        feed = asm.feed
-        for line in lines:
-            parsed = parse(line)
+        feed, feed_run = asm.feed, asm.feed_run
+        start_host, started_judged = self.start_host, self._started
+        i, n = 0, len(lines)
+        stopped = -1  # the impulse the batch stopped at: the general path's
+        while i < n:
+            parsed = parsed_lines[i]
             if type(parsed) is Impulse and self.resolution_us is not None:
+                if i != stopped:
+                    # the common impulses from here in one run of the assembler's
+                    stop, ended, started = feed_run(parsed_lines, i, self.lines + 1)
+                    if stop > i:
+                        self.lines += stop - i
+                        self.impulses += stop - i
+                        for d in started:  # no host clock: each start undated, judged
+                            start_host[d.number] = None
+                            started_judged(d)
+                        done += ended
+                        i = stopped = stop
+                        continue
+                # one the batch does not take, the general way
                 self.lines += 1
                 self.impulses += 1
                 before = asm.count
                 ended = feed(parsed, self.lines, None)
                 if asm.count > before:  # no host clock: each start undated, judged
                     self._new_descents(before, ended, None, judge=True)
-            else:
-                ended = self._parsed(line, parsed, None)
+            else:  # any other line, or the first impulse (it states the resolution)
+                ended = self._parsed(lines[i], parsed, None)
             if ended:
                 done += ended
+            i += 1
+        return done
+
+    def feed_chunks(self, chunks: Iterable[Chunk]) -> list[TimedDescent]:
+        """:meth:`feed` of each chunk in turn, for a bulk replay (``replay --no-fit``): the
+        descents they finished, in order. A session's one-line chunks with a host time (a
+        recording's every read) are framed as they come and handed on together, up to
+        ``SESSION_RUN`` lines, to the assembler's batch (:meth:`_session_lines`); every other
+        chunk goes through :meth:`feed` once the lines before it are."""
+        done: list[TimedDescent] = []
+        lines: list[str] = []
+        hosts: list[float] = []
+        framer = self.framer
+        for chunk in chunks:
+            t = chunk.t
+            if not chunk.event and t is not None and t == t:
+                got = framer.feed(chunk.data)
+                self._chunk_t = t
+                if len(got) == 1:
+                    lines.append(got[0])
+                    hosts.append(t)
+                    if len(lines) >= SESSION_RUN:
+                        done += self._session_lines(lines, hosts)
+                        lines, hosts = [], []
+                    continue
+                if lines:
+                    done += self._session_lines(lines, hosts)
+                    lines, hosts = [], []
+                for line in got:  # as feed does with a chunk of several lines (or none)
+                    done += self._line(line, t)
+                continue
+            if lines:
+                done += self._session_lines(lines, hosts)
+                lines, hosts = [], []
+            done += self.feed(chunk)
+        if lines:
+            done += self._session_lines(lines, hosts)
+        return done
+
+    def _session_lines(self, lines: list[str], hosts: list[float]) -> list[TimedDescent]:
+        """:meth:`_parsed` for each line, ``hosts`` its host time (a number), with runs of
+        common impulses in the assembler's batch. What ``_parsed`` leaves for each impulse the
+        batch took is left for the run: the offset of the device clock from the host's
+        (after the run's last impulse: the fast paths read no host time), the recent lines,
+        each start dated by its own line's host time and judged against the timer's clock."""
+        done: list[TimedDescent] = []
+        parsed_lines = self.parser.parse_lines(lines)
+        asm = self.assembler
+        feed_run, recent = asm.feed_run, self._recent
+        i, n = 0, len(lines)
+        stopped = -1  # the impulse the batch stopped at: the general path's
+        while i < n:
+            if i != stopped and type(parsed_lines[i]) is Impulse and self.resolution_us is not None:
+                first = self.lines + 1  # the line number of parsed_lines[i]
+                stop, ended, started = feed_run(parsed_lines, i, first)
+                if stop > i:
+                    self.lines += stop - i
+                    self.impulses += stop - i
+                    clock = asm.clock
+                    assert clock is not None  # (the batch keeps impulses only with a clock)
+                    self.offset_us = clock - round(hosts[stop - 1] * 1e6)
+                    tail = max(i, stop - RECENT_LINES)
+                    recent.extend(zip(range(first + tail - i, self.lines + 1),
+                                      hosts[tail:stop], strict=True))  # fmt: skip
+                    for d in started:
+                        self.start_host[d.number] = hosts[i + d.first_line - first]
+                        self._started(d)
+                    done += ended
+                    i = stopped = stop
+                    continue
+            ended = self._parsed(lines[i], parsed_lines[i], hosts[i])
+            if ended:
+                done += ended
+            i += 1
         return done
 
     def _line(self, line: str, t: float | None) -> list[TimedDescent]:
@@ -203,6 +303,8 @@ class Processor:
             return done
         if isinstance(parsed, Skip):
             self.counts["skipped"] += 1
+            if parsed.reason in MEMORY_DOWNLOAD:  # TAG DS … DE sent over the line
+                self.assembler.from_memory = MEMORY_DOWNLOAD[parsed.reason]
         elif isinstance(parsed, Unparsed):
             self.counts["unparsed"] += 1
             # it may have been a skier's start: the assembler may start that descent later

@@ -9,9 +9,9 @@ skier or the snow temperature the metadata columns of the descents they are for.
 are changed in place and the file written once. An annotation that changes a fit (a model; a
 mass, air or wind for listed descents) fits those descents alone, with their crossing times
 from ``SESSION/results.descents.json`` (the replay's descents in the order it fitted them, and
-the survey covariance the first good fit on a set of photocells hands on to the later ones),
-when none of them is that first fit or comes before it; otherwise, and for such a change from
-descent N on, the day is replayed as before (its fits from the fit store but those changed).
+the survey covariance of each set of photocells, which no annotation moves:
+:class:`station.session.analysis.Analyser`); a change from descent N on is replayed as
+before (its fits from the fit store but those changed).
 
 The state says, for one results CSV:
 
@@ -375,34 +375,26 @@ def write_state_of_recording(
 
 def fitted_of(day: Any) -> Fitted:
     """A day's descents (:class:`station.session.day.Day`) in the order they were fitted, and
-    the descent on each set of photocells whose fit handed the survey's covariance on to the
-    later ones (the analyser's rule: the first good fit with one)."""
-    order = [day.results[n] for n in day.results]  # fitted once each, in this order
-    sources: dict[tuple[str, ...], tuple[int, Any]] = {}
-    for r in order:
-        if r.descent.photocells in sources:
-            continue  # found: the fit is not read (a recording keeps it in the store only)
-        fit = r.fit
-        if fit is not None and fit.status == "ok" and fit.survey_time_cov is not None:
-            sources[r.descent.photocells] = (r.number, fit.survey_time_cov)
-    return Fitted(
-        [r.descent for r in order],
-        [(ids, n, cov) for ids, (n, cov) in sources.items()],
-        day.timer_precision_s(),
-    )
+    the descent on each set of photocells whose reference fit gave the survey's covariance the
+    later ones take (the analyser's rule: :class:`station.session.analysis.Analyser`)."""
+    order = [day.results[n].descent for n in day.results]  # fitted once each, in this order
+    an = day.analyser
+    own = [d.number for d in order if an.computes_own(d.number, d.photocells)]
+    return Fitted(order, an.survey_sources(), day.timer_precision_s(), own)
 
 
 @dataclass
 class Fitted:
     """A replay's descents as it fitted them: in the order it fitted them (the crossing times,
     :class:`DescentTimes`), the survey covariance of each set of photocells and the descent
-    whose fit handed it on (the first good fit on them: the later ones use it), and the
-    timer's precision. A descent after that one on its photocells can be fitted again alone
-    and gets the fit the replay would give it."""
+    whose reference fit gave it (the later ones take it; those before it computed their
+    own), the descents whose fit computed its own, and the timer's precision. Any descent can
+    then be fitted again alone and gets the fit the replay would give it."""
 
     order: list[Any]  # DescentTimes
     sources: list[tuple[tuple[str, ...], int, Any]]  # photocells, descent, covariance
     timer_precision_s: float
+    own: list[int] = field(default_factory=list)  # descents whose fit computed its own
 
 
 def _write_descents(session: str, fitted: Fitted) -> dict[str, Any]:
@@ -411,6 +403,7 @@ def _write_descents(session: str, fitted: Fitted) -> dict[str, Any]:
     rec = {
         "order": [to_json(d) for d in fitted.order],
         "sources": [[list(ids), n, to_json(cov)] for ids, n, cov in fitted.sources],
+        "own": fitted.own,
     }
     data = json.dumps(rec, separators=(",", ":")).encode()
     digest = _replace(os.path.join(session, DESCENTS), [data])
@@ -685,9 +678,10 @@ def _refit(
 ) -> dict[int, tuple[bytes, str]] | None:
     """The rows of the descents ``start_times`` names (with their start times as the CSV has
     them) fitted again as a replay would fit them now, with the session's annotations: each
-    one's new row and its fit's status; None when one of them cannot be fitted alone (the
-    first good fit on its photocells, or one before it, hands the survey covariance on to the
-    later ones: a replay then). Loads the fit (numpy, scipy): only here."""
+    one's new row and its fit's status; None when one of them cannot be fitted alone (not in
+    the descents file, or a file of another version: a replay then). The survey covariance
+    each takes is the one the replay's fit took (the descents file's: no annotation moves
+    it). Loads the fit (numpy, scipy): only here."""
     from dataclasses import replace
 
     import numpy as np
@@ -695,7 +689,7 @@ def _refit(
     from station.session.analysis import Analyser
     from station.session.day import Day
     from station.session.fitstore import from_json
-    from station.session.records import DescentTimes
+    from station.session.records import DescentStatus, DescentTimes
     from station.survey.load import load_survey
     from station.survey.track import build_track
 
@@ -711,6 +705,7 @@ def _refit(
         order = rec["order"]
         where = {d["number"]: i for i, d in enumerate(order)}
         sources = {tuple(ids): (n, cov) for ids, n, cov in rec["sources"]}
+        own = set(rec["own"])
         track = build_track(load_survey(config.survey_path))
         analyser = Analyser(config, track)
         analyser.speed_curves = False
@@ -732,14 +727,20 @@ def _refit(
             d = from_json(DescentTimes, order[i])
         except Exception:  # noqa: BLE001 - not this version's: replayed
             return None
+        # the survey covariance the replay's fit of it took: its own (it was first fitted
+        # before its photocells had one), else that of its photocells
         source = sources.get(d.photocells)
-        if source is None or source[0] in start_times or where.get(source[0], i) >= i:
-            return None  # its fit hands the survey's covariance on, or is handed it: replayed
-        try:
-            cov = from_json(np.ndarray, source[1])
-        except Exception:  # noqa: BLE001
-            return None
-        analyser._survey_cov[d.photocells] = cov  # noqa: SLF001 - as the replay hands it on
+        if n in own:
+            analyser.own_survey(n, d.photocells)
+        elif source is None:
+            if d.status != DescentStatus.ABORTED:  # (an aborted one is not fitted)
+                return None  # a descents file that does not say: replayed
+        else:
+            try:
+                cov = from_json(np.ndarray, source[1])
+            except Exception:  # noqa: BLE001 - not this version's: replayed
+                return None
+            analyser.hand_on(d.photocells, source[0], cov)
         # the day's own job, with the start time of the CSV and the day's timer precision
         # (the replay's processor knows both; here there is none; no items: see in_place)
         job = day.job(d, started, precision)
