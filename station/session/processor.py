@@ -129,11 +129,10 @@ class Processor:
             if chunk.event == "import":
                 # a download of the timer's memory follows (`station import`): the times it
                 # adds are earlier than the recording's last by nature; the timer's clock is
-                # judged afresh from its first start (a reset within it is still flagged)
-                self._latest_start = None
+                # judged afresh from its first start (a reset within it is still flagged);
                 # and an impulse of it may be the rest of a descent the recording has the
                 # first crossings of (the cable came out during it): joined to it
-                self.assembler.from_memory = True
+                return self._memory_follows(chunk.t, fresh_clock=True)
             if chunk.event == "disconnected":
                 self.assembler.disconnected(chunk.detail)
                 self.assembler.from_memory = False  # a download on the line ends with it
@@ -304,7 +303,9 @@ class Processor:
         if isinstance(parsed, Skip):
             self.counts["skipped"] += 1
             if parsed.reason in MEMORY_DOWNLOAD:  # TAG DS … DE sent over the line
-                self.assembler.from_memory = MEMORY_DOWNLOAD[parsed.reason]
+                if MEMORY_DOWNLOAD[parsed.reason]:
+                    return self._memory_follows(t, fresh_clock=False)
+                self.assembler.from_memory = False
         elif isinstance(parsed, Unparsed):
             self.counts["unparsed"] += 1
             # it may have been a skier's start: the assembler may start that descent later
@@ -316,6 +317,21 @@ class Processor:
                     (self.lines, "this and later unparsed lines not listed; see the raw log", "")
                 )
         return []
+
+    def _memory_follows(self, t: float | None, fresh_clock: bool) -> list[TimedDescent]:
+        """Impulses from the timer's memory follow: a live impulse still held for the next
+        one to confirm its time is taken first, as at the end of a capture (the memory's
+        first impulse, earlier by nature, called it a corrupted time and it joined nothing:
+        the live finish of a descent split by an unplugged cable was lost); then the
+        assembler is told (:attr:`DescentAssembler.from_memory`)."""
+        asm = self.assembler
+        before = asm.count
+        done = asm.memory_follows()
+        if asm.count > before:
+            self._new_descents(before, done, t, judge=True)
+        if fresh_clock:
+            self._latest_start = None
+        return done
 
     def _new_descents(
         self, before: int, done: list[TimedDescent], t: float | None, judge: bool
