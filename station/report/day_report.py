@@ -516,6 +516,7 @@ h2 { font-size: 1.25em; border-bottom: 2px solid #ddd; padding-bottom: 0.2em; ma
 .sub { color: #666; margin-top: 0; font-size: 0.9em; }
 img { max-width: 100%; height: auto; display: block; margin: 0.8em 0; }
 table { border-collapse: collapse; font-size: 0.88em; margin: 0.8em 0; }
+section { overflow-x: auto; }  /* a table of long item names scrolls, not the whole page */
 th, td { border-bottom: 1px solid #e2e2e2; padding: 0.25em 0.7em; text-align: left;
          vertical-align: top; }
 th { background: #f4f4f4; }
