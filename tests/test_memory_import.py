@@ -688,3 +688,159 @@ def test_alge_m_lines_give_a_descent_whose_start_the_cable_lost_its_live_rest(tm
         (e.photocell, e.descent) for e in proc.events if e.kept and e.reason.startswith("joined")
     ]
     assert went == [(f"PC{i}", 2) for i in range(5, 10)]
+
+
+# -- what a join leaves: the timer's clock, the import's own list, the flags
+
+
+def _host_aligned(lines: list[str], host0: float) -> list:
+    """Chunks of live TAG lines, each at the host time its device time gives (host0 at 00:00
+    by the timer's clock, 0.05 s of transfer): a live day whose clocks agree."""
+    from station.session.rawlog import Chunk
+    from station.timing.wireformats import make_parser
+
+    parser = make_parser("tag")
+    return [Chunk(host0 + parser.parse(x.rstrip("\r\n")).tod_us / 1e6 + 0.05, x.encode())
+            for x in lines]  # fmt: skip
+
+
+def test_rejected_live_crossings_after_an_outage_leave_the_timers_clock_as_it_was(
+    tmp_path, demo_track
+):
+    """The cable was out for five minutes, descent 2's first four crossings with it: its live
+    rest is rejected (without a start), each at once, and the next skier's start is taken when
+    it comes. The host's estimate of the timer's clock (what confirms a time far from the last
+    kept one, and ends a descent by its time-out) pairs a kept impulse's device time with the
+    host time of its line: a rejected impulse leaves the clock at the last kept one, minutes
+    back, and paired with its own host time it put the estimate minutes wrong, so every later
+    crossing far from the clock was held until the next one confirmed it (the next live start
+    waited for its PC2)."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    host0 = 1_767_484_800.0  # 2026-01-04 00:00 UTC: the host clock at the timer's 00:00
+    d1 = _descent_lines(demo_track, 36_000, 1, "TN", 1)
+    d2 = _descent_lines(demo_track, 36_300, 2, "TN", 10)
+    d3 = _descent_lines(demo_track, 36_600, 3, "TN", 19)
+    for chunk in _host_aligned(d1, host0):
+        proc.feed(chunk)
+    proc.feed(Chunk(host0 + 36_030.0, b"", "disconnected", "unplugged"))
+    proc.feed(Chunk(host0 + 36_305.0, b"", "connected"))
+    for chunk in _host_aligned(d2[4:], host0):
+        proc.feed(chunk)
+        e = proc.events[-1]  # its own fate, now: not held for the next impulse
+        assert e.line == proc.lines and not e.kept and "without a start" in e.reason, e
+    start, *rest = _host_aligned(d3, host0)
+    proc.feed(start)
+    assert [d.number for d in proc.assembler.open] == [2]  # started at once (descent 2)
+    assert proc.start_host.get(2) == start.t
+    done = []
+    for chunk in rest:
+        done += proc.feed(chunk)
+    assert [(d.number, d.status) for d in done] == [(2, "complete")]
+    assert not any("reset" in f for f in done[0].flags)
+    # a stray impulse while the next skier is on the run: rejected, and the time-out (by
+    # the host clock) still comes when it is due after PC4, not later by the stray's delay
+    d4 = _host_aligned(_descent_lines(demo_track, 36_900, 4, "TN", 28), host0)
+    for chunk in d4[:4]:
+        proc.feed(chunk)
+    due = d4[3].t + proc.assembler.timeout_us[3] / 1e6
+    stray = format_tag("2", round((due - 2.05 - host0) * 1e6), 40, 9, DAY, "TN") + "\r\n"
+    proc.feed(Chunk(due - 2.0, stray.encode()))  # (PC2 of bib 9, without a start)
+    assert not proc.events[-1].kept and proc.events[-1].line == proc.lines
+    assert [d.number for d in proc.tick(due - 1.0)] == []
+    ended = proc.tick(due + 1.0)
+    assert [(d.number, d.status) for d in ended] == [(3, "incomplete")]
+
+
+def _split_session(tmp_path, demo_track, *, timed_out: bool):
+    """A recorded session (TAG): descents 1 and 2, ten minutes apart, each cut short after
+    PC4 by the cable (with ``timed_out``, the reader's time-out ended each before the
+    recording did); and a download of the timer's memory with descent 1 only, and one with
+    both: (config, session, first download, second download)."""
+    from station.session import store
+    from station.session.config import load_config
+    from station.session.rawlog import RawLogWriter
+
+    cfg = write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)
+    session = tmp_path / "s"
+    store.create(load_config(str(cfg)), str(session))
+    host0 = 1_767_484_800.0
+    days = [_descent_lines(demo_track, 36_000 + 600 * k, k + 1, "TN", 9 * k + 1) for k in range(2)]
+    log = RawLogWriter(str(session / store.RAW), header={"port": "/dev/null"})
+    for k, body in enumerate(days):
+        for c in _host_aligned(body[:4], host0):
+            log.write(c.t, c.data)
+        log.event(host0 + 36_000 + 600 * k + 8, "disconnected", "unplugged")
+        if timed_out:
+            log.event(host0 + 36_000 + 600 * k + 100, "timeout")
+        log.event(host0 + 36_000 + 600 * k + 300, "connected")
+    log.close()
+    (session / store.RESULTS).write_text("")
+    downloads = []
+    for n in (1, 2):
+        lines = [_frame("DS 01  00 START - FINISH     ")]
+        for body in days[:n]:
+            lines += [_frame(s.split("\t")[0].replace("TN", "AN", 1)) for s in body]
+        path = tmp_path / f"download{n}.txt"
+        path.write_text("".join(lines) + _frame("DE 01"))
+        downloads.append(path)
+    return cfg, session, *downloads
+
+
+def test_an_import_lists_the_descents_it_joined_not_those_an_earlier_one_did(
+    tmp_path, demo_track, run_station
+):
+    """Two imports into one session: the first joins descent 1, the second (the whole memory
+    again, later) brings descent 2's rest. Each lists the descents it joined: the second
+    listed descent 1 again, which it did not touch."""
+    cfg, session, first, second = _split_session(tmp_path, demo_track, timed_out=True)
+    r = run_station("import", first, "--config", cfg, "--into", session)
+    assert r.returncode == 0, r.stderr
+    assert "descent 1: joined: PC4 recorded live, PC5 on" in r.stderr
+    assert "descent 2:" not in r.stderr
+    r = run_station("import", second, "--config", cfg, "--into", session)
+    assert r.returncode == 0, r.stderr
+    assert "13 already in the session, 5 added" in r.stderr
+    assert "descent 2: joined: PC4 recorded live, PC5 on" in r.stderr
+    assert "descent 1:" not in r.stderr
+    df = pd.read_csv(session / "results.csv", comment="#")
+    assert list(df["photocells_used"]) == [9, 9]
+    assert all("joined: PC4 recorded live" in f for f in df["flags"])
+
+
+@pytest.mark.parametrize("how", ["import", "on the line"])
+def test_a_descent_the_download_continues_before_its_time_out_says_it_was_joined(
+    tmp_path, demo_track, how
+):
+    """The download comes before the descent cut short timed out (the recording ended at
+    once, or the timer sent its memory on the line as soon as the cable was back): the
+    memory's rest joins the descent still open. It said only "timer disconnected": the row
+    and the events list did not say that its times after PC4 are the timer's memory's."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    chunks = [c for c in _live_then_download(demo_track, 4, download=True) if c.event != "timeout"]
+    if how == "import":  # as `station import --into` appends it: an event, then the lines
+        memory = [c for c in chunks if c.data and b"AN" in c.data]
+        chunks = [c for c in chunks if c.event or b"TN" in c.data]
+        chunks.append(Chunk(chunks[-1].t, b"", "import", "imports/download.txt"))
+        chunks.append(Chunk(chunks[-1].t, b"\r\n" + b"".join(c.data for c in memory)))
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+    done += proc.finish()
+    assert [d.number for d in done] == [1]
+    d = done[0]
+    assert d.status == "complete" and len(d.photocells) == 9 and not d.missing, d
+    assert "joined: PC4 recorded live, PC5 on from the timer's memory" in d.flags
+    assert any("timer disconnected" in f for f in d.flags)
+    # the events list (--events) says it at the first crossing from the memory
+    joined = [e for e in proc.events if e.kept and e.reason.startswith("joined: ")]
+    assert [(e.photocell, e.descent) for e in joined] == [("PC5", 1)]

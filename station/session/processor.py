@@ -285,7 +285,12 @@ class Processor:
                 now = host_us + offset if offset is not None else None
                 done = asm.feed(parsed, self.lines, now)
                 clock = asm.clock
-                if clock is not None:
+                # the offset pairs a device time with the host time of the line that carried
+                # it: only an impulse kept (the clock moved to its time). A rejected or held one
+                # leaves the clock at the last kept impulse, minutes back after an outage: paired
+                # with this line's host time it put the estimate minutes wrong (every later time
+                # far from the clock held for confirmation, time-outs late)
+                if clock is not None and clock == asm.unwrap(parsed):
                     self.offset_us = clock - host_us
             self._recent.append((self.lines, t))
             if asm.count > before:
