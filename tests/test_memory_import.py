@@ -568,30 +568,33 @@ def test_a_descent_from_the_memory_takes_no_live_crossing_of_another_bib(
 def test_the_last_live_crossing_held_for_confirmation_is_not_lost_to_the_import(
     tmp_path, demo_track
 ):
-    """The cable was out for descent 1's first four crossings; its live rest came far from
-    the clock (nothing kept since the day before), so each waits for the next impulse to
-    confirm its time, and the finish still waits when the import's event comes. It is taken
-    as it is then, as at the end of a capture: the memory's first impulse, earlier by nature,
-    called it a corrupted time, and the joined descent lost its finish."""
+    """The cable was out for descent 2's first four crossings, and the timer's clock was set
+    on by a quarter of an hour meanwhile: its live rest came far from the clock, the host's
+    clock does not confirm the jump, so each waits for the next impulse to confirm its time,
+    and the finish still waits when the import's event comes. It is taken as it is then, as
+    at the end of a capture: the memory's first impulse, earlier by nature, called it a
+    corrupted time, and the joined descent lost its finish."""
     from station.session.config import load_config
     from station.session.processor import Processor
     from station.session.rawlog import Chunk
 
     cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
     proc = Processor(cfg, demo_track)
-    before = _descent_lines(demo_track, 35_000, 1, "TN", 1)  # a descent an hour before
+    before = _descent_lines(demo_track, 35_000, 1, "TN", 1)  # 1000 s before (110 s by the host)
     body = _descent_lines(demo_track, 36_000, 2, "TN", 10)
     host = 1_767_517_200.0
     chunks = [Chunk(host + 0.01 * i, x.encode()) for i, x in enumerate(before)]
     chunks += [
-        Chunk(host + 995.0, b"", "disconnected", "unplugged"),
-        Chunk(host + 1009.0, b"", "connected"),
+        Chunk(host + 95.0, b"", "disconnected", "unplugged"),
+        Chunk(host + 109.0, b"", "connected"),
     ]
-    chunks += [Chunk(host + 1010.0 + 0.01 * i, x.encode()) for i, x in enumerate(body[4:])]
+    chunks += [Chunk(host + 110.0 + 0.01 * i, x.encode()) for i, x in enumerate(body[4:])]
     chunks += [Chunk(host + 2000.0, b"", "import", "imports/download.txt")]
     chunks.append(Chunk(host + 2000.0, b"\r\n" + b"".join(x.encode() for x in body[:4])))
     done = []
     for chunk in chunks:
+        if chunk.event == "import":  # the live finish waits for confirmation still
+            assert proc.events[-1].line == proc.lines - 1
         done += proc.feed(chunk)
     done += proc.finish()
     final = {d.number: d for d in done}
