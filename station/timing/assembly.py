@@ -376,7 +376,8 @@ class DescentAssembler:
         # the common cases first: the one open descent reaching its next photocell, and the
         # next skier's start with no descent open
         fast = self._fast_channels.get(imp.channel)
-        if fast is not None and self._pending is None:
+        # (not an impulse from the timer's memory: joining a descent recorded live, it says so)
+        if fast is not None and self._pending is None and not self.from_memory:
             n_open = len(self.open)
             if n_open == 1:
                 done = self._next_photocell(imp, line, fast)
@@ -587,6 +588,7 @@ class DescentAssembler:
             or mode is None
             or clock is None
             or len(open_) > 1
+            or self.from_memory  # (see feed)
         ):
             return start, done, started
         by_order = mode == "order"  # else "bib" (mode is decided and changes on no fast path)
@@ -770,8 +772,14 @@ class DescentAssembler:
             _flag_damaged(d, imp, line)
             return done
         chosen, reason = self._choose(pc, k, t, bib)
-        if chosen is None and self.from_memory:
-            chosen = self._rejoin(pc, k, t, bib)
+        joined = ""  # the flag of a descent recorded live that this memory impulse continues
+        if self.from_memory:
+            if chosen is None:
+                chosen = self._rejoin(pc, k, t, bib)
+                if chosen is not None:
+                    joined = chosen.flags[-1]
+            else:
+                joined = self._continued(chosen, pc)
         if chosen is None:
             rec, why = self._recover(imp, line, pc, k, t, bib)
             if rec is not None:
@@ -803,7 +811,8 @@ class DescentAssembler:
         d.channels.append(imp.channel)
         self._move_clock(t)
         self._keep(imp.channel, t)
-        self._event(imp, line, pc, True, "", d.number)
+        # (the events list says where the memory's times begin, as the row's flags do)
+        self._event(imp, line, pc, True, joined, d.number)
         _flag_damaged(d, imp, line)
         if k == len(self.photocells) - 1:
             self.open.remove(d)
@@ -856,6 +865,20 @@ class DescentAssembler:
             self._last_done = None
         self.open.append(d)
         return d
+
+    def _continued(self, d: TimedDescent, pc: str) -> str:
+        """An impulse from the timer's memory at ``pc`` that open descent ``d`` takes: when
+        ``d``'s crossings so far were recorded live (the cable came out during it, and the
+        download came before its time-out ended it), the flag that says it was joined, added
+        to ``d``; "" otherwise (a descent from the memory, or one that says so already).
+        Without it a descent the download continued in time said only "timer disconnected",
+        while one it reopened (:meth:`_rejoin`) said it was joined."""
+        if d.number in self._memory_starts or any(f.startswith(JOINED) for f in d.flags):
+            return ""
+        d.thaw()
+        flag = f"{JOINED}{d.photocells[-1]} recorded live, {pc} on from the timer's memory"
+        d.flags.append(flag)
+        return flag
 
     def _near(self, bib: str) -> int | None:
         """The descent an impulse was nearest to joining, for the events list."""
