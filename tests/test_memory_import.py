@@ -847,3 +847,42 @@ def test_a_descent_the_download_continues_before_its_time_out_says_it_was_joined
     # the events list (--events) says it at the first crossing from the memory
     joined = [e for e in proc.events if e.kept and e.reason.startswith("joined: ")]
     assert [(e.photocell, e.descent) for e in joined] == [("PC5", 1)]
+
+
+def test_alge_m_lines_continuing_an_open_descent_say_it_was_joined(tmp_path, demo_track):
+    """ALGE: descent 1's first four crossings live, the cable out; the timer repeats its
+    memory on the line (``m`` lines of bib 7, no day: the fast paths could take them) before the
+    descent timed out. The rest joins it, and the row and events say so."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+    from station.timing.wireformats import format_alge
+
+    xs = np.array([pc.x for pc in demo_track.photocells])
+    t = (
+        StraightRun(demo_track.profile, xs)
+        .solve(Params(0.22, 0.0085, 3.4), Conditions(88, 1.079))
+        .t
+    )
+
+    def lines(flag: str) -> list[bytes]:
+        return [(format_alge(f"C{i}", round((36_000 + ti) * 1e6), 7, flag) + "\r").encode()
+                for i, ti in enumerate(t)]  # fmt: skip
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "alge")))
+    proc = Processor(cfg, demo_track)
+    host = 1_767_484_800.0 + 36_000.05
+    chunks = [Chunk(host + t[i], x) for i, x in enumerate(lines(" ")[:4])]
+    chunks += [Chunk(host + t[3] + 0.5, b"", "disconnected", "unplugged"),
+               Chunk(host + t[3] + 2.0, b"", "connected")]  # fmt: skip
+    chunks += [Chunk(host + t[3] + 3.0 + 0.01 * i, x) for i, x in enumerate(lines("m"))]
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+    done += proc.finish()
+    assert [d.number for d in done] == [1]
+    d = done[0]
+    assert d.status == "complete" and len(d.photocells) == 9 and not d.missing, d
+    assert "joined: PC4 recorded live, PC5 on from the timer's memory" in d.flags
+    joined = [e for e in proc.events if e.kept and e.reason.startswith("joined: ")]
+    assert [(e.photocell, e.descent) for e in joined] == [("PC5", 1)]
