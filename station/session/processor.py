@@ -99,6 +99,9 @@ class Processor:
         self.unparsed: list[tuple[int, str, str]] = []  # line number, reason, text (first 100)
         self.connection: list[tuple[float, str, str]] = []
         self.offset_us: int | None = None  # device clock − host clock
+        #: the lines before the latest ``import`` event (`station import`): that import's
+        #: lines come after them (the descents it joined are those they went into)
+        self.import_after_line: int | None = None
         self.start_host = StartHosts()
         self._latest_start: tuple[int, int] | None = None  # (device µs, descent): the last start
         #: (line, host time) of the lines last handed to the assembler: a descent's start may
@@ -127,6 +130,7 @@ class Processor:
             if chunk.event != "session":
                 self.connection.append((chunk.t, chunk.event, chunk.detail))
             if chunk.event == "import":
+                self.import_after_line = self.lines
                 # a download of the timer's memory follows (`station import`): the times it
                 # adds are earlier than the recording's last by nature; the timer's clock is
                 # judged afresh from its first start (a reset within it is still flagged);
