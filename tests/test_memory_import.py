@@ -886,3 +886,33 @@ def test_alge_m_lines_continuing_an_open_descent_say_it_was_joined(tmp_path, dem
     assert "joined: PC4 recorded live, PC5 on from the timer's memory" in d.flags
     joined = [e for e in proc.events if e.kept and e.reason.startswith("joined: ")]
     assert [(e.photocell, e.descent) for e in joined] == [("PC5", 1)]
+
+
+def test_after_a_download_on_the_line_the_next_live_start_is_taken_at_once(tmp_path, demo_track):
+    """The timer sent its memory on the line (``DS`` … ``DE``) after the cable went back in;
+    descent 1's rest from it was kept, minutes before the host's now. Paired with the host
+    time of their lines, those old times put the host's estimate of the timer's clock minutes
+    back: the next live start, far from the clock (the memory's last time), was held until its
+    PC2 confirmed it, and an open descent's time-out came late. The memory's times are not the
+    timer's now: the estimate stays the live one's, and ticks end nothing while the memory
+    comes (its descents are hours old by the live clock: they end by its own impulses)."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    chunks = _live_then_download(demo_track, 4, download=True)
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+        if chunk.data:  # the recorder ticks after every read
+            done += proc.tick(chunk.t + 0.05)
+    assert [d.number for d in done] == [1, 1]
+    assert "joined: PC4 recorded live, PC5 on from the timer's memory" in done[-1].flags
+    host0 = chunks[0].t - 36_000.0  # the host clock at the timer's 00:00 (PC1 at 10:00)
+    live = _descent_lines(demo_track, 36_600, 2, "TN", 10)
+    start = Chunk(host0 + 36_600.05, live[0].encode())
+    proc.feed(start)
+    assert [d.number for d in proc.assembler.open] == [2]  # started at once
+    assert proc.start_host.get(2) == start.t

@@ -290,11 +290,12 @@ class Processor:
                 done = asm.feed(parsed, self.lines, now)
                 clock = asm.clock
                 # the offset pairs a device time with the host time of the line that carried
-                # it: only an impulse kept (the clock moved to its time). A rejected or held one
-                # leaves the clock at the last kept impulse, minutes back after an outage: paired
-                # with this line's host time it put the estimate minutes wrong (every later time
-                # far from the clock held for confirmation, time-outs late)
-                if clock is not None and clock == asm.unwrap(parsed):
+                # it: only a live impulse kept (the clock moved to its time). A rejected or held
+                # one leaves the clock at the last kept impulse, and one from the timer's memory
+                # moves it to its own old time: minutes back after an outage, paired with this
+                # line's host time either put the estimate minutes wrong (every later time far
+                # from the clock held for confirmation, time-outs late)
+                if clock is not None and clock == asm.unwrap(parsed) and not asm.from_memory:
                     self.offset_us = clock - host_us
             self._recent.append((self.lines, t))
             if asm.count > before:
@@ -391,8 +392,11 @@ class Processor:
         self._latest_start = (start, number)
 
     def tick(self, host_t: float) -> list[TimedDescent]:
-        """Host time now: end a descent whose time-out passed on the device clock."""
-        if self.offset_us is None:
+        """Host time now: end a descent whose time-out passed on the device clock. Not while
+        the timer's memory comes: its descents are hours old by the live clock, and end by
+        its own impulses (the clock it had, before :attr:`offset_us` stayed live, followed
+        the memory's times)."""
+        if self.offset_us is None or self.assembler.from_memory:
             return []
         return self.assembler.tick(round(host_t * 1e6) + self.offset_us)
 
