@@ -252,7 +252,8 @@ class Processor:
                     self.impulses += stop - i
                     clock = asm.clock
                     assert clock is not None  # (the batch keeps impulses only with a clock)
-                    self.offset_us = clock - round(hosts[stop - 1] * 1e6)
+                    if not asm.from_memory:  # (the memory's times are not the timer's now)
+                        self.offset_us = clock - round(hosts[stop - 1] * 1e6)
                     tail = max(i, stop - RECENT_LINES)
                     recent.extend(zip(range(first + tail - i, self.lines + 1),
                                       hosts[tail:stop], strict=True))  # fmt: skip

@@ -376,8 +376,7 @@ class DescentAssembler:
         # the common cases first: the one open descent reaching its next photocell, and the
         # next skier's start with no descent open
         fast = self._fast_channels.get(imp.channel)
-        # (not an impulse from the timer's memory: joining a descent recorded live, it says so)
-        if fast is not None and self._pending is None and not self.from_memory:
+        if fast is not None and self._pending is None:
             n_open = len(self.open)
             if n_open == 1:
                 done = self._next_photocell(imp, line, fast)
@@ -418,6 +417,8 @@ class DescentAssembler:
         bib = "" if mode == "order" or flag == "?" else imp.bib.strip().lstrip("0")
         self.count += 1
         d = TimedDescent(self.count, [pc], [t], first_line=line, channels=[ch], bib=bib)
+        if self.from_memory:
+            self._memory_starts.add(d.number)
         self.open.append(d)
         if self._damaged:
             self._move_clock(t)
@@ -485,6 +486,8 @@ class DescentAssembler:
             return None  # its descent says so (_accept): the general path
         mode = self.mode
         d = self.open[0]
+        if self.from_memory and d.number not in self._memory_starts:
+            return None  # the memory continues a descent recorded live: it says so (_accept)
         if mode == "bib":
             if flag == "?" or not d.bib or bib.strip().lstrip("0") != d.bib:
                 return None
@@ -588,9 +591,12 @@ class DescentAssembler:
             or mode is None
             or clock is None
             or len(open_) > 1
-            or self.from_memory  # (see feed)
         ):
             return start, done, started
+        memory = self.from_memory
+        memory_starts = self._memory_starts
+        if memory and open_ and open_[0].number not in memory_starts:
+            return start, done, started  # (see _next_photocell)
         by_order = mode == "order"  # else "bib" (mode is decided and changes on no fast path)
         fast_channels = self._fast_channels
         seen_map = self._seen
@@ -661,6 +667,8 @@ class DescentAssembler:
                 d_bib = "" if by_order or flag == "?" else bib.strip().lstrip("0")
                 d = TimedDescent(number, [pc], [t], first_line=line0 + i, channels=[ch],
                                  bib=d_bib)  # fmt: skip
+                if memory:
+                    memory_starts.add(number)
                 open_.append(d)
                 started.append(d)
                 photocells, times = d.photocells, d.times_us
