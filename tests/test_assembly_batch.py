@@ -521,7 +521,7 @@ def test_sessions_with_the_memory_from_mid_descent_the_same_every_way(
     got = all_ways_session(configs("alge", None, "auto"), demo_track, chunks)
     assert sum(d[3] == "complete" for d in got["finished"]) > 20
     joins = sum(f.startswith("joined: ") for d in got["finished"] for f in d[4])
-    assert 1 <= joins <= 2  # (two skiers may be on the run)
+    assert joins >= 1  # (and those the stream's time-outs ended short, reopened)
 
 
 @settings(max_examples=40, deadline=None,

@@ -916,3 +916,28 @@ def test_after_a_download_on_the_line_the_next_live_start_is_taken_at_once(tmp_p
     proc.feed(start)
     assert [d.number for d in proc.assembler.open] == [2]  # started at once
     assert proc.start_host.get(2) == start.t
+
+
+def test_a_download_on_the_line_whose_end_was_lost_still_lets_time_outs_come(tmp_path, demo_track):
+    """The timer's ``DE`` after its memory was lost on the line (noise): the station takes
+    what follows as the memory still. A live skier who falls after PC3 is still ended by the
+    time-out when it is due (ticks follow the clock of the impulses kept since), not left
+    open for the next skier's crossings."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    chunks = _live_then_download(demo_track, 4, download=True)[:-1]  # (no DE)
+    host0 = chunks[0].t - 36_000.0
+    fell = _host_aligned(_descent_lines(demo_track, 36_600, 2, "TN", 10)[:3], host0)
+    done = []
+    for chunk in chunks + fell:
+        done += proc.feed(chunk)
+        if chunk.data:  # the recorder ticks after every read
+            done += proc.tick(chunk.t + 0.05)
+    assert proc.assembler.from_memory  # (what follows is taken as the memory's)
+    assert [d.number for d in done] == [1, 1]
+    due = fell[-1].t + proc.assembler.timeout_us[2] / 1e6
+    assert proc.tick(due - 1.0) == []
+    assert [(d.number, d.status) for d in proc.tick(due + 1.0)] == [(2, "incomplete")]

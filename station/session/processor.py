@@ -98,7 +98,11 @@ class Processor:
         self.impulses = 0  # counted apart: one per impulse line, the common case
         self.unparsed: list[tuple[int, str, str]] = []  # line number, reason, text (first 100)
         self.connection: list[tuple[float, str, str]] = []
-        self.offset_us: int | None = None  # device clock − host clock
+        self.offset_us: int | None = None  # device clock − host clock, by live impulses kept
+        #: the same while the timer's memory comes, by its impulses kept: their times are not
+        #: the timer's now, but its descents end by them (a tick's "now" follows them, as a
+        #: time far from the memory's clock is confirmed by them); None: none yet
+        self.memory_offset_us: int | None = None
         #: the lines before the latest ``import`` event (`station import`): that import's
         #: lines come after them (the descents it joined are those they went into)
         self.import_after_line: int | None = None
@@ -280,7 +284,9 @@ class Processor:
                     self.impulses += stop - i
                     clock = asm.clock
                     assert clock is not None  # (the batch keeps impulses only with a clock)
-                    if not asm.from_memory:  # (the memory's times are not the timer's now)
+                    if asm.from_memory:  # (the memory's times are not the timer's now)
+                        self.memory_offset_us = clock - round(hosts[stop - 1] * 1e6)
+                    else:
                         self.offset_us = clock - round(hosts[stop - 1] * 1e6)
                     tail = max(i, stop - RECENT_LINES)
                     recent.extend(zip(range(first + tail - i, self.lines + 1),
@@ -313,19 +319,22 @@ class Processor:
                 done = asm.feed(parsed, self.lines, None)
             else:
                 host_us = round(t * 1e6)
-                offset = self.offset_us
+                offset = self._offset()
                 # the device time now, by the host clock
                 now = host_us + offset if offset is not None else None
                 done = asm.feed(parsed, self.lines, now)
                 clock = asm.clock
                 # the offset pairs a device time with the host time of the line that carried
-                # it: only a live impulse kept (the clock moved to its time). A rejected or held
-                # one leaves the clock at the last kept impulse, and one from the timer's memory
-                # moves it to its own old time: minutes back after an outage, paired with this
-                # line's host time either put the estimate minutes wrong (every later time far
-                # from the clock held for confirmation, time-outs late)
-                if clock is not None and clock == asm.unwrap(parsed) and not asm.from_memory:
-                    self.offset_us = clock - host_us
+                # it: only an impulse kept (the clock moved to its time). A rejected or held one
+                # leaves the clock at the last kept impulse, minutes back after an outage: paired
+                # with this line's host time it put the estimate minutes wrong (every later time
+                # far from the clock held for confirmation, time-outs late). The memory's kept
+                # impulses have their own (they moved the live one to their old times likewise)
+                if clock is not None and clock == asm.unwrap(parsed):
+                    if asm.from_memory:
+                        self.memory_offset_us = clock - host_us
+                    else:
+                        self.offset_us = clock - host_us
             self._recent.append((self.lines, t))
             if asm.count > before:
                 self._new_descents(before, done, t, judge=True)
@@ -370,6 +379,7 @@ class Processor:
             self._new_descents(before, done, t, judge=True)
         if fresh_clock:
             self._latest_start = None
+        self.memory_offset_us = None  # (the live estimate until the memory's first is kept)
         return done
 
     def _new_descents(
@@ -421,13 +431,19 @@ class Processor:
         self._latest_start = (start, number)
 
     def tick(self, host_t: float) -> list[TimedDescent]:
-        """Host time now: end a descent whose time-out passed on the device clock. Not while
-        the timer's memory comes: its descents are hours old by the live clock, and end by
-        its own impulses (the clock it had, before :attr:`offset_us` stayed live, followed
-        the memory's times)."""
-        if self.offset_us is None or self.assembler.from_memory:
+        """Host time now: end a descent whose time-out passed on the device clock (while the
+        timer's memory comes, by the memory's clock: its descents are hours old by the live
+        one, and a tick after every read ended them mid-download)."""
+        offset = self._offset()
+        if offset is None:
             return []
-        return self.assembler.tick(round(host_t * 1e6) + self.offset_us)
+        return self.assembler.tick(round(host_t * 1e6) + offset)
+
+    def _offset(self) -> int | None:
+        """Device clock − host clock in effect: the memory's while it comes and has one."""
+        if self.assembler.from_memory and self.memory_offset_us is not None:
+            return self.memory_offset_us
+        return self.offset_us
 
     def finish(self) -> list[TimedDescent]:
         """End of the input: the unfinished last line, then the open descent."""
