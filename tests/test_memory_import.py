@@ -941,3 +941,40 @@ def test_a_download_on_the_line_whose_end_was_lost_still_lets_time_outs_come(tmp
     due = fell[-1].t + proc.assembler.timeout_us[2] / 1e6
     assert proc.tick(due - 1.0) == []
     assert [(d.number, d.status) for d in proc.tick(due + 1.0)] == [(2, "incomplete")]
+
+
+def test_a_descent_from_the_memory_a_pause_in_the_download_ended_is_not_called_recorded_live(
+    tmp_path, demo_track
+):
+    """The timer's memory comes over the line (``DS`` … ``DE``) and pauses after descent 1's
+    PC3 (flow control, a slow line) longer than the time-out: the tick, by the memory's clock,
+    ends the descent short; the memory's PC4 then reopens it. Every crossing of it is the
+    memory's: its flag said "PC3 recorded live" (and ``station import`` listed it as joined)."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    body = [_frame(s.split("\t")[0]) for s in _descent_lines(demo_track, 36_000, 1, "AN", 1)]
+    t0 = 1_767_520_800.0
+    lines = [_frame("DS 01  00 START - FINISH     "), *body[:3]]
+    chunks = [Chunk(t0 + 0.01 * k, x.encode()) for k, x in enumerate(lines)]
+    pause = t0 + 600.0  # the line is silent for ten minutes, then the rest comes
+    rest = [*body[3:], _frame("DE 01")]
+    chunks += [Chunk(pause + 0.01 * k, x.encode()) for k, x in enumerate(rest)]
+    done = []
+    for chunk in chunks:
+        if chunk.t >= pause and not done:
+            done += proc.tick(pause - 1.0)  # the reader's tick in the silence
+            assert [(d.number, d.status) for d in done] == [(1, "incomplete")]
+        done += proc.feed(chunk)
+        done += proc.tick(chunk.t + 0.05)
+    done += proc.finish()
+    assert [d.number for d in done] == [1, 1]
+    d = done[-1]
+    assert d.status == "complete" and len(d.photocells) == 9 and not d.missing
+    assert not any("recorded live" in f or f.startswith("joined: ") for f in d.flags), d.flags
+    assert "reopened: PC4 on from the timer's memory, as were PC3 and those before (a " \
+        "time-out while the download came had ended it)" in d.flags  # fmt: skip
+    assert not any("missing" in f for f in d.flags)

@@ -113,6 +113,9 @@ class TimedDescent:
 
 #: how the flag of a descent the timer's memory completed begins (``station import`` says it)
 JOINED = "joined: "
+#: how the flag of a descent from the timer's memory that the memory itself reopened begins
+#: (not joined: all its crossings are the memory's)
+REOPENED = "reopened: "
 #: live impulses no descent took, remembered for a descent from the memory to take
 MAX_ORPHANS = 200
 #: the fields of a descent that are lists while the assembler may change them
@@ -865,7 +868,16 @@ class DescentAssembler:
                 del d.flags[i]
                 break
         d.missing = [p for p in d.missing if p not in tail]
-        d.flags.append(f"{JOINED}{last} recorded live, {pc} on from the timer's memory")
+        if d.number in self._memory_starts and not any(f.startswith(JOINED) for f in d.flags):
+            # begun in the memory and nothing live taken since: a tick while the download
+            # came (a pause on the line, by the memory's clock) ended it, and the memory goes
+            # on with it. It said "recorded live" here: the import listed it as joined
+            d.flags.append(
+                f"{REOPENED}{pc} on from the timer's memory, as were {last} and "
+                "those before (a time-out while the download came had ended it)"
+            )
+        else:
+            d.flags.append(f"{JOINED}{last} recorded live, {pc} on from the timer's memory")
         d.status = "open"
         self.finished.remove(d)
         self._short.remove(d)
