@@ -919,10 +919,9 @@ def test_after_a_download_on_the_line_the_next_live_start_is_taken_at_once(tmp_p
 
 
 def test_a_download_on_the_line_whose_end_was_lost_still_lets_time_outs_come(tmp_path, demo_track):
-    """The timer's ``DE`` after its memory was lost on the line (noise): the station takes
-    what follows as the memory still. A live skier who falls after PC3 is still ended by the
-    time-out when it is due (ticks follow the clock of the impulses kept since), not left
-    open for the next skier's crossings."""
+    """The timer's ``DE`` after its memory was lost on the line (noise): the first live
+    ``TN`` ends the memory. A live skier who falls after PC3 is ended by the time-out when
+    it is due, not left open for the next skier's crossings."""
     from station.session.config import load_config
     from station.session.processor import Processor
 
@@ -936,7 +935,7 @@ def test_a_download_on_the_line_whose_end_was_lost_still_lets_time_outs_come(tmp
         done += proc.feed(chunk)
         if chunk.data:  # the recorder ticks after every read
             done += proc.tick(chunk.t + 0.05)
-    assert proc.assembler.from_memory  # (what follows is taken as the memory's)
+    assert not proc.assembler.from_memory  # (ended by the live TN)
     assert [d.number for d in done] == [1, 1]
     due = fell[-1].t + proc.assembler.timeout_us[2] / 1e6
     assert proc.tick(due - 1.0) == []
@@ -978,3 +977,56 @@ def test_a_descent_from_the_memory_a_pause_in_the_download_ended_is_not_called_r
     assert "reopened: PC4 on from the timer's memory, as were PC3 and those before (a " \
         "time-out while the download came had ended it)" in d.flags  # fmt: skip
     assert not any("missing" in f for f in d.flags)
+
+
+def test_a_lost_download_end_is_told_by_the_first_live_time_and_said(tmp_path, demo_track):
+    """The ``DE`` after a download on the line is lost (noise): THCOM08 sends the memory as
+    ``AN`` answers and live times as ``TN`` (the real CP540 capture: ``DS``, ``AN``…, ``DE``,
+    then ``T+``, ``TN``), so the first live ``TN`` ends the memory, and an event says so.
+    Taken as the memory still, live skier 2, who fell after PC3, was a descent of the
+    memory: the timer's memory sent again later reopened it as "all from the timer's
+    memory", where its first three crossings were recorded live."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    chunks = _live_then_download(demo_track, 4, download=True)[:-1]  # (no DE)
+    host0 = chunks[0].t - 36_000.0
+    skier2 = _descent_lines(demo_track, 36_600, 2, "TN", 10)
+    fell = _host_aligned(skier2[:3], host0)
+    done = []
+    for chunk in chunks + fell:
+        done += proc.feed(chunk)
+        done += proc.tick(chunk.t + 0.05)
+    first_live = proc.lines - 2  # (the line of skier 2's PC1)
+    said = [e for e in proc.events if e.reason.startswith("download end DE not seen")]
+    assert [(e.line, e.kept, e.reason) for e in said] == [
+        (first_live, False, f"download end DE not seen; memory taken as ended at line "
+                            f"{first_live} (a live TN)")
+    ]  # fmt: skip
+    # the same in a bulk replay (feed_chunks) and in a plain capture's chunk (no host times)
+    for how in ("bulk", "capture"):
+        other = Processor(cfg, demo_track)
+        if how == "bulk":
+            other.feed_chunks(chunks + fell)
+        else:
+            other.feed(Chunk(None, b"".join(c.data for c in chunks + fell)))  # type: ignore[arg-type]
+        assert [e.reason for e in other.events if e.reason.startswith("download end")] == [
+            said[0].reason
+        ], how
+        assert not other.assembler.from_memory, how
+    due = fell[-1].t + proc.assembler.timeout_us[2] / 1e6
+    assert [(d.number, d.status) for d in proc.tick(due + 1.0)] == [(2, "incomplete")]
+    # the memory sent again on the line, whole this time
+    again = [_frame("DS 01  00 START - FINISH     ")]
+    again += [_frame(x.split("\t")[0].replace("TN", "AN", 1)) for x in skier2]
+    again.append(_frame("DE 01"))
+    for k, x in enumerate(again):
+        done += proc.feed(Chunk(due + 60.0 + 0.01 * k, x.encode()))
+    done += proc.finish()
+    d = done[-1]
+    assert d.number == 2 and d.status == "complete" and len(d.photocells) == 9, d
+    assert "joined: PC3 recorded live, PC4 on from the timer's memory" in d.flags, d.flags
+    assert not any(f.startswith("reopened: ") for f in d.flags)

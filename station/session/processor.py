@@ -103,6 +103,9 @@ class Processor:
         #: the timer's now, but its descents end by them (a tick's "now" follows them, as a
         #: time far from the memory's clock is confirmed by them); None: none yet
         self.memory_offset_us: int | None = None
+        #: the line of the TAG ``DS`` whose memory download is coming over the line (its
+        #: ``DE`` not seen yet); None: none is
+        self.download_line: int | None = None
         #: the lines before the latest ``import`` event (`station import`): that import's
         #: lines come after them (the descents it joined are those they went into)
         self.import_after_line: int | None = None
@@ -135,6 +138,7 @@ class Processor:
                 self.connection.append((chunk.t, chunk.event, chunk.detail))
             if chunk.event == "import":
                 self.import_after_line = self.lines
+                self.download_line = None  # (the import's own DS sets it again)
                 # a download of the timer's memory follows (`station import`): the times it
                 # adds are earlier than the recording's last by nature; the timer's clock is
                 # judged afresh from its first start (a reset within it is still flagged);
@@ -144,6 +148,7 @@ class Processor:
             if chunk.event == "disconnected":
                 self.assembler.disconnected(chunk.detail)
                 self.assembler.from_memory = False  # a download on the line ends with it
+                self.download_line = None
             return []
         lines = self.framer.feed(chunk.data)
         t: float | None = chunk.t  # None: a plain capture (replay_chunks)
@@ -172,7 +177,13 @@ class Processor:
         stopped = -1  # the impulse the batch stopped at: the general path's
         while i < n:
             parsed = parsed_lines[i]
-            if type(parsed) is Impulse and self.resolution_us is not None:
+            # (while a download is on the line each impulse the general way: a live one
+            # ends it, :meth:`_live_after_download`)
+            if (
+                type(parsed) is Impulse
+                and self.resolution_us is not None
+                and self.download_line is None
+            ):
                 if i != stopped:
                     # the common impulses from here in one run of the assembler's
                     stop, ended, started = feed_run(parsed_lines, i, self.lines + 1)
@@ -276,7 +287,12 @@ class Processor:
         i, n = 0, len(lines)
         stopped = -1  # the impulse the batch stopped at: the general path's
         while i < n:
-            if i != stopped and type(parsed_lines[i]) is Impulse and self.resolution_us is not None:
+            if (
+                i != stopped
+                and type(parsed_lines[i]) is Impulse
+                and self.resolution_us is not None
+                and self.download_line is None  # (see _capture_lines)
+            ):
                 first = self.lines + 1  # the line number of parsed_lines[i]
                 stop, ended, started = feed_run(parsed_lines, i, first)
                 if stop > i:
@@ -309,6 +325,8 @@ class Processor:
     def _parsed(self, line: str, parsed: Parsed, t: float | None) -> list[TimedDescent]:
         """One line and what the parser made of it."""
         self.lines += 1
+        if self.download_line is not None and isinstance(parsed, Impulse | Edit):
+            self._live_after_download(parsed)
         if type(parsed) is Impulse:
             self.impulses += 1
             asm = self.assembler
@@ -352,8 +370,11 @@ class Processor:
             self.counts["skipped"] += 1
             if parsed.reason in MEMORY_DOWNLOAD:  # TAG DS … DE sent over the line
                 if MEMORY_DOWNLOAD[parsed.reason]:
-                    return self._memory_follows(t, fresh_clock=False)
+                    done = self._memory_follows(t, fresh_clock=False)
+                    self.download_line = self.lines
+                    return done
                 self.assembler.from_memory = False
+                self.download_line = None
         elif isinstance(parsed, Unparsed):
             self.counts["unparsed"] += 1
             # it may have been a skier's start: the assembler may start that descent later
@@ -365,6 +386,25 @@ class Processor:
                     (self.lines, "this and later unparsed lines not listed; see the raw log", "")
                 )
         return []
+
+    def _live_after_download(self, parsed: Impulse | Edit) -> None:
+        """A time message while a download is on the line (:attr:`download_line`): a live
+        one (``TN`` new time, ``T+``/``T-``/… an edit at the timer: THCOM08 sends the memory
+        as ``AN`` answers, the real CP540 capture ``DS``, ``AN``…, ``DE``, then ``T+``, ``TN``)
+        means the ``DE`` was lost on the line: the memory ends before it, with an event that
+        says so. Without it the rest of the day was taken as the timer's memory (its
+        descents flagged as such, a live skier's crossings joined to memory descents). A time
+        far past the download's last does not tell it: a day's memory has gaps of hours."""
+        if parsed.line.lstrip("#")[:1] != "T" or not self.assembler.from_memory:
+            return
+        self.download_line = None
+        self.assembler.from_memory = False
+        kind = parsed.line.lstrip("#")[:2]
+        n = self.lines
+        why = f"download end DE not seen; memory taken as ended at line {n} (a live {kind})"
+        self.events.append(
+            ImpulseEvent(self.lines, parsed.channel, None, parsed.tod_us, parsed.flag, False, why)
+        )
 
     def _memory_follows(self, t: float | None, fresh_clock: bool) -> list[TimedDescent]:
         """Impulses from the timer's memory follow: a live impulse still held for the next
