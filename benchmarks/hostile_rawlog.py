@@ -7,7 +7,8 @@
 2. A session whose raw log holds that 32 MB record (no line end in it) among a day's records,
    replayed end to end (read_rawlog, processor, descents, fits): seconds.
 3. read_rawlog over raw logs of 8 and 32 MB of ordinary records, and over one of 8 MB of bad
-   records (each passed over with a warning, 10 named): MB/s and the ratio of the times.
+   records (each passed over with a warning, 10 named): MB/s and the ratio of the times; and
+   read_rawlog_bulk (what ``replay SESSION --no-fit`` reads) over the same.
 
     python benchmarks/hostile_rawlog.py [--sizes 2,8,32]
 
@@ -27,7 +28,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from station.session.rawlog import read_rawlog  # noqa: E402
+from station.session.rawlog import read_rawlog, read_rawlog_bulk  # noqa: E402
 from station.timing.framing import LineFramer  # noqa: E402
 
 MB = 1024 * 1024
@@ -125,6 +126,9 @@ def reading(tmp: str, sizes: list[int]) -> None:
         ratio = (s / first[1]) / (mb / first[0])
         print(f"   {mb:4d} MB of records: {s:6.2f} s ({mb / s:5.1f} MB/s; time per MB vs "
               f"{first[0]} MB: {ratio:.2f}x)")  # fmt: skip
+        bulk = time_it(lambda path=path: sum(1 for _ in read_rawlog_bulk(path)))
+        print(f"   {mb:4d} MB, read in bulk (replay --no-fit): {bulk:6.2f} s "
+              f"({mb / bulk:5.1f} MB/s, {s / bulk:.1f}x faster)")  # fmt: skip
     path = os.path.join(tmp, "bad.jsonl")
     bad = '{"t": NaN, "rx": "\\u20ac"}\n'
     with open(path, "w") as fh:
@@ -135,6 +139,11 @@ def reading(tmp: str, sizes: list[int]) -> None:
         f"   {sizes[0]:4d} MB of bad records: {s:6.2f} s ({sizes[0] / s:5.1f} MB/s), "
         f"{len(warnings)} warning lines: {warnings[-1]}"
     )
+    bulk_warnings: list[str] = []
+    bulk = time_it(lambda: sum(1 for _ in read_rawlog_bulk(path, bulk_warnings)))
+    assert bulk_warnings == warnings
+    print(f"   {sizes[0]:4d} MB of bad records in bulk: {bulk:6.2f} s ({sizes[0] / bulk:5.1f} "
+          "MB/s), the same warnings")  # fmt: skip
 
 
 def main() -> int:

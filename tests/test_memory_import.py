@@ -466,3 +466,225 @@ def test_a_descent_ended_again_by_the_memory_counts_once_for_max_descents(tmp_pa
     (res,) = acq.results()
     assert res.row.photocells_used == 9 and res.row.status == "ok"
     assert any(f.startswith("joined: ") for f in res.row.flags)
+
+
+def test_two_skiers_cut_short_at_the_same_photocell_each_get_their_own_rest(tmp_path, demo_track):
+    """Order pairing, two skiers on the run half a second apart (after a whole descent that
+    gives the typical times); the cable comes out when both have passed PC4. The download
+    brings both rests in the timer's order: each joins the skier it belongs to, not the one
+    whose last crossing was latest (the nearer in time: the skier behind would take the
+    first skier's PC5, and the first skier the second's)."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(
+        str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS,
+                         extra="descent: {pairing: order}\n"))
+    )  # fmt: skip
+    proc = Processor(cfg, demo_track)
+    first = _descent_lines(demo_track, 36_000, 1, "TN", 1)
+    a = _descent_lines(demo_track, 36_100, 2, "TN", 10)
+    b = _descent_lines(demo_track, 36_100.5, 3, "TN", 19)
+    host = 1_767_520_800.0
+    chunks = [Chunk(host + 0.01 * i, x.encode()) for i, x in enumerate(first)]
+    # live: every crossing of A and B before 36 110 s (both past PC4, neither at PC5)
+    both = sorted(a + b, key=lambda s: s.split()[4])
+    cut = 36_110.0
+    live = [x for x in both if float(x.split()[4].split(":")[2]) < cut - 36_060]
+    rest = [x for x in both if x not in live]
+    assert len(live) == 8 and len(rest) == 10
+    chunks += [Chunk(host + 100 + 0.1 * i, x.encode()) for i, x in enumerate(live)]
+    chunks += [Chunk(host + 110.0, b"", "disconnected", "unplugged"),
+               Chunk(host + 300.0, b"", "timeout")]  # fmt: skip
+    chunks += [Chunk(host + 2000.0, b"", "import", "imports/download.txt")]
+    chunks.append(Chunk(host + 2000.0, b"\r\n" + b"".join(x.encode() for x in rest)))
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+    done += proc.finish()
+    final = {d.number: d for d in done}
+    assert sorted(final) == [1, 2, 3] and proc.assembler.count == 3
+
+    def tod(line: str) -> int:
+        h, m, s = line.split()[4].split(":")
+        return round((int(h) * 3600 + int(m) * 60 + float(s)) * 1e6)
+
+    for n, lines in ((2, a), (3, b)):
+        d = final[n]
+        assert d.status == "complete" and len(d.photocells) == 9, d
+        assert [t % (86_400 * 10**6) for t in d.times_us] == [tod(x) for x in lines], n
+        assert any(f.startswith("joined: ") for f in d.flags)
+
+
+@pytest.mark.parametrize("seven_in_memory", [True, False])
+def test_a_descent_from_the_memory_takes_no_live_crossing_of_another_bib(
+    tmp_path, demo_track, seven_in_memory
+):
+    """Bib pairing; the cable was out while bibs 5 and 7 started; bib 5 fell after PC4, bib 7
+    went on, its PC5 … PC9 recorded live and rejected (no open descent of bib 7). The import
+    brings both starts: bib 7's descent takes its own live rest, and bib 5's (which ends
+    short first) none of it, though bib 7's crossings would continue it plausibly by time.
+    Without bib 7's start in the memory either (its start photocell missed it), bib 5's takes
+    none of them still: they are another bib's."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(
+        str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS,
+                         extra="descent: {pairing: bib}\n"))
+    )  # fmt: skip
+    proc = Processor(cfg, demo_track)
+    first = _descent_lines(demo_track, 36_000, 1, "TN", 1)
+    b5 = _descent_lines(demo_track, 36_100, 5, "TN", 10)[:4]  # fell after PC4
+    b7 = _descent_lines(demo_track, 36_102, 7, "TN", 14)
+    host = 1_767_520_800.0
+    chunks = [Chunk(host + 0.01 * i, x.encode()) for i, x in enumerate(first)]
+    chunks += [Chunk(host + 90.0, b"", "disconnected", "unplugged"),
+               Chunk(host + 111.0, b"", "connected")]  # fmt: skip
+    chunks += [Chunk(host + 112.0 + 0.1 * i, x.encode()) for i, x in enumerate(b7[4:])]
+    memory = sorted(b5 + (b7[:4] if seven_in_memory else []), key=lambda s: s.split()[4])
+    chunks += [Chunk(host + 2000.0, b"", "import", "imports/download.txt")]
+    chunks.append(Chunk(host + 2000.0, b"\r\n" + b"".join(x.encode() for x in memory)))
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+    assert sum(not e.kept for e in proc.events) == 5  # bib 7's live rest, without a start
+    done += proc.finish()
+    final = {d.number: d for d in done}
+    by_bib = {d.bib: d for d in final.values()}
+    assert len(by_bib["5"].photocells) == 4 and by_bib["5"].status == "incomplete"
+    assert not any(f.startswith("joined: ") for f in by_bib["5"].flags)
+    if not seven_in_memory:
+        assert sorted(final) == [1, 2]
+        return
+    assert sorted(final) == [1, 2, 3]
+    seven = by_bib["7"]
+    assert seven.status == "complete" and len(seven.photocells) == 9, seven
+    assert "joined: PC4 from the timer's memory, PC5 on recorded live" in seven.flags
+
+
+def test_the_last_live_crossing_held_for_confirmation_is_not_lost_to_the_import(
+    tmp_path, demo_track
+):
+    """The cable was out for descent 1's first four crossings; its live rest came far from
+    the clock (nothing kept since the day before), so each waits for the next impulse to
+    confirm its time, and the finish still waits when the import's event comes. It is taken
+    as it is then, as at the end of a capture: the memory's first impulse, earlier by nature,
+    called it a corrupted time, and the joined descent lost its finish."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    before = _descent_lines(demo_track, 35_000, 1, "TN", 1)  # a descent an hour before
+    body = _descent_lines(demo_track, 36_000, 2, "TN", 10)
+    host = 1_767_517_200.0
+    chunks = [Chunk(host + 0.01 * i, x.encode()) for i, x in enumerate(before)]
+    chunks += [
+        Chunk(host + 995.0, b"", "disconnected", "unplugged"),
+        Chunk(host + 1009.0, b"", "connected"),
+    ]
+    chunks += [Chunk(host + 1010.0 + 0.01 * i, x.encode()) for i, x in enumerate(body[4:])]
+    chunks += [Chunk(host + 2000.0, b"", "import", "imports/download.txt")]
+    chunks.append(Chunk(host + 2000.0, b"\r\n" + b"".join(x.encode() for x in body[:4])))
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+    done += proc.finish()
+    final = {d.number: d for d in done}
+    assert sorted(final) == [1, 2]
+    d = final[2]
+    assert d.status == "complete" and len(d.photocells) == 9 and not d.missing, d
+    assert "joined: PC4 from the timer's memory, PC5 on recorded live" in d.flags
+    assert not any("corrupted time" in e.reason for e in proc.events)
+
+
+def test_in_order_pairing_a_descent_from_the_memory_leaves_the_live_rest_to_its_skier(
+    tmp_path, demo_track
+):
+    """The same day paired by order (no bibs to tell): skier 1 fell after PC4, skier 2 went on
+    two seconds behind, its PC5 … PC9 live and rejected. Both descents from the memory end
+    at the end, skier 1's first: the live rest goes to the descent that would reach it when
+    expected (skier 2's), as the pairing of skiers on the run chooses, not to the first to
+    end that could take it."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(
+        str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS,
+                         extra="descent: {pairing: order}\n"))
+    )  # fmt: skip
+    proc = Processor(cfg, demo_track)
+    first = _descent_lines(demo_track, 36_000, 1, "TN", 1)
+    fell = _descent_lines(demo_track, 36_100, 5, "TN", 10)[:4]
+    on = _descent_lines(demo_track, 36_102, 7, "TN", 14)
+    host = 1_767_520_800.0
+    chunks = [Chunk(host + 0.01 * i, x.encode()) for i, x in enumerate(first)]
+    chunks += [Chunk(host + 90.0, b"", "disconnected", "unplugged"),
+               Chunk(host + 111.0, b"", "connected")]  # fmt: skip
+    chunks += [Chunk(host + 112.0 + 0.1 * i, x.encode()) for i, x in enumerate(on[4:])]
+    memory = sorted(fell + on[:4], key=lambda s: s.split()[4])
+    chunks += [Chunk(host + 2000.0, b"", "import", "imports/download.txt")]
+    chunks.append(Chunk(host + 2000.0, b"\r\n" + b"".join(x.encode() for x in memory)))
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+    done += proc.finish()
+    final = {d.number: d for d in done}
+    assert sorted(final) == [1, 2, 3]
+    assert len(final[2].photocells) == 4 and final[2].status == "incomplete", final[2]
+    assert not any(f.startswith("joined: ") for f in final[2].flags)
+    d = final[3]
+    assert d.status == "complete" and len(d.photocells) == 9, d
+    assert "joined: PC4 from the timer's memory, PC5 on recorded live" in d.flags
+
+
+def test_alge_m_lines_give_a_descent_whose_start_the_cable_lost_its_live_rest(tmp_path, demo_track):
+    """ALGE: the cable out for a descent's first four crossings, its live rest rejected as
+    without a start (the last one still held for confirmation: nothing kept moved the clock
+    for an hour), then the timer's memory recalled on the line (``m`` lines, each from the
+    memory alone). The descent the ``m`` lines start takes its live rest when it ends, and
+    the held finish is not called a corrupted time by the memory's earlier ones."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+    from station.timing.wireformats import format_alge
+
+    xs = np.array([pc.x for pc in demo_track.photocells])
+    t = (
+        StraightRun(demo_track.profile, xs)
+        .solve(Params(0.22, 0.0085, 3.4), Conditions(88, 1.079))
+        .t
+    )
+
+    def lines(start_s: float, flag: str = " ") -> list[bytes]:
+        return [(format_alge(f"C{i}", round((start_s + ti) * 1e6), 0, flag) + "\r").encode()
+                for i, ti in enumerate(t)]  # fmt: skip
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "alge")))
+    proc = Processor(cfg, demo_track)
+    host = 1_767_520_800.0
+    chunks = [Chunk(host + 0.01 * i, x) for i, x in enumerate(lines(36_000))]
+    chunks += [Chunk(host + 3590.0, b"", "disconnected", "unplugged"),
+               Chunk(host + 3609.0, b"", "connected")]  # fmt: skip
+    chunks += [Chunk(host + 3600.0 + t[i], x) for i, x in enumerate(lines(39_600)) if i >= 4]
+    chunks += [Chunk(host + 3700.0 + 0.01 * i, x) for i, x in enumerate(lines(39_600, "m")[:4])]
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+    done += proc.finish()
+    final = {d.number: d for d in done}
+    assert sorted(final) == [1, 2]
+    d = final[2]
+    assert d.status == "complete" and len(d.photocells) == 9 and not d.missing, d
+    assert "joined: PC4 from the timer's memory, PC5 on recorded live" in d.flags
+    assert not any("corrupted time" in e.reason for e in proc.events)
+    # the events list says where the live rest went, after its "without a start"
+    went = [
+        (e.photocell, e.descent) for e in proc.events if e.kept and e.reason.startswith("joined")
+    ]
+    assert went == [(f"PC{i}", 2) for i in range(5, 10)]

@@ -179,3 +179,104 @@ def test_a_recording_whose_results_csv_was_not_written_leaves_no_state(tmp_path,
     assert replays == [str(session)]
     assert csv_of(session) == from_scratch(session)
     assert (session / STATE).exists()
+
+
+def test_a_descent_joined_by_a_download_on_the_line_is_vouched_for_as_a_replay_gives_it(
+    tmp_path, demo_track, replays
+):
+    """TAG, the recorder's own loop: descent 1 whole; descent 2 cut short by the cable (it is
+    fitted short, and its four photocells get their survey covariance from it); the timer's
+    memory sent on the line (``DS`` … ``DE``) ends it again whole; descent 3 whole. The
+    recording leaves a state; annotates of descent 2 and of descent 1 then run in place and
+    write what a replay from scratch writes."""
+    from station.session.config import load_config
+    from station.session.rawlog import Chunk, RawLogWriter
+    from tests.test_memory_import import TAG_CHANNELS, _descent_lines, _frame
+
+    cfg_path = write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)
+    source = tmp_path / "src"
+    store.create(load_config(str(cfg_path)), str(source))
+    host = 1_767_520_800.0
+    days = [_descent_lines(demo_track, 36_000 + s, k + 1, "TN", 9 * k + 1)
+            for k, s in enumerate((0, 120, 400))]  # fmt: skip
+    chunks = [Chunk(host + 0.01 * i, x.encode()) for i, x in enumerate(days[0])]
+    chunks += [Chunk(host + 120 + 0.01 * i, x.encode()) for i, x in enumerate(days[1][:4])]
+    chunks += [
+        Chunk(host + 121.0, b"", "disconnected", "unplugged"),
+        Chunk(host + 300.0, b"", "timeout"),
+        Chunk(host + 310.0, b"", "connected"),
+    ]
+    memory = [_frame("DS 01  00 START - FINISH     ")]
+    memory += [_frame(s.split("\t")[0].replace("TN", "AN", 1)) for s in days[1]]
+    memory.append(_frame("DE 01"))
+    chunks += [Chunk(host + 320.0 + 0.01 * i, x.encode()) for i, x in enumerate(memory)]
+    chunks += [Chunk(host + 400 + 0.01 * i, x.encode()) for i, x in enumerate(days[2])]
+    log = RawLogWriter(str(source / store.RAW), header={"port": "/dev/null"})
+    for c in chunks:
+        if c.event:
+            log.event(c.t, c.event, c.detail)
+        else:
+            log.write(c.t, c.data)
+    log.close()
+
+    session = tmp_path / "rec"
+    acq = record_chunks(source, session)
+    assert acq.not_as_replayed is None
+    rows = csv_of(session).decode().splitlines()
+    assert "joined: PC4 recorded live" in rows[-2]
+    assert (session / STATE).exists() and csv_of(session) == from_scratch(session)
+    RecordedSession(str(session)).annotate(
+        [MetadataAnnotation(Metadata(mass_kg=70.0), descents=(2,), t=2.0)]
+    )
+    RecordedSession(str(session)).annotate([ModelChange(1, FitModel.VELOCITY, 3.0)])
+    assert replays == []
+    assert csv_of(session) == from_scratch(session)
+
+
+def test_an_edit_that_changes_descent_1s_photocells_after_later_ones_is_as_replayed(
+    tmp_path, demo_track, replays
+):
+    """TAG, the recorder's own loop: descents 1-3 whole; then PC5 of descent 1 cancelled at
+    the timer (``TC``): descent 1 ends again on eight photocells, the first on them, and its
+    reference fit gives them their survey covariance; descent 4 missed PC5 and takes it. The
+    recording leaves a state; annotates of descents 1 and 4 run in place and write what a
+    replay from scratch writes."""
+    from station.session.config import load_config
+    from station.session.rawlog import Chunk, RawLogWriter
+    from station.timing.wireformats import format_tag
+    from tests.test_memory_import import DAY, TAG_CHANNELS, _descent_lines
+
+    cfg_path = write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)
+    source = tmp_path / "src"
+    store.create(load_config(str(cfg_path)), str(source))
+    host = 1_767_520_800.0
+    days = [_descent_lines(demo_track, 36_000 + 120 * k, k + 1, "TN", 9 * k + 1) for k in range(4)]
+    del days[3][4]  # descent 4 missed PC5
+    chunks = []
+    for k in range(3):
+        chunks += [Chunk(host + 120 * k + 0.01 * i, x.encode()) for i, x in enumerate(days[k])]
+    pc5 = days[0][4].split()
+    tod = pc5[4].split(":")
+    tod_us = round((int(tod[0]) * 3600 + int(tod[1]) * 60 + float(tod[2])) * 1e6)
+    cancel = format_tag("5", tod_us, 5, 1, DAY, "TC") + "\r\n"
+    chunks.append(Chunk(host + 300.0, cancel.encode()))
+    chunks += [Chunk(host + 360 + 0.01 * i, x.encode()) for i, x in enumerate(days[3])]
+    log = RawLogWriter(str(source / store.RAW), header={"port": "/dev/null"})
+    for c in chunks:
+        log.write(c.t, c.data)
+    log.close()
+
+    session = tmp_path / "rec"
+    acq = record_chunks(source, session)
+    assert acq.not_as_replayed is None
+    an = acq.day.analyser
+    eight = ("PC1", "PC2", "PC3", "PC4", "PC6", "PC7", "PC8", "PC9")
+    assert acq.day.results[1].descent.photocells == eight
+    assert an.survey_source[eight] == 1 and acq.day.results[4].descent.photocells == eight
+    assert (session / STATE).exists() and csv_of(session) == from_scratch(session)
+    RecordedSession(str(session)).annotate([ModelChange(1, FitModel.VELOCITY, 2.0)])
+    RecordedSession(str(session)).annotate(
+        [MetadataAnnotation(Metadata(mass_kg=70.0), descents=(1, 4), t=3.0)]
+    )
+    assert replays == []
+    assert csv_of(session) == from_scratch(session)

@@ -100,7 +100,7 @@ def _replay_no_fit(args: argparse.Namespace, cfg: Any) -> int:
 
     from station.report.text import count
     from station.session.processor import Processor
-    from station.session.replay import replay_chunks, write_events
+    from station.session.replay import bulk_chunks, write_events
     from station.survey.load import load_survey
     from station.survey.track import build_track
     from station.timing.impulses import format_tod
@@ -119,7 +119,7 @@ def _replay_no_fit(args: argparse.Namespace, cfg: Any) -> int:
     was_enabled = gc.isenabled()
     gc.disable()
     try:
-        for d in proc.feed_chunks(replay_chunks(args.source, None, None, warnings)):
+        for d in proc.feed_chunks(bulk_chunks(args.source, warnings)):
             ended[d.number] = d
         for d in proc.finish():
             ended[d.number] = d

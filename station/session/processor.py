@@ -17,7 +17,7 @@ from collections.abc import Iterable
 
 from station.errors import InputError
 from station.session.config import StationConfig
-from station.session.rawlog import Chunk
+from station.session.rawlog import Chunk, Lines
 from station.session.records import LineCounts
 from station.survey.track import Track
 from station.timing.assembly import DescentAssembler, ImpulseEvent, TimedDescent
@@ -129,11 +129,10 @@ class Processor:
             if chunk.event == "import":
                 # a download of the timer's memory follows (`station import`): the times it
                 # adds are earlier than the recording's last by nature; the timer's clock is
-                # judged afresh from its first start (a reset within it is still flagged)
-                self._latest_start = None
+                # judged afresh from its first start (a reset within it is still flagged);
                 # and an impulse of it may be the rest of a descent the recording has the
                 # first crossings of (the cable came out during it): joined to it
-                self.assembler.from_memory = True
+                return self._memory_follows(chunk.t, fresh_clock=True)
             if chunk.event == "disconnected":
                 self.assembler.disconnected(chunk.detail)
                 self.assembler.from_memory = False  # a download on the line ends with it
@@ -192,38 +191,66 @@ class Processor:
             i += 1
         return done
 
-    def feed_chunks(self, chunks: Iterable[Chunk]) -> list[TimedDescent]:
+    def feed_chunks(self, chunks: Iterable[Chunk | Lines]) -> list[TimedDescent]:
         """:meth:`feed` of each chunk in turn, for a bulk replay (``replay --no-fit``): the
         descents they finished, in order. A session's one-line chunks with a host time (a
         recording's every read) are framed as they come and handed on together, up to
-        ``SESSION_RUN`` lines, to the assembler's batch (:meth:`_session_lines`); every other
-        chunk goes through :meth:`feed` once the lines before it are."""
+        ``SESSION_RUN`` lines, to the assembler's batch (:meth:`_session_lines`); so are the
+        lines of the runs of reads a bulk read of the raw log gives (:class:`Lines`, framed
+        in one split, each line dated by the read that ended it); every other chunk goes
+        through :meth:`feed` once the lines before it are."""
         done: list[TimedDescent] = []
         lines: list[str] = []
         hosts: list[float] = []
         framer = self.framer
-        for chunk in chunks:
-            t = chunk.t
-            if not chunk.event and t is not None and t == t:
-                got = framer.feed(chunk.data)
-                self._chunk_t = t
-                if len(got) == 1:
-                    lines.append(got[0])
-                    hosts.append(t)
-                    if len(lines) >= SESSION_RUN:
+        for item in chunks:
+            group: Iterable[Chunk]
+            if isinstance(item, Lines):  # reads of printable ASCII, with host times
+                if item.ends is None:  # a line a read
+                    got, ends = framer.feed_lines(item.rx), item.t
+                else:  # the host time of each line: the read that ended it
+                    got, ends = framer.feed_run(item.text), item.ends
+                if got is None:  # a line too long: read by read
+                    group = item.chunks()
+                else:
+                    self._chunk_t = item.t[-1]
+                    k, n = 0, len(got)
+                    while k < n:  # runs of SESSION_RUN lines for the batch
+                        room = SESSION_RUN - len(lines)
+                        if k == 0 and not lines and n <= room:
+                            lines, hosts = list(got), list(ends)
+                        else:
+                            lines += got[k : k + room]
+                            hosts += ends[k : k + room]
+                        k += room
+                        if len(lines) >= SESSION_RUN:
+                            done += self._session_lines(lines, hosts)
+                            lines, hosts = [], []
+                    continue
+            else:
+                group = (item,)
+            for chunk in group:
+                t = chunk.t
+                if not chunk.event and t is not None and t == t:
+                    got = framer.feed(chunk.data)
+                    self._chunk_t = t
+                    if len(got) == 1:
+                        lines.append(got[0])
+                        hosts.append(t)
+                        if len(lines) >= SESSION_RUN:
+                            done += self._session_lines(lines, hosts)
+                            lines, hosts = [], []
+                        continue
+                    if lines:
                         done += self._session_lines(lines, hosts)
                         lines, hosts = [], []
+                    for line in got:  # as feed does with a chunk of several lines (or none)
+                        done += self._line(line, t)
                     continue
                 if lines:
                     done += self._session_lines(lines, hosts)
                     lines, hosts = [], []
-                for line in got:  # as feed does with a chunk of several lines (or none)
-                    done += self._line(line, t)
-                continue
-            if lines:
-                done += self._session_lines(lines, hosts)
-                lines, hosts = [], []
-            done += self.feed(chunk)
+                done += self.feed(chunk)
         if lines:
             done += self._session_lines(lines, hosts)
         return done
@@ -304,7 +331,9 @@ class Processor:
         if isinstance(parsed, Skip):
             self.counts["skipped"] += 1
             if parsed.reason in MEMORY_DOWNLOAD:  # TAG DS … DE sent over the line
-                self.assembler.from_memory = MEMORY_DOWNLOAD[parsed.reason]
+                if MEMORY_DOWNLOAD[parsed.reason]:
+                    return self._memory_follows(t, fresh_clock=False)
+                self.assembler.from_memory = False
         elif isinstance(parsed, Unparsed):
             self.counts["unparsed"] += 1
             # it may have been a skier's start: the assembler may start that descent later
@@ -316,6 +345,21 @@ class Processor:
                     (self.lines, "this and later unparsed lines not listed; see the raw log", "")
                 )
         return []
+
+    def _memory_follows(self, t: float | None, fresh_clock: bool) -> list[TimedDescent]:
+        """Impulses from the timer's memory follow: a live impulse still held for the next
+        one to confirm its time is taken first, as at the end of a capture (the memory's
+        first impulse, earlier by nature, called it a corrupted time and it joined nothing:
+        the live finish of a descent split by an unplugged cable was lost); then the
+        assembler is told (:attr:`DescentAssembler.from_memory`)."""
+        asm = self.assembler
+        before = asm.count
+        done = asm.memory_follows()
+        if asm.count > before:
+            self._new_descents(before, done, t, judge=True)
+        if fresh_clock:
+            self._latest_start = None
+        return done
 
     def _new_descents(
         self, before: int, done: list[TimedDescent], t: float | None, judge: bool

@@ -40,7 +40,8 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterator
-from typing import NamedTuple
+from itertools import compress, repeat
+from typing import BinaryIO, NamedTuple
 
 from station.errors import InputError
 from station.files import MAX_RAWLOG, MiB, open_regular
@@ -421,78 +422,312 @@ def _unescape(rx: bytes) -> bytes:
     return rx.replace(b"\\r", b"\r").replace(b"\\n", b"\n").replace(b"\\t", b"\t")
 
 
+class _Records:
+    """The careful reading of a raw log's records, one line at a time: what both readers do
+    with a line that is not the common record (:func:`read_rawlog` with every line). Counts the
+    lines (for the warnings) and the bytes (the log may grow while it is read)."""
+
+    def __init__(self, path: str, fh: BinaryIO, warnings: list[str] | None) -> None:
+        self.path = path
+        self.fh = fh
+        self.warnings = warnings
+        self.bad = 0  # bad records passed over
+        self.i = 0  # the line number of the latest line
+        self.total = 0  # bytes read
+
+    def readline(self) -> bytes:
+        """The next line from the file (at most ``MAX_RECORD`` + 1 bytes), b"" at its end."""
+        try:
+            return self.fh.readline(MAX_RECORD + 1)
+        except OSError as exc:
+            raise InputError(f"cannot read raw log: {_why(exc)}", path=self.path) from None
+
+    def passed_over(self, i: int, why: str) -> None:
+        self.bad += 1
+        if self.warnings is not None and self.bad <= MAX_NAMED:
+            self.warnings.append(f"{self.path}:{i}: {why}; passed over")
+
+    def record(self, raw: bytes) -> Chunk | None:
+        """The chunk of the line ``raw`` (one from :meth:`readline`, or a whole line read
+        otherwise, or the unended last), or None when it is blank or passed over."""
+        self.i += 1
+        i = self.i
+        self.total += len(raw)
+        if self.total > MAX_RAWLOG:  # grew while read
+            raise InputError(f"is larger than {_size(MAX_RAWLOG)}, the limit for a raw log",
+                             path=self.path)  # fmt: skip
+        common = _ONE_LINE(raw)  # a whole line: never one cut at the limit
+        if common is not None:
+            return _new_chunk(Chunk, (float(common[1]), common[2] + b"\r", "", ""))
+        common = _COMMON(raw)
+        if common is not None:
+            return _new_chunk(Chunk, (float(common[1]), _unescape(common[2]), "", ""))
+        if len(raw) > MAX_RECORD and not raw.endswith(b"\n"):
+            while raw and not raw.endswith(b"\n"):  # the rest of the line, unread
+                raw = self.fh.readline(MiB)
+                self.total += len(raw)
+            self.passed_over(i, f"record longer than {_size(MAX_RECORD)}, not a raw-log record")
+            return None
+        whole = raw.endswith(b"\n")
+        # ASCII by construction: a damaged byte becomes U+FFFD, which no field takes
+        text = raw.decode("ascii", "replace")
+        if not text or text.isspace():
+            return None
+        why: str | None
+        try:
+            rec = _decode(text)
+            why = _check(rec)
+        except RecursionError:
+            why = "nested too deep"
+        except ValueError:
+            why = "not JSON"
+        if why is not None:
+            if whole:
+                self.passed_over(i, f"not a raw-log record ({why})")
+            elif self.warnings is not None:
+                self.warnings.append(
+                    f"{self.path}:{i}: torn last record passed over (killed mid-write?)"
+                )
+            return None
+        if "rx" in rec:
+            return Chunk(float(rec["t"]), rec["rx"].encode("latin-1"))
+        detail = rec.get("detail", "")
+        return Chunk(
+            float(rec["t"]),
+            b"",
+            rec["event"],
+            json.dumps(detail) if isinstance(detail, dict) else detail,
+        )
+
+    def close(self) -> None:
+        if self.warnings is not None and self.bad > MAX_NAMED:
+            self.warnings.append(
+                f"{self.path}: {self.bad - MAX_NAMED} more bad record(s) passed over"
+            )
+
+
 def read_rawlog(path: str, warnings: list[str] | None = None) -> Iterator[Chunk]:
     """The chunks of a raw log in order, read in one pass. A torn last line (killed
     mid-write) and a bad record anywhere (not JSON, a field of the wrong type, a time that is
     not finite, nested too deep, longer than ``MAX_RECORD``) are passed over, each with a
     warning naming its line (the first ``MAX_NAMED``; the rest counted in one more)."""
     fh = open_regular(path, MAX_RAWLOG, "raw log")
-    bad = 0
-    total = 0
-
-    def passed_over(i: int, why: str) -> None:
-        nonlocal bad
-        bad += 1
-        if warnings is not None and bad <= MAX_NAMED:
-            warnings.append(f"{path}:{i}: {why}; passed over")
-
-    readline, limit = fh.readline, MAX_RECORD + 1
     with fh:
-        i = 0
+        records = _Records(path, fh, warnings)
+        readline, record = records.readline, records.record
+        while raw := readline():
+            chunk = record(raw)
+            if chunk is not None:
+                yield chunk
+    records.close()
+
+
+class Lines(NamedTuple):
+    """A run of common records (:func:`read_rawlog_bulk`): reads of printable ASCII, none
+    empty, each ending in a CR or not, with no other CR (a live recording's every read of an
+    ALGE or Microgate timer: a whole line, or part of one as the port gave it). A replay takes
+    the lines (or the run's bytes) and the host times of the reads that ended them, with no
+    object a record; :meth:`chunks` gives the records as the careful reader does."""
+
+    #: each record's host time
+    t: list[float]
+    #: each record's text: without its CR when ``ends`` is None (every record is one line and
+    #: its CR: its line), else as written in the log (a CR as the two characters ``\r``)
+    rx: list[str]
+    #: None: every record ends in a CR; else the host time of each that does, in order
+    ends: list[float] | None
+    #: the run's bytes (latin-1), CRs as CRs, when ``ends`` is not None
+    text: str
+
+    def chunks(self) -> list[Chunk]:
+        """The run as the careful reader gives it, a chunk a record."""
+        if self.ends is None:
+            return [Chunk(t, (rx + "\r").encode("ascii"))
+                    for t, rx in zip(self.t, self.rx, strict=True)]  # fmt: skip
+        return [Chunk(t, rx.replace("\\r", "\r").encode("ascii"))
+                for t, rx in zip(self.t, self.rx, strict=True)]  # fmt: skip
+
+
+#: the bulk reader's block: a few thousand records; a line not ended within ``BULK_LONG``
+#: is read the careful way, from the file
+BULK_BLOCK = 256 * 1024
+BULK_LONG = 4 * MiB
+#: a block's whole rest is checked again after a line that is not a common record when the
+#: block's first check missed at most this many lines (the session's header, an event); each
+#: check costs a scan of the block
+BULK_RETRIES = 2
+#: a block whose first check missed more than one line in ``BULK_DENSE`` is read the careful
+#: way, and so are the next 1, 3, 7 … (at most ``BULK_BACKOFF``) unchecked: a log of other
+#: records (a TAG timer's CR LF) costs a check no more than a few blocks in a hundred
+BULK_DENSE = 8
+BULK_BACKOFF = 7
+#: a run of common records shorter than this among others is read the careful way (a run
+#: costs a few microseconds, a record one)
+BULK_SHORT = 8
+_LINES = re.compile(rb"[^\n]*\n").findall  # each whole line, its line end kept
+_NUM = r"(?:0|[1-9][0-9]{0,9})(?:\.[0-9]{1,20})?"  # as in _ONE_LINE: a plain decimal below 1e10
+_TXT = r"[ !#-\[\]-~]*"  # printable ASCII but " and \
+#: a common record is ``{"t":NUM,"rx":"TXT"}`` or ``{"t":NUM,"rx":"TXT\r"}`` (not empty) and
+#: its line end; after a line end, its head (and the line end before it) ...
+_HEAD = re.compile(r'\n\{"t":(' + _NUM + r'),"rx"').findall
+#: ... and its tail, which ends the line: ``:"TXT\r"}`` and the line end (the text: the line),
+#: or any common record's, ``:"TXT"}`` too (the text as written, its CR escaped)
+_TAIL_LINE = re.compile(r':"(' + _TXT + r')\\r"\}\n').findall
+_TAIL = re.compile(r':"(' + _TXT + r'(?:\\r)?)"\}\n').findall
+_ENDS_CR = '\\r"}\n'  # (only at a line's end)
+_EMPTY = ':""}\n'
+#: a run of common records from where it is matched on
+_RUN = re.compile(r'(?:\{"t":' + _NUM + r',"rx":"(?=[^"])' + _TXT + r'(?:\\r)?"\}\n)+').match
+
+
+def _run_of(t: list[float], rxs: list[str], one_line: bool) -> Lines:
+    """The run of the common records of host times ``t`` and texts ``rxs`` (the lines, when
+    ``one_line``; else as written)."""
+    if one_line:
+        return Lines(t, rxs, None, "")
+    text = "".join(rxs)
+    if "\\" in text:  # (only in the escape of a CR)
+        text = text.replace("\\r", "\r")
+    return Lines(t, rxs, list(compress(t, map(str.endswith, rxs, repeat("\\r")))), text)
+
+
+def _common_run(text: str, a: int, b: int) -> Lines | int:
+    """The lines ``text[a:b]`` (``text[a - 1]`` a line end, ``text[b - 1]`` another) as one
+    run when every one is a common record, else about how many are not (at least 1): a few
+    scans and sums, no Python a line.
+
+    Why the counts and lengths suffice: a head starts at a line end and holds no other, so
+    with ``n`` lines (the ``n`` line ends before them are at ``a - 1`` and the first ``n - 1``
+    within; the last cannot start one before ``b``) ``n`` heads are one at each line's
+    start. A tail holds one line end, its last: ``n`` tails are one at each line's end. A
+    line's tail cannot start before its head ends (it holds a ``"`` only as its second and its
+    last but two characters, it starts with a ``:``, and the head ends ``,"rx"``), so the
+    heads (10 characters and the time) and tails (5 and the text as written) add up to the
+    lines' length only when each line is its head and its tail and nothing between: a common
+    record, or an empty one (``:""}``: none is common)."""
+    n = text.count("\n", a, b)
+    ts = _HEAD(text, a - 1, b)
+    if len(ts) != n:
+        return max(1, n - len(ts))
+    one_line = text.count(_ENDS_CR, a, b) == n
+    rxs = (_TAIL_LINE if one_line else _TAIL)(text, a, b)
+    if len(rxs) != n:
+        return max(1, n - len(rxs))
+    if (17 if one_line else 15) * n + len("".join(ts)) + len("".join(rxs)) != b - a:
+        return 1
+    if not one_line and text.find(_EMPTY, a, b) >= 0:
+        return 1
+    return _run_of(list(map(float, ts)), rxs, one_line)
+
+
+def _found_run(text: str, a: int, b: int) -> Lines:
+    """The run of common records ``text[a:b]`` found by ``_RUN``: their heads and tails, one
+    of each a line."""
+    one_line = text.count(_ENDS_CR, a, b) == text.count("\n", a, b)
+    rxs = (_TAIL_LINE if one_line else _TAIL)(text, a, b)
+    return _run_of(list(map(float, _HEAD(text, a - 1, b))), rxs, one_line)
+
+
+def read_rawlog_bulk(path: str, warnings: list[str] | None = None) -> Iterator[Chunk | Lines]:
+    """What :func:`read_rawlog` reads, the same chunks and warnings, with runs of the common
+    record (a read of printable ASCII, ending in a CR or not) as :class:`Lines`: for a bulk
+    replay (``replay SESSION --no-fit``), where reading a record at a time was the most of it.
+
+    The log is read in blocks of ``BULK_BLOCK``; the whole records of a block are checked to
+    be common records all at once (:func:`_common_run`), and are one run then. Otherwise the
+    runs among them are found by one match each, and every other line (an event, a read of
+    several lines, of a CR LF or of nothing, a damaged or torn record, a byte beyond ASCII)
+    is read the careful way (:class:`_Records`, as :func:`read_rawlog` reads it). A record cut by a
+    block's end waits for the next block; one not ended within ``BULK_LONG``, and every
+    line once the log has grown past its limit while read, is read from the file as
+    :func:`read_rawlog` reads it."""
+    fh = open_regular(path, MAX_RAWLOG, "raw log")
+    with fh:
+        records = _Records(path, fh, warnings)
+        record = records.record
+        rest = b""  # the unended line at the end of what was read
+        offset = 0  # the file's offset of ``rest``
+        backoff = skip = 0  # blocks read the careful way unchecked: after many other records
         while True:
             try:
-                raw = readline(limit)
+                # no line longer than a careful read of one (it would cut it at the limit)
+                block = fh.read(min(BULK_BLOCK, MAX_RECORD + 1 - len(rest)))
             except OSError as exc:
                 raise InputError(f"cannot read raw log: {_why(exc)}", path=path) from None
-            if not raw:
+            if not block:
+                if rest:  # the unended last line
+                    chunk = record(rest)
+                    if chunk is not None:
+                        yield chunk
                 break
-            i += 1
-            total += len(raw)
-            if total > MAX_RAWLOG:  # grew while read
-                raise InputError(f"is larger than {_size(MAX_RAWLOG)}, the limit for a raw log",
-                                 path=path)  # fmt: skip
-            common = _ONE_LINE(raw)  # a whole line: never one cut at the limit
-            if common is not None:
-                yield _new_chunk(Chunk, (float(common[1]), common[2] + b"\r", "", ""))
+            data = rest + block
+            cut = data.rfind(b"\n") + 1  # the whole lines: data[:cut]
+            if not cut:  # no line ended yet
+                rest = data
+                if len(rest) > min(BULK_LONG, MAX_RECORD):  # from the file, as read_rawlog does
+                    fh.seek(offset)
+                    raw = records.readline()
+                    chunk = record(raw) if raw else None
+                    if chunk is not None:
+                        yield chunk
+                    offset = fh.tell()
+                    rest = b""
                 continue
-            common = _COMMON(raw)
-            if common is not None:
-                yield _new_chunk(Chunk, (float(common[1]), _unescape(common[2]), "", ""))
-                continue
-            if len(raw) > MAX_RECORD and not raw.endswith(b"\n"):
-                while raw and not raw.endswith(b"\n"):  # the rest of the line, unread
-                    raw = fh.readline(MiB)
-                    total += len(raw)
-                passed_over(i, f"record longer than {_size(MAX_RECORD)}, not a raw-log record")
-                continue
-            whole = raw.endswith(b"\n")
-            # ASCII by construction: a damaged byte becomes U+FFFD, which no field takes
-            text = raw.decode("ascii", "replace")
-            if not text or text.isspace():
-                continue
-            why: str | None
-            try:
-                rec = _decode(text)
-                why = _check(rec)
-            except RecursionError:
-                why = "nested too deep"
-            except ValueError:
-                why = "not JSON"
-            if why is not None:
-                if whole:
-                    passed_over(i, f"not a raw-log record ({why})")
-                elif warnings is not None:
-                    warnings.append(f"{path}:{i}: torn last record passed over (killed mid-write?)")
-                continue
-            if "rx" in rec:
-                yield Chunk(float(rec["t"]), rec["rx"].encode("latin-1"))
+            rest = data[cut:]
+            offset += cut
+            # every line the careful way: the log grew past its limit while read (said at its
+            # line), or the blocks before held many other records (a TAG timer's CR LF)
+            careful = records.total + cut > MAX_RAWLOG or skip > 0
+            if not careful:
+                # text[k + 1] is data[k]: a line end before the first line
+                text = "\n" + data[:cut].decode("latin-1")
+                end = cut + 1
+                run = _common_run(text, 1, end)
+                if isinstance(run, Lines):
+                    records.i += len(run.t)
+                    records.total += cut
+                    backoff = 0
+                    yield run
+                    continue
+                misses = run
+                if misses * BULK_DENSE > text.count("\n", 1, end):  # many other records: this
+                    careful = True  # block and the next 1, 3, 7 … careful, unchecked
+                    skip = backoff = min(2 * backoff + 1, BULK_BACKOFF)
+                else:
+                    backoff = 0
             else:
-                detail = rec.get("detail", "")
-                yield Chunk(
-                    float(rec["t"]),
-                    b"",
-                    rec["event"],
-                    json.dumps(detail) if isinstance(detail, dict) else detail,
-                )
-    if warnings is not None and bad > MAX_NAMED:
-        warnings.append(f"{path}: {bad - MAX_NAMED} more bad record(s) passed over")
+                skip = max(0, skip - 1)
+            if careful:
+                for raw in _LINES(data, 0, cut):
+                    chunk = record(raw)
+                    if chunk is not None:
+                        yield chunk
+                continue
+            pos = 1
+            retries = 0 if misses > BULK_RETRIES else BULK_RETRIES
+            while pos < end:
+                if retries and pos > 1:  # the rest of the block all common, after a line?
+                    retries -= 1
+                    run = _common_run(text, pos, end)
+                    if isinstance(run, Lines):
+                        records.i += len(run.t)
+                        records.total += end - pos
+                        yield run
+                        break
+                m = _RUN(text, pos, end)
+                if m is not None:  # common records: a run of them, unless a few
+                    b = m.end()
+                    if text.count("\n", pos, b) >= BULK_SHORT:
+                        run = _found_run(text, pos, b)
+                        records.i += len(run.t)
+                        records.total += b - pos
+                        yield run
+                        pos = b
+                        if pos == end:
+                            break
+                nl = text.index("\n", pos) + 1
+                chunk = record(data[pos - 1 : nl - 1])
+                if chunk is not None:
+                    yield chunk
+                pos = nl
+    records.close()

@@ -18,7 +18,7 @@ from station import csvfiles
 from station.files import MAX_CAPTURE, open_regular
 from station.session import store as sessions
 from station.session.processor import Processor
-from station.session.rawlog import Chunk, read_rawlog
+from station.session.rawlog import Chunk, Lines, read_rawlog, read_rawlog_bulk
 from station.timing.impulses import format_tod
 
 CAPTURE_CHUNK = 4096
@@ -70,6 +70,16 @@ def replay_chunks(
                 elif stop.wait(delay):
                     return
         yield chunk if has_time else Chunk(None, chunk.data)  # type: ignore[arg-type]
+
+
+def bulk_chunks(source: str, warnings: list[str] | None = None) -> Iterator[Chunk | Lines]:
+    """The chunks of ``source`` as fast as they come, for :meth:`Processor.feed_chunks`
+    (``replay --no-fit``): a session's raw log read in bulk (runs of its common records as
+    :class:`Lines`: :func:`read_rawlog_bulk`), a plain capture as :func:`replay_chunks`
+    gives it."""
+    if sessions.is_session(source):
+        return read_rawlog_bulk(os.path.join(source, sessions.RAW), warnings)
+    return replay_chunks(source, None, None, warnings)
 
 
 def write_events(processor: Processor, fh: IO[str]) -> None:

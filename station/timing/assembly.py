@@ -261,9 +261,13 @@ class DescentAssembler:
         #: start of the bib, the end): those the timer's memory may complete
         self._short: list[TimedDescent] = []
         #: live impulses no descent took (past a start the cable lost): (photocell, its index,
-        #: time, channel), the latest MAX_ORPHANS; a descent from the timer's memory that ends
-        #: short of them takes those that continue it
-        self._orphans: list[tuple[str, int, int, str]] = []
+        #: time, channel, bib, and the line, time of day and flag its event had), the latest
+        #: MAX_ORPHANS; a descent from the timer's memory that ends short of them takes those
+        #: that continue it (of its own bib, when bibs pair)
+        self._orphans: list[tuple[str, int, int, str, str, int, int, str]] = []
+        #: descents started by an impulse from the timer's memory (ALGE ``m`` lines end with
+        #: the line: such a descent still takes the live rest when it ends short later)
+        self._memory_starts: set[int] = set()
 
     @property
     def current(self) -> TimedDescent | None:
@@ -757,6 +761,8 @@ class DescentAssembler:
             self.count += 1
             d = TimedDescent(self.count, [pc], [t], first_line=line, channels=[imp.channel],
                              bib=bib if self.mode != "order" else "", day=imp.day)  # fmt: skip
+            if self.from_memory:
+                self._memory_starts.add(d.number)
             self.open.append(d)
             self._move_clock(t)
             self._keep(imp.channel, t)
@@ -783,7 +789,7 @@ class DescentAssembler:
                 reason = f"{reason}; {why}"
             self._event(imp, line, pc, False, reason, self._near(bib))
             if not self.from_memory:
-                self._orphans.append((pc, k, t, imp.channel))
+                self._orphans.append((pc, k, t, imp.channel, bib, line, imp.tod_us, imp.flag))
                 del self._orphans[:-MAX_ORPHANS]
             return done
         d = chosen
@@ -811,9 +817,11 @@ class DescentAssembler:
     def _rejoin(self, pc: str, k: int, t: int, bib: str) -> TimedDescent | None:
         """A descent that ended short of photocell ``k`` (timed out, the timer disconnected,
         the recording ended) and that an impulse from the timer's memory continues plausibly:
-        open again to take it and the rest, its crossing times all the timer's own. The
-        nearest in time of those that can; None: none can."""
-        best: tuple[int, TimedDescent] | None = None
+        open again to take it and the rest, its crossing times all the timer's own. Of those
+        that can, the one the order pairing would choose (:meth:`_score`: nearest the time
+        it was expected there); None: none can. (The one whose last crossing was latest took
+        the crossing of the skier ahead when two were cut short at one photocell.)"""
+        best: tuple[tuple[float, int], TimedDescent] | None = None
         reach = max(self.timeout_us)
         for d in self._short:
             if not d.times_us or not d.times_us[-1] < t <= d.times_us[-1] + reach:
@@ -824,9 +832,9 @@ class DescentAssembler:
                 continue
             if self._why_not(d, pc, k, t, by_order=True) is not None:
                 continue
-            gap = t - d.times_us[-1]
-            if best is None or gap < best[0]:
-                best = (gap, d)
+            score = self._score(d, k, t)
+            if best is None or score < best[0]:
+                best = (score, d)
         if best is None:
             return None
         d = best[1]
@@ -925,7 +933,8 @@ class DescentAssembler:
                 continue
             exp = self._expected(d, k)
             # a photocell skipped is rare: a descent that would miss one to take this is less
-            # likely than one that reaches it next
+            # likely than one that reaches it next (as :meth:`_score`, inline: the general
+            # path's every impulse with several skiers on the run)
             skipped = 0.5 * (k - self.order[d.photocells[-1]] - 1)
             if exp is not None:
                 score = abs(t - exp[0]) / max(exp[0] - exp[1], 1)
@@ -941,6 +950,20 @@ class DescentAssembler:
         if reasons:
             return None, f"no open descent can take {pc} plausibly ({'; '.join(reasons)})"
         return None, f"{pc} without a start at {self.photocells[0]}"
+
+    def _score(self, d: TimedDescent, k: int, t: int) -> tuple[float, int]:
+        """How well descent ``d`` taking photocell ``k`` at ``t`` fits (lower: better; then
+        the tie-break): the order pairing's choice among descents that can take it, as
+        :meth:`_choose` scores them."""
+        exp = self._expected(d, k)
+        # a photocell skipped is rare: a descent that would miss one to take this is less
+        # likely than one that reaches it next
+        skipped = 0.5 * (k - self.order[d.photocells[-1]] - 1)
+        if exp is not None:
+            return abs(t - exp[0]) / max(exp[0] - exp[1], 1) + skipped, d.number
+        # no speed yet and no earlier descent to compare with: of two lone starts the later
+        # one (a walk through the start beam comes before the real start)
+        return 0.75 + skipped, -d.number
 
     def _expire(self, t: int) -> list[TimedDescent]:
         done: list[TimedDescent] = []
@@ -966,6 +989,23 @@ class DescentAssembler:
         for d in list(self.open):
             done += self._finish(d, "the recording ended")
         return done
+
+    def memory_follows(self) -> list[TimedDescent]:
+        """The impulses that follow are from the timer's memory (:attr:`from_memory`): a live
+        impulse still held for the next one to confirm its time is taken as it is first, as
+        at the end of a capture (:meth:`close`); the descents that ended."""
+        done = self._take_held()
+        self.from_memory = True
+        return done
+
+    def _take_held(self) -> list[TimedDescent]:
+        """The impulse held for the next one to confirm its time, taken as it is (a memory
+        impulse, earlier by nature, would call it a corrupted time)."""
+        if self._pending is None:
+            return []
+        p_imp, p_line, p_t = self._pending
+        self._pending = None
+        return self._accept(p_imp, p_line, p_t, None)
 
     def disconnected(self, detail: str = "") -> None:
         """The connection to the timer broke: the open descents say so."""
@@ -1033,7 +1073,8 @@ class DescentAssembler:
 
     def _finish(self, d: TimedDescent, why: str) -> list[TimedDescent]:
         self.open.remove(d)
-        if self.from_memory and self._orphans and self._adopt(d):
+        from_memory = self.from_memory or d.number in self._memory_starts
+        if from_memory and self._orphans and self._adopt(d):
             d.status = "complete" if d.photocells[0] == self.photocells[0] else "incomplete"
             self._done(d)
             return [d]
@@ -1054,13 +1095,19 @@ class DescentAssembler:
     def _adopt(self, d: TimedDescent) -> bool:
         """A descent from the timer's memory ending short: the live impulses no descent took
         that continue it plausibly (the cable came back in during it), taken into it, with a
-        flag. True when it then reaches the last photocell."""
+        flag. True when it then reaches the last photocell. An impulse of another bib is not
+        taken when bibs pair (it was: a skier who fell took the live rest of the one behind)."""
         last = d.photocells[-1] if d.photocells else None
+        by_bib = self.mode != "order"
         taken = []
         for o in sorted(self._orphans, key=lambda o: o[2]):
-            pc, k, t, ch = o
+            pc, k, t, ch, bib, line, tod, flag = o
+            if by_bib and bib and d.bib and bib != d.bib:
+                continue
             if not d.photocells or self._why_not(d, pc, k, t, by_order=True) is not None:
                 continue
+            if self._rival(d, pc, k, t, bib if by_bib else ""):
+                continue  # an open descent would reach it when expected: its skier's
             skipped = self.photocells[self.order[d.photocells[-1]] + 1 : k]
             if skipped:
                 d.flags.append(f"missed {', '.join(skipped)}")
@@ -1070,12 +1117,28 @@ class DescentAssembler:
             d.channels.append(ch)
             self._keep(ch, t)
             taken.append(o)
+            # its event said "without a start": a second one says where it went (--events)
+            self.events.append(ImpulseEvent(line, ch, pc, tod, flag, True, f"{JOINED}taken by "
+                                            f"descent {d.number}, begun in the timer's memory",
+                                            d.number))  # fmt: skip
         if not taken:
             return False
         for o in taken:
             self._orphans.remove(o)
         d.flags.append(f"{JOINED}{last} from the timer's memory, {taken[0][0]} on recorded live")
         return d.photocells[-1] == self.photocells[-1]
+
+    def _rival(self, d: TimedDescent, pc: str, k: int, t: int, bib: str) -> bool:
+        """Another open descent (of the bib ``bib``, when given) can take photocell ``k`` at
+        ``t`` and is nearer the time expected there than ``d`` (:meth:`_score`): the live
+        rest of a skier whose start was in the timer's memory too, when ``d``'s skier fell."""
+        mine = self._score(d, k, t)
+        for e in self.open:
+            if e is d or not e.photocells or (bib and e.bib and e.bib != bib):
+                continue
+            if self._why_not(e, pc, k, t, by_order=True) is None and self._score(e, k, t) < mine:
+                return True
+        return False
 
     # -- edits
 
@@ -1110,9 +1173,14 @@ class DescentAssembler:
         if e.kind == "repeated from memory":
             # ALGE `m`: an impulse from the timer's memory (a download): kept unless it is
             # already (a live impulse the memory repeats is not doubled)
+            held: list[TimedDescent] = []
+            if self._pending is not None and self._time(e.tod_us, e.day) < self._pending[2]:
+                # a live impulse held for confirmation: the memory's earlier time neither
+                # confirms nor refutes it (it called it corrupted: a live finish was lost)
+                held = self._take_held()
             was, self.from_memory = self.from_memory, True
             try:
-                return self.feed(
+                return held + self.feed(
                     Impulse(e.channel, e.tod_us, 100, e.flag, e.bib, e.day, e.line), line
                 )
             finally:

@@ -42,6 +42,36 @@ class LineFramer:
         self._tail = tail
         return parts
 
+    def feed_lines(self, lines: list[str]) -> list[str]:
+        """What :meth:`feed` gives for each of ``lines`` fed in turn, each with its CR: lines
+        of printable ASCII, a raw log's common records (``station.session.rawlog.Lines``). The
+        first finishes the unfinished line (or is the LF of a CR LF: printable, it is not);
+        each is a line then (a whole line is never cut). ``lines`` itself when nothing was
+        unfinished: a run of records framed without a call a record."""
+        if not lines:
+            return lines
+        self._after_cr = True
+        if self._tail:
+            lines = [self._tail + lines[0], *lines[1:]]
+            self._tail = ""
+        return lines
+
+    def feed_run(self, text: str) -> list[str] | None:
+        """What :meth:`feed` gives for the reads of a run fed in turn, ``text`` their bytes:
+        printable ASCII, each read ending in a CR or not and holding no other, none empty (a
+        raw log's common records, ``station.session.rawlog.Lines``): the lines they end, in
+        one split. None, and nothing fed, when a line (or the unfinished one) is longer than
+        ``MAX_LINE``: :meth:`feed` cuts an unfinished line where a read ends, so such reads go
+        one at a time. (No LF: the one after a CR needs no care.)"""
+        if not text:
+            return []
+        parts = (self._tail + text).split("\r")
+        if max(map(len, parts)) > MAX_LINE:
+            return None
+        self._tail = parts.pop()
+        self._after_cr = text.endswith("\r")
+        return parts
+
     def flush(self) -> list[str]:
         """The unfinished last line, at the end of a capture."""
         tail, self._tail = self._tail, ""
