@@ -37,6 +37,23 @@ app has mounted: a full collection (one every ~2 descents) went from ~120 ms to 
 descent 20 (max 414 → 257 ms at 781–800). Near 2000 (load 3.5): 31.7 ms CPU at descents 1–20,
 82.9 ms at 1981–2000, 90.5 ms median: the full collections still walk the day's objects.
 
+Sampled (the UI process's threads' stacks every ~1 ms while a timed descent was on its way;
+gc callbacks timed), near descent 800 a full collection took 100–300 ms and three of twenty
+descents waited for one; each fit's frame composed and tinted the whole screen behind the
+comparison (~6 ms at 120×40), and the last impulse's frame came first, as the fit was being
+computed; DataTable measured each new row's cells and listed its 2000 rows again after every
+row. Now the full collections run between descents (station/ui/collector.py), the dimmed
+screen behind the dialog is tinted line by line and kept (screens.DimmedScreen), the table
+neither measures nor lists its rows again (table.ResultsTable), and a descent's last impulse
+is drawn in its fit's frame. Paired runs, main before (f3a2830) and after, load 4–4.6 unless
+said (median / p90 / max, CPU median): near descent 20 34.8 / 67.1 / 151 ms, 24.2 ms →
+27.2 / 40.5 / 44.5 ms, 16.8 ms; near 800 63.3 / 230 / 237 ms, 33.7 ms → 27.4 / 37.8 / 57.5
+ms, 20.6 ms; near 2000 56.4 / 243 / 275 ms, 34.2 ms (load 2.7) → 32.0 / 52.5 / 65.8 ms,
+21.5 ms (load 4.1); at load 2.1 after: 19.9 / 31.1 / 37.7 ms, 19.9 ms; merged with main
+(load 3.5): 35.4 / 61.3 / 67.1 ms, 21.7 ms, and 16.3 ms median with the comparison closed.
+What is left on the way: the fit itself (~8 ms of the fit worker) and, with the comparison
+open, the screen behind it composed again for the fit's frame (~6 ms at 120×40).
+
 Run: python benchmarks/ui_fit_latency.py [--descents 2000] [--only open|closed]
 """
 
@@ -279,9 +296,10 @@ def main() -> int:
         for w in windows(n):
             ms = [f["latency_ms"][k] for k in w]
             med = statistics.median(ms)
+            p90 = statistics.quantiles(ms, n=10, method="inclusive")[-1]
             cpu = statistics.median(f["cpu_ms"][k] for k in w)
             print(f"  descents {w.start:>4}–{w.stop - 1:<4}: last impulse → fit on screen "
-                  f"median {med:6.1f} ms, max {max(ms):6.1f} ms "
+                  f"median {med:6.1f} ms, p90 {p90:6.1f} ms, max {max(ms):6.1f} ms "
                   f"({med / TARGET_MS:.2f}× the {TARGET_MS:.0f} ms target); "
                   f"CPU of the UI's process meanwhile: median {cpu:5.1f} ms")  # fmt: skip
         end[which] = statistics.median(f["latency_ms"][k] for k in windows(n)[-1])

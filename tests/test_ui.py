@@ -304,6 +304,42 @@ async def test_comparison_view_updates_after_each_descent(tmp_path, demo_track):
 
 
 @run_async
+async def test_comparison_dims_the_screen_behind_as_textual_does(tmp_path, demo_track):
+    """The comparison's dimmed background, tinted line by line and kept (DimmedScreen), is
+    Textual's own (BackgroundScreen) segment for segment, also after the screen behind it
+    changed (a line kept by what it showed before must not come back)."""
+    from textual._context import visible_screen_stack
+    from textual.renderables.background_screen import BackgroundScreen
+    from textual.visual import RichVisual, Visual
+
+    from station.ui.screens import DimmedScreen
+
+    app = replay_app(tmp_path, demo_track)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await wait_for_replay(pilot, app)
+        await pilot.press("c")
+        await wait_for_screen(pilot, app, ComparisonScreen)
+        await pilot.pause(0.3)
+        screen = app.screen
+
+        def both() -> tuple[list, list]:
+            visible_screen_stack.set(app._background_screens)
+            ours = screen.render()
+            assert isinstance(ours, DimmedScreen)
+            textual = RichVisual(screen, BackgroundScreen(ours.base, ours.color))
+            w, h = screen.size
+            return [Visual.to_strips(screen, v, w, h, screen.visual_style) for v in (ours, textual)]
+
+        ours, textual = both()
+        assert len(ours) == 40 and ours == textual
+        app.main.query_one("#log").write("a line behind the dialog")
+        app.main.query_one("#status").update("the status changed behind the dialog")
+        await pilot.pause(0.3)
+        again, textual_again = both()
+        assert again == textual_again and again != ours
+
+
+@run_async
 async def test_quitting_mid_descent_ends_it_as_record_does(tmp_path, run_station):
     """``q`` while a skier is on the run: the descent is ended as Ctrl-C ends it in ``station
     record`` (fitted with what it has, "the recording ended"), so the session replays to the

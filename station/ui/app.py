@@ -43,6 +43,7 @@ from station.session.records import (
 )
 from station.session.store import RESULTS, is_session
 from station.timing.impulses import format_tod
+from station.ui.collector import IdleCollector
 from station.ui.comparison import ComparisonProcess
 from station.ui.messages import (
     AcquisitionWarning,
@@ -78,6 +79,17 @@ NARROW = 130
 NARROW_TABLE = 130
 #: the vertical scrollbar of the table, kept free so the last column is never under it
 SCROLLBAR = 2
+#: a full garbage collection is looked for COLLECT_AFTER_S after each fit (on the screen by
+#: then: with a dialog open it takes two refreshes, and a callback after the first ran before
+#: the fit's frame; the next descent's end is furthest away then) and, every COLLECT_EVERY_S,
+#: when no fit came for QUIET_S and no descent is open (s): a collection at any other moment
+#: may fall on the next fit's path
+COLLECT_AFTER_S = 0.2
+#: what arrives while a descent's fit is due (its last impulse in the log, the counts, the
+#: progress) is drawn with the fit, in one frame, or after this long if no fit comes (s)
+HOLD_S = 0.3
+COLLECT_EVERY_S = 5.0
+QUIET_S = 30.0
 
 
 def table_columns(width: int) -> list[Column]:
@@ -266,6 +278,13 @@ class StationApp(App):
         self.config = config
         self.acq: Acquisition | None = None
         self.comparer: ComparisonProcess | None = None
+        self.collector = IdleCollector()
+        self._fitted_at = 0.0  # time.monotonic() of the latest fit
+        #: drawn with the fit that is due (HOLD_S): the log's lines, the progress's text
+        self._held_log: list[str] = []
+        self._held_progress: str | None = None
+        self._holding = False
+        self._hold_timer: Any = None
         self.photocell_ids: tuple[str, ...] = ()
         # what the messages brought: the UI's own snapshots of the day
         self.results: dict[int, DescentResult] = {}
@@ -308,6 +327,10 @@ class StationApp(App):
         # every two descents, ~150 ms of the UI's process each, whatever descent it fell in)
         gc.collect()
         gc.freeze()
+        # and the full collections, which walk the day's objects (100–300 ms at descent 800),
+        # run between descents, not whenever an allocation tips Python's count
+        self.collector.start()
+        self.set_interval(COLLECT_EVERY_S, self._collect_if_quiet)
         if self.mode == "replay" and self.recorded is not None:
             self.acq = self.recorded.start_replay(PostingListener(self), speed=self.speed)
         else:
@@ -417,14 +440,42 @@ class StationApp(App):
 
     def on_impulses_arrived(self, msg: ImpulsesArrived) -> None:
         self.counts = msg.counts
-        self._update_status()
         lines = []
         for e in msg.events:
             where = f"{e.channel}→{e.photocell}" if e.photocell else e.channel
             fate = f"#{e.descent}" if e.kept else f"✗ {e.reason}"
             lines.append(f"{format_tod(e.tod_us, 4)} {where:<8} {fate}")
+        if self._holding or self._fit_imminent():
+            self._hold(lines)
+            return
+        self._update_status()
         if lines:  # one write: the log (500 lines at most) is drawn once for the chunk
             self.main.query_one("#log", RichLog).write("\n".join(lines))
+
+    def _hold(self, lines: list[str]) -> None:
+        """The last impulse of a descent, and what comes with it, drawn with its fit: a frame
+        of their own (the whole screen behind a dialog, ~6 ms at 120×40) took the UI's
+        thread while the fit was being computed, and the fit's frame came after it."""
+        if not self._holding:
+            self._holding = True
+            self._hold_timer = self.set_timer(HOLD_S, self._release)
+        self._held_log += lines
+
+    def _release(self) -> None:
+        """What was held for the fit, drawn (with it, or HOLD_S later if none came)."""
+        if not self._holding:
+            return
+        self._holding = False
+        if self._hold_timer is not None:
+            self._hold_timer.stop()
+            self._hold_timer = None
+        lines, self._held_log = self._held_log, []
+        text, self._held_progress = self._held_progress, None
+        self._update_status()
+        if lines:
+            self.main.query_one("#log", RichLog).write("\n".join(lines))
+        if text is not None:
+            self.main.query_one("#progress", Static).update(text, layout=False)
 
     def on_descent_progress(self, msg: DescentProgress) -> None:
         p = self.progress = msg.progress
@@ -440,7 +491,10 @@ class StationApp(App):
                 f"descent {p.number} running: {len(p.passed)}/{len(ids)} · "
                 f"{last} +{(passed[last] - t0) / 1e6:.2f} s\n{marks}"
             )
-        self.main.query_one("#progress", Static).update(text, layout=False)  # 2 lines, fixed
+        if self._holding:  # the descent's end: shown with its fit
+            self._held_progress = text
+        else:
+            self.main.query_one("#progress", Static).update(text, layout=False)  # 2 lines, fixed
         if isinstance(self.screen, MetadataScreen):  # a descent started while it is open
             self.screen.set_next(p.next_number)
         if self._comparison_due and not self._fit_imminent():  # no fit came (aborted)
@@ -468,11 +522,14 @@ class StationApp(App):
             if following:
                 table.move_cursor(row=table.row_count - 1, scroll=True)
         self.latest = n
+        self._fitted_at = time.monotonic()
+        self.set_timer(COLLECT_AFTER_S, self._collect_after_fit)
         if self._comparison_due:  # the comparison that waited for this fit, after its frame
             self.call_after_refresh(self._show_comparison)
         # the panel shows the selected row, and only it: "the descent" is one descent
         if self._cursor_number() == n:
             self._show(res)
+        self._release()  # the last impulse, the counts and the progress, in the fit's frame
 
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
         if event.row_key is None or event.row_key.value is None:
@@ -508,6 +565,17 @@ class StationApp(App):
         self._comparison_due = False
         if isinstance(self.screen, ComparisonScreen):
             self.screen.update(self.comparison_text)
+
+    def _collect_after_fit(self) -> None:
+        """A full garbage collection, if one is due and no other descent is about to end."""
+        if not self._fit_imminent():
+            self.collector.collect_if_due()
+
+    def _collect_if_quiet(self) -> None:
+        """A full garbage collection, if one is due and no descent has come for a while."""
+        p = self.progress
+        if (p is None or p.number is None) and time.monotonic() - self._fitted_at > QUIET_S:
+            self.collector.collect_if_due()
 
     def _fit_imminent(self) -> bool:
         """The open descent has passed all but its last photocell: its fit is due any moment,
@@ -749,3 +817,4 @@ class StationApp(App):
             self.comparer.close()
         if self.sim is not None:
             self.sim.stop(timeout=0.05)
+        self.collector.stop()

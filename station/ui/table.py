@@ -12,14 +12,17 @@ strip), and text in a cell is text: a note "[kg]" is not taken for markup.
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Iterable
+from typing import Any, Self
 
 from rich.cells import set_cell_size
 from rich.segment import Segment
 from rich.style import Style
 from textual.cache import LRUCache
+from textual.geometry import Region, Size
 from textual.strip import Strip
 from textual.widgets import DataTable
+from textual.widgets.data_table import Row, RowKey
 
 
 class ResultsTable(DataTable[str]):
@@ -29,12 +32,91 @@ class ResultsTable(DataTable[str]):
         # set first: DataTable's own __init__ clears the caches
         self._plain_cells: LRUCache[tuple[object, ...], list[list[Segment]]] = LRUCache(4000)
         self._plain_lines: LRUCache[tuple[object, ...], Strip] = LRUCache(1000)
+        self._reset_order()
         super().__init__(*args, **kwargs)
 
     def _clear_caches(self) -> None:
         super()._clear_caches()
         self._plain_cells.clear()
         self._plain_lines.clear()
+        self._reset_order()
+
+    # -- rows in order, and the row on each line: extended as rows are added
+
+    def _reset_order(self) -> None:
+        self._order: list[Row] = []
+        self._offsets: list[tuple[RowKey, int]] = []
+        self._uniform = True  # every row one line high
+
+    @property
+    def ordered_rows(self) -> list[Row]:
+        """The rows as they are shown. DataTable builds this list (and the row of every line
+        of the table) again after every added row or changed cell: 2000 rows looked up for
+        each descent near descent 2000. The station's rows are only ever added at the end, so
+        the list is extended; a sort, a removal or a clear starts it afresh."""
+        order, n = self._order, self.row_count
+        if len(order) > n:
+            self._reset_order()
+            order = self._order
+        get_key, rows = self._row_locations.get_key, self.rows
+        while len(order) < n:
+            key = get_key(len(order))
+            assert key is not None, "a row index without its row"
+            row = rows[key]
+            order.append(row)
+            self._uniform = self._uniform and row.height == 1 and not row.auto_height
+        return order
+
+    @property
+    def _y_offsets(self) -> list[tuple[RowKey, int]]:
+        order = self.ordered_rows
+        if not self._uniform:
+            return [(row.key, y) for row in order for y in range(row.height)]
+        offsets = self._offsets
+        offsets.extend((row.key, 0) for row in order[len(offsets) :])
+        return offsets
+
+    def _get_row_region(self, row_index: int) -> Region:
+        """A row's place: its index below the header when every row is one line (DataTable
+        adds up the heights of the rows above it)."""
+        self.ordered_rows  # noqa: B018 - brings the rows' heights up to date
+        if not self._uniform:
+            return super()._get_row_region(row_index)
+        if not self.is_valid_row_index(row_index):
+            return Region(0, 0, 0, 0)
+        width = sum(c.get_render_width(self) for c in self.columns.values())
+        width += self._row_label_column_width
+        y = row_index + (self.header_height if self.show_header else 0)
+        return Region(0, y, max(self.size.width, width), 1)
+
+    def sort(self, *args: Any, **kwargs: Any) -> Self:
+        super().sort(*args, **kwargs)
+        self._reset_order()
+        return self
+
+    def remove_row(self, row_key: RowKey | str) -> None:
+        super().remove_row(row_key)
+        self._reset_order()
+
+    def _update_dimensions(self, new_rows: Iterable[RowKey]) -> None:
+        """The table's size after rows were added. DataTable measures every cell of each new
+        row for the widths of auto-sized columns and keeps what it measured (11 Rich Texts a
+        row, kept for the last 1000 rows: objects every full garbage collection walks). The
+        station's columns have fixed widths and its rows one line: nothing to measure."""
+        rows = list(new_rows)
+        fixed = not any(c.auto_width for c in self.columns.values())
+        plain = all(
+            (row := self.rows.get(k)) is None or (row.label is None and not row.auto_height)
+            for k in rows
+        )
+        if not (fixed and plain):
+            super()._update_dimensions(rows)
+            return
+        width = sum(c.get_render_width(self) for c in self.columns.values())
+        header = self.header_height if self.show_header else 0
+        self.virtual_size = Size(
+            width + self._row_label_column_width, self._total_row_height + header
+        )
 
     def _render_line(self, y: int, x1: int, x2: int, base_style: Style) -> Strip:
         """A line of the table, kept by what it shows: the row's cells, whether the cursor
