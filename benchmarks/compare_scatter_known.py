@@ -14,7 +14,10 @@ Measured (500 days; 400 at 1 %): two descents a ski, 0.5 %: the estimated scatte
 to Var(Δμ̂) and the standard error nothing (1.000); 1 %: 15 %; twelve descents: 4 % at 0.5 %,
 1 % at 2 %. Held at the truth, z is still wider than its t at two descents a ski: SD 1.09
 (0.5 %), 1.12 (1 %; 400 days), 1.11 with a 0.05 ms timer (``--timer-ms 0.05``, 1 %), against
-1.04; with no scatter at all (``--scatter 0``) 0.35: the fit far too cautious.
+1.04; with no scatter at all (``--scatter 0``) 0.35: the fit far too cautious. Held here means
+the REML estimate of γ only: the standard error is still the mixture's over γ's posterior (the
+same whatever γ̂ is), so this z is not one with known variances; that one has the SD of its
+normal, and where the mixture's se falls short is benchmarks/compare_se_oracle.py.
 
 Run: python benchmarks/compare_scatter_known.py [--scatter 0.005] [--descents 4] [--days 500]
      [--jobs 1] [--timer-ms 0.5] [--seed0 800000]

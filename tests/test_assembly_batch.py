@@ -505,6 +505,25 @@ def test_simulated_sessions_the_same_every_way(configs, demo_track, run_times, s
     assert sum(d[3] == "complete" for d in got["finished"]) > 20
 
 
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("numbering", ["bib", "counter"])
+def test_sessions_with_the_memory_from_mid_descent_the_same_every_way(
+    configs, demo_track, run_times, seed, numbering
+):
+    """An ``import`` event mid-day (what follows is the timer's memory): the batch and the
+    per-impulse fast paths start its descents as from the memory, and leave an impulse of it
+    that continues a descent recorded live to the general path, which flags the join."""
+    lines = simulated_alge(run_times, seed, numbering)
+    chunks = [c for c in session_chunks(lines, seed) if c.event != "disconnected"]
+    # after a PC4 crossing a third into the day: a descent is open, the memory continues it
+    at = next(i for i in range(len(chunks) // 3, len(chunks)) if b" C3 " in chunks[i].data) + 1
+    chunks.insert(at, Chunk(chunks[at].t, b"", "import", "imports/download.txt"))
+    got = all_ways_session(configs("alge", None, "auto"), demo_track, chunks)
+    assert sum(d[3] == "complete" for d in got["finished"]) > 20
+    joins = sum(f.startswith("joined: ") for d in got["finished"] for f in d[4])
+    assert joins >= 1  # (and those the stream's time-outs ended short, reopened)
+
+
 @settings(max_examples=40, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])  # fmt: skip
 @given(

@@ -104,3 +104,27 @@ def test_the_readme_shows_the_warning_as_it_is_given(demo_track):
     (warning,) = [w for w in res.warnings if w.startswith("drift:")]
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
     assert f"\n{warning}\n" in readme
+
+
+def test_the_estimates_are_the_centres_of_their_intervals(demo_track):
+    """Issue 21: on a small day whose scatter is estimated at 0, Δμ̂ at that estimate can lie
+    far from the interval that carries the scatter's uncertainty (outside it on some days), and
+    z = Δμ̂/se of the sequential rule then spread wider than its t. The reported Δμ, μ (and
+    drift) are the centres (means) of the distributions their intervals come from: within a
+    quarter of the half-width of the interval's middle here (the mixture is skewed), where the
+    estimates at γ̂ lay 2.0 and 1.2 half-widths from it on two of these three days."""
+    days = [
+        res
+        for seed in range(100)
+        if (res := joint_fit(demo_track, _day(demo_track, seed, 2, 0.005))).posture_sd < 1e-4
+    ][:3]
+    assert len(days) == 3
+    for day in days:
+        c = day.comparisons[0]
+        assert c.ci90 is not None
+        half = (c.ci90[1] - c.ci90[0]) / 2
+        assert abs(c.delta_mu - (c.ci90[0] + c.ci90[1]) / 2) < 0.25 * half
+        assert c.delta_mu == pytest.approx(day.item(c.a).mu - day.item(c.b).mu, abs=1e-12)
+        for it in day.items:
+            half = (it.ci90[1] - it.ci90[0]) / 2
+            assert abs(it.mu - (it.ci90[0] + it.ci90[1]) / 2) < 0.25 * half

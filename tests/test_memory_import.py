@@ -598,30 +598,33 @@ def test_a_descent_from_the_memory_takes_no_live_crossing_of_another_bib(
 def test_the_last_live_crossing_held_for_confirmation_is_not_lost_to_the_import(
     tmp_path, demo_track
 ):
-    """The cable was out for descent 1's first four crossings; its live rest came far from
-    the clock (nothing kept since the day before), so each waits for the next impulse to
-    confirm its time, and the finish still waits when the import's event comes. It is taken
-    as it is then, as at the end of a capture: the memory's first impulse, earlier by nature,
-    called it a corrupted time, and the joined descent lost its finish."""
+    """The cable was out for descent 2's first four crossings, and the timer's clock was set
+    on by a quarter of an hour meanwhile: its live rest came far from the clock, the host's
+    clock does not confirm the jump, so each waits for the next impulse to confirm its time,
+    and the finish still waits when the import's event comes. It is taken as it is then, as
+    at the end of a capture: the memory's first impulse, earlier by nature, called it a
+    corrupted time, and the joined descent lost its finish."""
     from station.session.config import load_config
     from station.session.processor import Processor
     from station.session.rawlog import Chunk
 
     cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
     proc = Processor(cfg, demo_track)
-    before = _descent_lines(demo_track, 35_000, 1, "TN", 1)  # a descent an hour before
+    before = _descent_lines(demo_track, 35_000, 1, "TN", 1)  # 1000 s before (110 s by the host)
     body = _descent_lines(demo_track, 36_000, 2, "TN", 10)
     host = 1_767_517_200.0
     chunks = [Chunk(host + 0.01 * i, x.encode()) for i, x in enumerate(before)]
     chunks += [
-        Chunk(host + 995.0, b"", "disconnected", "unplugged"),
-        Chunk(host + 1009.0, b"", "connected"),
+        Chunk(host + 95.0, b"", "disconnected", "unplugged"),
+        Chunk(host + 109.0, b"", "connected"),
     ]
-    chunks += [Chunk(host + 1010.0 + 0.01 * i, x.encode()) for i, x in enumerate(body[4:])]
+    chunks += [Chunk(host + 110.0 + 0.01 * i, x.encode()) for i, x in enumerate(body[4:])]
     chunks += [Chunk(host + 2000.0, b"", "import", "imports/download.txt")]
     chunks.append(Chunk(host + 2000.0, b"\r\n" + b"".join(x.encode() for x in body[:4])))
     done = []
     for chunk in chunks:
+        if chunk.event == "import":  # the live finish waits for confirmation still
+            assert proc.events[-1].line == proc.lines - 1
         done += proc.feed(chunk)
     done += proc.finish()
     final = {d.number: d for d in done}
@@ -718,3 +721,342 @@ def test_alge_m_lines_give_a_descent_whose_start_the_cable_lost_its_live_rest(tm
         (e.photocell, e.descent) for e in proc.events if e.kept and e.reason.startswith("joined")
     ]
     assert went == [(f"PC{i}", 2) for i in range(5, 10)]
+
+
+# -- what a join leaves: the timer's clock, the import's own list, the flags
+
+
+def _host_aligned(lines: list[str], host0: float) -> list:
+    """Chunks of live TAG lines, each at the host time its device time gives (host0 at 00:00
+    by the timer's clock, 0.05 s of transfer): a live day whose clocks agree."""
+    from station.session.rawlog import Chunk
+    from station.timing.wireformats import make_parser
+
+    parser = make_parser("tag")
+    return [Chunk(host0 + parser.parse(x.rstrip("\r\n")).tod_us / 1e6 + 0.05, x.encode())
+            for x in lines]  # fmt: skip
+
+
+def test_rejected_live_crossings_after_an_outage_leave_the_timers_clock_as_it_was(
+    tmp_path, demo_track
+):
+    """The cable was out for five minutes, descent 2's first four crossings with it: its live
+    rest is rejected (without a start), each at once, and the next skier's start is taken when
+    it comes. The host's estimate of the timer's clock (what confirms a time far from the last
+    kept one, and ends a descent by its time-out) pairs a kept impulse's device time with the
+    host time of its line: a rejected impulse leaves the clock at the last kept one, minutes
+    back, and paired with its own host time it put the estimate minutes wrong, so every later
+    crossing far from the clock was held until the next one confirmed it (the next live start
+    waited for its PC2)."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    host0 = 1_767_484_800.0  # 2026-01-04 00:00 UTC: the host clock at the timer's 00:00
+    d1 = _descent_lines(demo_track, 36_000, 1, "TN", 1)
+    d2 = _descent_lines(demo_track, 36_300, 2, "TN", 10)
+    d3 = _descent_lines(demo_track, 36_600, 3, "TN", 19)
+    for chunk in _host_aligned(d1, host0):
+        proc.feed(chunk)
+    proc.feed(Chunk(host0 + 36_030.0, b"", "disconnected", "unplugged"))
+    proc.feed(Chunk(host0 + 36_305.0, b"", "connected"))
+    for chunk in _host_aligned(d2[4:], host0):
+        proc.feed(chunk)
+        e = proc.events[-1]  # its own fate, now: not held for the next impulse
+        assert e.line == proc.lines and not e.kept and "without a start" in e.reason, e
+    start, *rest = _host_aligned(d3, host0)
+    proc.feed(start)
+    assert [d.number for d in proc.assembler.open] == [2]  # started at once (descent 2)
+    assert proc.start_host.get(2) == start.t
+    done = []
+    for chunk in rest:
+        done += proc.feed(chunk)
+    assert [(d.number, d.status) for d in done] == [(2, "complete")]
+    assert not any("reset" in f for f in done[0].flags)
+    # a stray impulse while the next skier is on the run: rejected, and the time-out (by
+    # the host clock) still comes when it is due after PC4, not later by the stray's delay
+    d4 = _host_aligned(_descent_lines(demo_track, 36_900, 4, "TN", 28), host0)
+    for chunk in d4[:4]:
+        proc.feed(chunk)
+    due = d4[3].t + proc.assembler.timeout_us[3] / 1e6
+    stray = format_tag("2", round((due - 2.05 - host0) * 1e6), 40, 9, DAY, "TN") + "\r\n"
+    proc.feed(Chunk(due - 2.0, stray.encode()))  # (PC2 of bib 9, without a start)
+    assert not proc.events[-1].kept and proc.events[-1].line == proc.lines
+    assert [d.number for d in proc.tick(due - 1.0)] == []
+    ended = proc.tick(due + 1.0)
+    assert [(d.number, d.status) for d in ended] == [(3, "incomplete")]
+
+
+def _split_session(tmp_path, demo_track, *, timed_out: bool):
+    """A recorded session (TAG): descents 1 and 2, ten minutes apart, each cut short after
+    PC4 by the cable (with ``timed_out``, the reader's time-out ended each before the
+    recording did); and a download of the timer's memory with descent 1 only, and one with
+    both: (config, session, first download, second download)."""
+    from station.session import store
+    from station.session.config import load_config
+    from station.session.rawlog import RawLogWriter
+
+    cfg = write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)
+    session = tmp_path / "s"
+    store.create(load_config(str(cfg)), str(session))
+    host0 = 1_767_484_800.0
+    days = [_descent_lines(demo_track, 36_000 + 600 * k, k + 1, "TN", 9 * k + 1) for k in range(2)]
+    log = RawLogWriter(str(session / store.RAW), header={"port": "/dev/null"})
+    for k, body in enumerate(days):
+        for c in _host_aligned(body[:4], host0):
+            log.write(c.t, c.data)
+        log.event(host0 + 36_000 + 600 * k + 8, "disconnected", "unplugged")
+        if timed_out:
+            log.event(host0 + 36_000 + 600 * k + 100, "timeout")
+        log.event(host0 + 36_000 + 600 * k + 300, "connected")
+    log.close()
+    (session / store.RESULTS).write_text("")
+    downloads = []
+    for n in (1, 2):
+        lines = [_frame("DS 01  00 START - FINISH     ")]
+        for body in days[:n]:
+            lines += [_frame(s.split("\t")[0].replace("TN", "AN", 1)) for s in body]
+        path = tmp_path / f"download{n}.txt"
+        path.write_text("".join(lines) + _frame("DE 01"))
+        downloads.append(path)
+    return cfg, session, *downloads
+
+
+def test_an_import_lists_the_descents_it_joined_not_those_an_earlier_one_did(
+    tmp_path, demo_track, run_station
+):
+    """Two imports into one session: the first joins descent 1, the second (the whole memory
+    again, later) brings descent 2's rest. Each lists the descents it joined: the second
+    listed descent 1 again, which it did not touch."""
+    cfg, session, first, second = _split_session(tmp_path, demo_track, timed_out=True)
+    r = run_station("import", first, "--config", cfg, "--into", session)
+    assert r.returncode == 0, r.stderr
+    assert "descent 1: joined: PC4 recorded live, PC5 on" in r.stderr
+    assert "descent 2:" not in r.stderr
+    r = run_station("import", second, "--config", cfg, "--into", session)
+    assert r.returncode == 0, r.stderr
+    assert "13 already in the session, 5 added" in r.stderr
+    assert "descent 2: joined: PC4 recorded live, PC5 on" in r.stderr
+    assert "descent 1:" not in r.stderr
+    df = pd.read_csv(session / "results.csv", comment="#")
+    assert list(df["photocells_used"]) == [9, 9]
+    assert all("joined: PC4 recorded live" in f for f in df["flags"])
+
+
+@pytest.mark.parametrize("how", ["import", "on the line"])
+def test_a_descent_the_download_continues_before_its_time_out_says_it_was_joined(
+    tmp_path, demo_track, how
+):
+    """The download comes before the descent cut short timed out (the recording ended at
+    once, or the timer sent its memory on the line as soon as the cable was back): the
+    memory's rest joins the descent still open. It said only "timer disconnected": the row
+    and the events list did not say that its times after PC4 are the timer's memory's."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    chunks = [c for c in _live_then_download(demo_track, 4, download=True) if c.event != "timeout"]
+    if how == "import":  # as `station import --into` appends it: an event, then the lines
+        memory = [c for c in chunks if c.data and b"AN" in c.data]
+        chunks = [c for c in chunks if c.event or b"TN" in c.data]
+        chunks.append(Chunk(chunks[-1].t, b"", "import", "imports/download.txt"))
+        chunks.append(Chunk(chunks[-1].t, b"\r\n" + b"".join(c.data for c in memory)))
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+    done += proc.finish()
+    assert [d.number for d in done] == [1]
+    d = done[0]
+    assert d.status == "complete" and len(d.photocells) == 9 and not d.missing, d
+    assert "joined: PC4 recorded live, PC5 on from the timer's memory" in d.flags
+    assert any("timer disconnected" in f for f in d.flags)
+    # the events list (--events) says it at the first crossing from the memory
+    joined = [e for e in proc.events if e.kept and e.reason.startswith("joined: ")]
+    assert [(e.photocell, e.descent) for e in joined] == [("PC5", 1)]
+
+
+def test_alge_m_lines_continuing_an_open_descent_say_it_was_joined(tmp_path, demo_track):
+    """ALGE: descent 1's first four crossings live, the cable out; the timer repeats its
+    memory on the line (``m`` lines of bib 7, no day: the fast paths could take them) before the
+    descent timed out. The rest joins it, and the row and events say so."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+    from station.timing.wireformats import format_alge
+
+    xs = np.array([pc.x for pc in demo_track.photocells])
+    t = (
+        StraightRun(demo_track.profile, xs)
+        .solve(Params(0.22, 0.0085, 3.4), Conditions(88, 1.079))
+        .t
+    )
+
+    def lines(flag: str) -> list[bytes]:
+        return [(format_alge(f"C{i}", round((36_000 + ti) * 1e6), 7, flag) + "\r").encode()
+                for i, ti in enumerate(t)]  # fmt: skip
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "alge")))
+    proc = Processor(cfg, demo_track)
+    host = 1_767_484_800.0 + 36_000.05
+    chunks = [Chunk(host + t[i], x) for i, x in enumerate(lines(" ")[:4])]
+    chunks += [Chunk(host + t[3] + 0.5, b"", "disconnected", "unplugged"),
+               Chunk(host + t[3] + 2.0, b"", "connected")]  # fmt: skip
+    chunks += [Chunk(host + t[3] + 3.0 + 0.01 * i, x) for i, x in enumerate(lines("m"))]
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+    done += proc.finish()
+    assert [d.number for d in done] == [1]
+    d = done[0]
+    assert d.status == "complete" and len(d.photocells) == 9 and not d.missing, d
+    assert "joined: PC4 recorded live, PC5 on from the timer's memory" in d.flags
+    joined = [e for e in proc.events if e.kept and e.reason.startswith("joined: ")]
+    assert [(e.photocell, e.descent) for e in joined] == [("PC5", 1)]
+
+
+def test_after_a_download_on_the_line_the_next_live_start_is_taken_at_once(tmp_path, demo_track):
+    """The timer sent its memory on the line (``DS`` … ``DE``) after the cable went back in;
+    descent 1's rest from it was kept, minutes before the host's now. Paired with the host
+    time of their lines, those old times put the host's estimate of the timer's clock minutes
+    back: the next live start, far from the clock (the memory's last time), was held until its
+    PC2 confirmed it, and an open descent's time-out came late. The memory's times are not the
+    timer's now: the estimate stays the live one's, and ticks end nothing while the memory
+    comes (its descents are hours old by the live clock: they end by its own impulses)."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    chunks = _live_then_download(demo_track, 4, download=True)
+    done = []
+    for chunk in chunks:
+        done += proc.feed(chunk)
+        if chunk.data:  # the recorder ticks after every read
+            done += proc.tick(chunk.t + 0.05)
+    assert [d.number for d in done] == [1, 1]
+    assert "joined: PC4 recorded live, PC5 on from the timer's memory" in done[-1].flags
+    host0 = chunks[0].t - 36_000.0  # the host clock at the timer's 00:00 (PC1 at 10:00)
+    live = _descent_lines(demo_track, 36_600, 2, "TN", 10)
+    start = Chunk(host0 + 36_600.05, live[0].encode())
+    proc.feed(start)
+    assert [d.number for d in proc.assembler.open] == [2]  # started at once
+    assert proc.start_host.get(2) == start.t
+
+
+def test_a_download_on_the_line_whose_end_was_lost_still_lets_time_outs_come(tmp_path, demo_track):
+    """The timer's ``DE`` after its memory was lost on the line (noise): the first live
+    ``TN`` ends the memory. A live skier who falls after PC3 is ended by the time-out when
+    it is due, not left open for the next skier's crossings."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    chunks = _live_then_download(demo_track, 4, download=True)[:-1]  # (no DE)
+    host0 = chunks[0].t - 36_000.0
+    fell = _host_aligned(_descent_lines(demo_track, 36_600, 2, "TN", 10)[:3], host0)
+    done = []
+    for chunk in chunks + fell:
+        done += proc.feed(chunk)
+        if chunk.data:  # the recorder ticks after every read
+            done += proc.tick(chunk.t + 0.05)
+    assert not proc.assembler.from_memory  # (ended by the live TN)
+    assert [d.number for d in done] == [1, 1]
+    due = fell[-1].t + proc.assembler.timeout_us[2] / 1e6
+    assert proc.tick(due - 1.0) == []
+    assert [(d.number, d.status) for d in proc.tick(due + 1.0)] == [(2, "incomplete")]
+
+
+def test_a_descent_from_the_memory_a_pause_in_the_download_ended_is_not_called_recorded_live(
+    tmp_path, demo_track
+):
+    """The timer's memory comes over the line (``DS`` … ``DE``) and pauses after descent 1's
+    PC3 (flow control, a slow line) longer than the time-out: the tick, by the memory's clock,
+    ends the descent short; the memory's PC4 then reopens it. Every crossing of it is the
+    memory's: its flag said "PC3 recorded live" (and ``station import`` listed it as joined)."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    body = [_frame(s.split("\t")[0]) for s in _descent_lines(demo_track, 36_000, 1, "AN", 1)]
+    t0 = 1_767_520_800.0
+    lines = [_frame("DS 01  00 START - FINISH     "), *body[:3]]
+    chunks = [Chunk(t0 + 0.01 * k, x.encode()) for k, x in enumerate(lines)]
+    pause = t0 + 600.0  # the line is silent for ten minutes, then the rest comes
+    rest = [*body[3:], _frame("DE 01")]
+    chunks += [Chunk(pause + 0.01 * k, x.encode()) for k, x in enumerate(rest)]
+    done = []
+    for chunk in chunks:
+        if chunk.t >= pause and not done:
+            done += proc.tick(pause - 1.0)  # the reader's tick in the silence
+            assert [(d.number, d.status) for d in done] == [(1, "incomplete")]
+        done += proc.feed(chunk)
+        done += proc.tick(chunk.t + 0.05)
+    done += proc.finish()
+    assert [d.number for d in done] == [1, 1]
+    d = done[-1]
+    assert d.status == "complete" and len(d.photocells) == 9 and not d.missing
+    assert not any("recorded live" in f or f.startswith("joined: ") for f in d.flags), d.flags
+    assert "reopened: PC4 on from the timer's memory, as were PC3 and those before (a " \
+        "time-out while the download came had ended it)" in d.flags  # fmt: skip
+    assert not any("missing" in f for f in d.flags)
+
+
+def test_a_lost_download_end_is_told_by_the_first_live_time_and_said(tmp_path, demo_track):
+    """The ``DE`` after a download on the line is lost (noise): THCOM08 sends the memory as
+    ``AN`` answers and live times as ``TN`` (the real CP540 capture: ``DS``, ``AN``…, ``DE``,
+    then ``T+``, ``TN``), so the first live ``TN`` ends the memory, and an event says so.
+    Taken as the memory still, live skier 2, who fell after PC3, was a descent of the
+    memory: the timer's memory sent again later reopened it as "all from the timer's
+    memory", where its first three crossings were recorded live."""
+    from station.session.config import load_config
+    from station.session.processor import Processor
+    from station.session.rawlog import Chunk
+
+    cfg = load_config(str(write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)))
+    proc = Processor(cfg, demo_track)
+    chunks = _live_then_download(demo_track, 4, download=True)[:-1]  # (no DE)
+    host0 = chunks[0].t - 36_000.0
+    skier2 = _descent_lines(demo_track, 36_600, 2, "TN", 10)
+    fell = _host_aligned(skier2[:3], host0)
+    done = []
+    for chunk in chunks + fell:
+        done += proc.feed(chunk)
+        done += proc.tick(chunk.t + 0.05)
+    first_live = proc.lines - 2  # (the line of skier 2's PC1)
+    said = [e for e in proc.events if e.reason.startswith("download end DE not seen")]
+    assert [(e.line, e.kept, e.reason) for e in said] == [
+        (first_live, False, f"download end DE not seen; memory taken as ended at line "
+                            f"{first_live} (a live TN)")
+    ]  # fmt: skip
+    # the same in a bulk replay (feed_chunks) and in a plain capture's chunk (no host times)
+    for how in ("bulk", "capture"):
+        other = Processor(cfg, demo_track)
+        if how == "bulk":
+            other.feed_chunks(chunks + fell)
+        else:
+            other.feed(Chunk(None, b"".join(c.data for c in chunks + fell)))  # type: ignore[arg-type]
+        assert [e.reason for e in other.events if e.reason.startswith("download end")] == [
+            said[0].reason
+        ], how
+        assert not other.assembler.from_memory, how
+    due = fell[-1].t + proc.assembler.timeout_us[2] / 1e6
+    assert [(d.number, d.status) for d in proc.tick(due + 1.0)] == [(2, "incomplete")]
+    # the memory sent again on the line, whole this time
+    again = [_frame("DS 01  00 START - FINISH     ")]
+    again += [_frame(x.split("\t")[0].replace("TN", "AN", 1)) for x in skier2]
+    again.append(_frame("DE 01"))
+    for k, x in enumerate(again):
+        done += proc.feed(Chunk(due + 60.0 + 0.01 * k, x.encode()))
+    done += proc.finish()
+    d = done[-1]
+    assert d.number == 2 and d.status == "complete" and len(d.photocells) == 9, d
+    assert "joined: PC3 recorded live, PC4 on from the timer's memory" in d.flags, d.flags
+    assert not any(f.startswith("reopened: ") for f in d.flags)

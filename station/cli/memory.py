@@ -42,9 +42,12 @@ def cmd_import(args: argparse.Namespace) -> int:
         f"the session, {report.added} added; the file is kept as {report.kept_as}",
         file=sys.stderr,
     )
-    for res in run.results():  # the descents the download completed: said, not only flagged
+    # the descents this download completed: said, not only flagged (not those an earlier
+    # import joined: they are flagged still)
+    mine = memory_import.joined_by_last_import(run.day.processor)
+    for res in run.results():
         joined = next((f for f in res.row.flags if f.startswith(JOINED)), None)
-        if joined is not None:
+        if joined is not None and res.number in mine:
             print(f"descent {res.number}: {joined}", file=sys.stderr)
     results = run.results()
     if not args.into and results and all(r.descent.day is not None for r in results):

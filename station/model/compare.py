@@ -742,7 +742,13 @@ class _Inference:
 
     Every number about the globals comes from that one mixture of t distributions:
     intervals (its quantiles), P(a faster), P(best), the covariance (the mixture's scale:
-    mean of the scales plus the spread of the centres) and the standard errors from it."""
+    mean of the scales plus the spread of the centres) and the standard errors from it, and
+    the estimates themselves (μ, μ1, the drift, Δμ): the mixture's mean ``centre``, not the
+    solution at γ̂. At γ̂ on the boundary (the scatter estimated at 0) the solution can lie
+    outside its own interval (Δμ̂ 2.0 half-widths from the interval's middle on a 2-a-ski day,
+    tests/test_compare_small_days.py), and z = Δμ̂/se spread 1.13–1.16 at 2 a ski where the
+    mixture's centre spreads 1.09 (issue 21, benchmarks/compare_se_oracle.py). The skiers'
+    mean CdA stay at γ̂ with their plug-in intervals (:meth:`plugin_interval`)."""
 
     H = 0.05  # step in log γ of the curvature's differences (the posture's interval)
 
@@ -772,7 +778,7 @@ class _Inference:
         cs = sol.cs
         self.plugin_sd = np.sqrt(np.maximum(sigma2 * cs * cs * np.diag(st.s_inv), 0.0))
         self._mixture(pc, lg)
-        mean = self.w @ self.beta
+        mean = self.centre = self.w @ self.beta
         spread = self.beta - mean
         self.cov = np.einsum("k,kij->ij", self.w, self.scale) + (spread.T * self.w) @ spread
         self.sd = np.sqrt(np.maximum(np.diag(self.cov), 0.0))
@@ -929,7 +935,8 @@ def _joint_fit(
         )
     typical_v0 = float(np.median(sol.loc[:, 1]))
     run_time = _run_time(track, day, data, cda_out, typical_v0)
-    mus = {it: float(glob[lay.mu_index(it)]) for it in lay.items}
+    centre = inf.centre  # μ, μ1, drift and Δμ: the centres of their own intervals (_Inference)
+    mus = {it: float(centre[lay.mu_index(it)]) for it in lay.items}
     comparisons = _comparisons(lay, inf, mus, {it: run_time(mus[it]) for it in lay.items})
     p_best = _p_best(lay, inf)
     out_items = []
@@ -943,7 +950,7 @@ def _joint_fit(
                 mu=mus[it],
                 ci90=inf.interval(j),
                 stderr=float(inf.sd[j]),
-                mu1=float(glob[j + 1]) if velocity else None,
+                mu1=float(centre[j + 1]) if velocity else None,
                 mu1_ci90=inf.interval(j + 1) if velocity else None,
                 p_best=p_best.get(it),
             )
@@ -962,7 +969,7 @@ def _joint_fit(
         cda=cda_out,
         drift_per_hour=drift_out,
         drift_bend=(
-            (float(glob[lay.i_drift + 1]), inf.interval(lay.i_drift + 1)) if lay.bend else None
+            (float(centre[lay.i_drift + 1]), inf.interval(lay.i_drift + 1)) if lay.bend else None
         ),
         drift_separable=separable,
         comparisons=tuple(comparisons),
@@ -993,7 +1000,7 @@ def _item_cov(lay: _Layout, inf: _Inference) -> tuple[tuple[float, ...], ...]:
 def _drift(data, lay: _Layout, inf: _Inference):
     """The drift of μ per hour with its interval (None: not fitted), whether the run order
     separates it from the items, and the warnings about the design of the day."""
-    items, glob, cov, sd = lay.items, inf.sol.glob, inf.cov, inf.sd
+    items, glob, cov, sd = lay.items, inf.centre, inf.cov, inf.sd
     warnings: list[str] = []
     drift_out = None
     separable = True
@@ -1057,7 +1064,7 @@ def _comparisons(lay: _Layout, inf: _Inference, mus: dict[str, float], run_times
     """Every pair of items, the reference first: Δμ with its interval, P(a faster) and Δt
     over the run (and the degrees of freedom of the Student t that interval is equivalent to,
     :meth:`_Inference.equivalent_dof`)."""
-    glob, counts, ref = inf.sol.glob, lay.counts, lay.ref
+    glob, counts, ref = inf.centre, lay.counts, lay.ref
     comparisons = []
     order = [ref] + [it for it in lay.items if it != ref] if ref else lay.items
     for ia, ib in combinations(order, 2):

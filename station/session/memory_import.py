@@ -28,15 +28,20 @@ import datetime as dt
 import os
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from station.errors import InputError
 from station.files import read_bytes
 from station.session import store as sessions
 from station.session.config import StationConfig
 from station.session.rawlog import RawLogWriter, read_rawlog
+from station.timing.assembly import JOINED
 from station.timing.framing import LineFramer
 from station.timing.impulses import DAY_US, Edit, Impulse
 from station.timing.wireformats import make_parser
+
+if TYPE_CHECKING:
+    from station.session.processor import Processor
 
 IMPORTS = "imports"
 MAX_IMPORT_BYTES = 64 * 1024 * 1024
@@ -53,6 +58,22 @@ class ImportReport:
     dated: dt.date | None = None  # the test day the new session's impulses were dated by
     #: the session's raw log ended torn (a full disk, a power cut): what was done about it
     repaired: str | None = None
+
+
+def joined_by_last_import(processor: Processor) -> set[int]:
+    """The descents the session's last import joined to the recording, by number: those with
+    a crossing kept from its lines (after its ``import`` event) and a ``joined`` flag. A
+    descent an earlier import joined says so too, but this one did not touch it: ``station
+    import`` listed every joined descent of the session as if this import had joined it."""
+    since = processor.import_after_line
+    if since is None:
+        return set()
+    touched = {e.descent for e in processor.events if e.kept and e.line > since}
+    return {
+        d.number
+        for d in processor.assembler.finished
+        if d.number in touched and any(f.startswith(JOINED) for f in d.flags)
+    }
 
 
 def read_import(path: str) -> bytes:

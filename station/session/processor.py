@@ -98,7 +98,17 @@ class Processor:
         self.impulses = 0  # counted apart: one per impulse line, the common case
         self.unparsed: list[tuple[int, str, str]] = []  # line number, reason, text (first 100)
         self.connection: list[tuple[float, str, str]] = []
-        self.offset_us: int | None = None  # device clock − host clock
+        self.offset_us: int | None = None  # device clock − host clock, by live impulses kept
+        #: the same while the timer's memory comes, by its impulses kept: their times are not
+        #: the timer's now, but its descents end by them (a tick's "now" follows them, as a
+        #: time far from the memory's clock is confirmed by them); None: none yet
+        self.memory_offset_us: int | None = None
+        #: the line of the TAG ``DS`` whose memory download is coming over the line (its
+        #: ``DE`` not seen yet); None: none is
+        self.download_line: int | None = None
+        #: the lines before the latest ``import`` event (`station import`): that import's
+        #: lines come after them (the descents it joined are those they went into)
+        self.import_after_line: int | None = None
         self.start_host = StartHosts()
         self._latest_start: tuple[int, int] | None = None  # (device µs, descent): the last start
         #: (line, host time) of the lines last handed to the assembler: a descent's start may
@@ -127,6 +137,8 @@ class Processor:
             if chunk.event != "session":
                 self.connection.append((chunk.t, chunk.event, chunk.detail))
             if chunk.event == "import":
+                self.import_after_line = self.lines
+                self.download_line = None  # (the import's own DS sets it again)
                 # a download of the timer's memory follows (`station import`): the times it
                 # adds are earlier than the recording's last by nature; the timer's clock is
                 # judged afresh from its first start (a reset within it is still flagged);
@@ -136,6 +148,7 @@ class Processor:
             if chunk.event == "disconnected":
                 self.assembler.disconnected(chunk.detail)
                 self.assembler.from_memory = False  # a download on the line ends with it
+                self.download_line = None
             return []
         lines = self.framer.feed(chunk.data)
         t: float | None = chunk.t  # None: a plain capture (replay_chunks)
@@ -164,7 +177,13 @@ class Processor:
         stopped = -1  # the impulse the batch stopped at: the general path's
         while i < n:
             parsed = parsed_lines[i]
-            if type(parsed) is Impulse and self.resolution_us is not None:
+            # (while a download is on the line each impulse the general way: a live one
+            # ends it, :meth:`_live_after_download`)
+            if (
+                type(parsed) is Impulse
+                and self.resolution_us is not None
+                and self.download_line is None
+            ):
                 if i != stopped:
                     # the common impulses from here in one run of the assembler's
                     stop, ended, started = feed_run(parsed_lines, i, self.lines + 1)
@@ -268,7 +287,12 @@ class Processor:
         i, n = 0, len(lines)
         stopped = -1  # the impulse the batch stopped at: the general path's
         while i < n:
-            if i != stopped and type(parsed_lines[i]) is Impulse and self.resolution_us is not None:
+            if (
+                i != stopped
+                and type(parsed_lines[i]) is Impulse
+                and self.resolution_us is not None
+                and self.download_line is None  # (see _capture_lines)
+            ):
                 first = self.lines + 1  # the line number of parsed_lines[i]
                 stop, ended, started = feed_run(parsed_lines, i, first)
                 if stop > i:
@@ -276,7 +300,10 @@ class Processor:
                     self.impulses += stop - i
                     clock = asm.clock
                     assert clock is not None  # (the batch keeps impulses only with a clock)
-                    self.offset_us = clock - round(hosts[stop - 1] * 1e6)
+                    if asm.from_memory:  # (the memory's times are not the timer's now)
+                        self.memory_offset_us = clock - round(hosts[stop - 1] * 1e6)
+                    else:
+                        self.offset_us = clock - round(hosts[stop - 1] * 1e6)
                     tail = max(i, stop - RECENT_LINES)
                     recent.extend(zip(range(first + tail - i, self.lines + 1),
                                       hosts[tail:stop], strict=True))  # fmt: skip
@@ -298,6 +325,8 @@ class Processor:
     def _parsed(self, line: str, parsed: Parsed, t: float | None) -> list[TimedDescent]:
         """One line and what the parser made of it."""
         self.lines += 1
+        if self.download_line is not None and isinstance(parsed, Impulse | Edit):
+            self._live_after_download(parsed)
         if type(parsed) is Impulse:
             self.impulses += 1
             asm = self.assembler
@@ -308,13 +337,22 @@ class Processor:
                 done = asm.feed(parsed, self.lines, None)
             else:
                 host_us = round(t * 1e6)
-                offset = self.offset_us
+                offset = self._offset()
                 # the device time now, by the host clock
                 now = host_us + offset if offset is not None else None
                 done = asm.feed(parsed, self.lines, now)
                 clock = asm.clock
-                if clock is not None:
-                    self.offset_us = clock - host_us
+                # the offset pairs a device time with the host time of the line that carried
+                # it: only an impulse kept (the clock moved to its time). A rejected or held one
+                # leaves the clock at the last kept impulse, minutes back after an outage: paired
+                # with this line's host time it put the estimate minutes wrong (every later time
+                # far from the clock held for confirmation, time-outs late). The memory's kept
+                # impulses have their own (they moved the live one to their old times likewise)
+                if clock is not None and clock == asm.unwrap(parsed):
+                    if asm.from_memory:
+                        self.memory_offset_us = clock - host_us
+                    else:
+                        self.offset_us = clock - host_us
             self._recent.append((self.lines, t))
             if asm.count > before:
                 self._new_descents(before, done, t, judge=True)
@@ -332,8 +370,11 @@ class Processor:
             self.counts["skipped"] += 1
             if parsed.reason in MEMORY_DOWNLOAD:  # TAG DS … DE sent over the line
                 if MEMORY_DOWNLOAD[parsed.reason]:
-                    return self._memory_follows(t, fresh_clock=False)
+                    done = self._memory_follows(t, fresh_clock=False)
+                    self.download_line = self.lines
+                    return done
                 self.assembler.from_memory = False
+                self.download_line = None
         elif isinstance(parsed, Unparsed):
             self.counts["unparsed"] += 1
             # it may have been a skier's start: the assembler may start that descent later
@@ -345,6 +386,25 @@ class Processor:
                     (self.lines, "this and later unparsed lines not listed; see the raw log", "")
                 )
         return []
+
+    def _live_after_download(self, parsed: Impulse | Edit) -> None:
+        """A time message while a download is on the line (:attr:`download_line`): a live
+        one (``TN`` new time, ``T+``/``T-``/… an edit at the timer: THCOM08 sends the memory
+        as ``AN`` answers, the real CP540 capture ``DS``, ``AN``…, ``DE``, then ``T+``, ``TN``)
+        means the ``DE`` was lost on the line: the memory ends before it, with an event that
+        says so. Without it the rest of the day was taken as the timer's memory (its
+        descents flagged as such, a live skier's crossings joined to memory descents). A time
+        far past the download's last does not tell it: a day's memory has gaps of hours."""
+        if parsed.line.lstrip("#")[:1] != "T" or not self.assembler.from_memory:
+            return
+        self.download_line = None
+        self.assembler.from_memory = False
+        kind = parsed.line.lstrip("#")[:2]
+        n = self.lines
+        why = f"download end DE not seen; memory taken as ended at line {n} (a live {kind})"
+        self.events.append(
+            ImpulseEvent(self.lines, parsed.channel, None, parsed.tod_us, parsed.flag, False, why)
+        )
 
     def _memory_follows(self, t: float | None, fresh_clock: bool) -> list[TimedDescent]:
         """Impulses from the timer's memory follow: a live impulse still held for the next
@@ -359,6 +419,7 @@ class Processor:
             self._new_descents(before, done, t, judge=True)
         if fresh_clock:
             self._latest_start = None
+        self.memory_offset_us = None  # (the live estimate until the memory's first is kept)
         return done
 
     def _new_descents(
@@ -410,10 +471,19 @@ class Processor:
         self._latest_start = (start, number)
 
     def tick(self, host_t: float) -> list[TimedDescent]:
-        """Host time now: end a descent whose time-out passed on the device clock."""
-        if self.offset_us is None:
+        """Host time now: end a descent whose time-out passed on the device clock (while the
+        timer's memory comes, by the memory's clock: its descents are hours old by the live
+        one, and a tick after every read ended them mid-download)."""
+        offset = self._offset()
+        if offset is None:
             return []
-        return self.assembler.tick(round(host_t * 1e6) + self.offset_us)
+        return self.assembler.tick(round(host_t * 1e6) + offset)
+
+    def _offset(self) -> int | None:
+        """Device clock − host clock in effect: the memory's while it comes and has one."""
+        if self.assembler.from_memory and self.memory_offset_us is not None:
+            return self.memory_offset_us
+        return self.offset_us
 
     def finish(self) -> list[TimedDescent]:
         """End of the input: the unfinished last line, then the open descent."""

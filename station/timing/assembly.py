@@ -113,6 +113,9 @@ class TimedDescent:
 
 #: how the flag of a descent the timer's memory completed begins (``station import`` says it)
 JOINED = "joined: "
+#: how the flag of a descent from the timer's memory that the memory itself reopened begins
+#: (not joined: all its crossings are the memory's)
+REOPENED = "reopened: "
 #: live impulses no descent took, remembered for a descent from the memory to take
 MAX_ORPHANS = 200
 #: the fields of a descent that are lists while the assembler may change them
@@ -417,6 +420,8 @@ class DescentAssembler:
         bib = "" if mode == "order" or flag == "?" else imp.bib.strip().lstrip("0")
         self.count += 1
         d = TimedDescent(self.count, [pc], [t], first_line=line, channels=[ch], bib=bib)
+        if self.from_memory:
+            self._memory_starts.add(d.number)
         self.open.append(d)
         if self._damaged:
             self._move_clock(t)
@@ -484,6 +489,8 @@ class DescentAssembler:
             return None  # its descent says so (_accept): the general path
         mode = self.mode
         d = self.open[0]
+        if self.from_memory and d.number not in self._memory_starts:
+            return None  # the memory continues a descent recorded live: it says so (_accept)
         if mode == "bib":
             if flag == "?" or not d.bib or bib.strip().lstrip("0") != d.bib:
                 return None
@@ -589,6 +596,10 @@ class DescentAssembler:
             or len(open_) > 1
         ):
             return start, done, started
+        memory = self.from_memory
+        memory_starts = self._memory_starts
+        if memory and open_ and open_[0].number not in memory_starts:
+            return start, done, started  # (see _next_photocell)
         by_order = mode == "order"  # else "bib" (mode is decided and changes on no fast path)
         fast_channels = self._fast_channels
         seen_map = self._seen
@@ -659,6 +670,8 @@ class DescentAssembler:
                 d_bib = "" if by_order or flag == "?" else bib.strip().lstrip("0")
                 d = TimedDescent(number, [pc], [t], first_line=line0 + i, channels=[ch],
                                  bib=d_bib)  # fmt: skip
+                if memory:
+                    memory_starts.add(number)
                 open_.append(d)
                 started.append(d)
                 photocells, times = d.photocells, d.times_us
@@ -770,8 +783,14 @@ class DescentAssembler:
             _flag_damaged(d, imp, line)
             return done
         chosen, reason = self._choose(pc, k, t, bib)
-        if chosen is None and self.from_memory:
-            chosen = self._rejoin(pc, k, t, bib)
+        joined = ""  # the flag of a descent recorded live that this memory impulse continues
+        if self.from_memory:
+            if chosen is None:
+                chosen = self._rejoin(pc, k, t, bib)
+                if chosen is not None:
+                    joined = chosen.flags[-1]
+            else:
+                joined = self._continued(chosen, pc)
         if chosen is None:
             rec, why = self._recover(imp, line, pc, k, t, bib)
             if rec is not None:
@@ -803,7 +822,8 @@ class DescentAssembler:
         d.channels.append(imp.channel)
         self._move_clock(t)
         self._keep(imp.channel, t)
-        self._event(imp, line, pc, True, "", d.number)
+        # (the events list says where the memory's times begin, as the row's flags do)
+        self._event(imp, line, pc, True, joined, d.number)
         _flag_damaged(d, imp, line)
         if k == len(self.photocells) - 1:
             self.open.remove(d)
@@ -848,7 +868,16 @@ class DescentAssembler:
                 del d.flags[i]
                 break
         d.missing = [p for p in d.missing if p not in tail]
-        d.flags.append(f"{JOINED}{last} recorded live, {pc} on from the timer's memory")
+        if d.number in self._memory_starts and not any(f.startswith(JOINED) for f in d.flags):
+            # begun in the memory and nothing live taken since: a tick while the download
+            # came (a pause on the line, by the memory's clock) ended it, and the memory goes
+            # on with it. It said "recorded live" here: the import listed it as joined
+            d.flags.append(
+                f"{REOPENED}{pc} on from the timer's memory, as were {last} and "
+                "those before (a time-out while the download came had ended it)"
+            )
+        else:
+            d.flags.append(f"{JOINED}{last} recorded live, {pc} on from the timer's memory")
         d.status = "open"
         self.finished.remove(d)
         self._short.remove(d)
@@ -856,6 +885,20 @@ class DescentAssembler:
             self._last_done = None
         self.open.append(d)
         return d
+
+    def _continued(self, d: TimedDescent, pc: str) -> str:
+        """An impulse from the timer's memory at ``pc`` that open descent ``d`` takes: when
+        ``d``'s crossings so far were recorded live (the cable came out during it, and the
+        download came before its time-out ended it), the flag that says it was joined, added
+        to ``d``; "" otherwise (a descent from the memory, or one that says so already).
+        Without it a descent the download continued in time said only "timer disconnected",
+        while one it reopened (:meth:`_rejoin`) said it was joined."""
+        if d.number in self._memory_starts or any(f.startswith(JOINED) for f in d.flags):
+            return ""
+        d.thaw()
+        flag = f"{JOINED}{d.photocells[-1]} recorded live, {pc} on from the timer's memory"
+        d.flags.append(flag)
+        return flag
 
     def _near(self, bib: str) -> int | None:
         """The descent an impulse was nearest to joining, for the events list."""
