@@ -222,3 +222,28 @@ def test_record_adds_the_session_to_the_configured_store(tmp_path, monkeypatch):
         n = c.execute(sa.select(sa.func.count()).select_from(schema.descents)).scalar()
     store.close()
     assert n == 3
+
+
+def test_items_left_out_are_named_and_the_header_counts_what_is_listed(run_station, tmp_path):
+    """E has one valid descent on each of its days: it used to vanish without a word; C and D
+    never met A: the header counted only A's days while the table listed C and D's day too."""
+    base = tmp_path / "s"
+    mus = {"A": 0.020, "B": 0.021, "C": 0.019, "D": 0.022, "E": 0.020}
+    days = [
+        make_day(base, "d1", dt.date(2026, 2, 1), "ABBAE", mus, seed=1),
+        make_day(base, "d2", dt.date(2026, 2, 2), "ABBAE", mus, seed=2),
+        make_day(base, "d3", dt.date(2026, 2, 3), "CDDC", mus, seed=3),
+    ]
+    store = str(tmp_path / "season.db")
+    r = run_station("season", "add", *days, "--store", store)
+    assert r.returncode == 0, r.stderr
+    r = run_station("season", "compare", "--reference", "pair A", "--store", store)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    # the table lists A, B (4 descents each over two days) and C, D (2 each on d3): 3 days, 12
+    assert ": 3 days, 12 descents" in lines[0], lines[0]
+    assert "2 days, 8 descents" in lines[0]  # what was compared against A, said as such
+    rows = [ln for ln in lines[4:] if " / blue " in ln]
+    assert len(rows) == 4 and sum(int(ln.split()[6]) for ln in rows) == 12, lines
+    left = [ln for ln in r.stderr.splitlines() if "pair E" in ln]
+    assert len(left) == 1 and "one valid descent" in left[0], r.stderr

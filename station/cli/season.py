@@ -182,6 +182,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
                 "heterogeneity": res.heterogeneity(),
                 "days": res.days,
                 "descents": res.descents,
+                "listed_days": res.listed_days,
+                "listed_descents": res.listed_descents,
                 "warnings": res.warnings,
             }
         )
@@ -199,8 +201,8 @@ def _ranked(res: Any) -> list[Any]:
 def format_season(res: Any, by: str) -> str:
     at = ", ".join(f"{k}={v:g}" for k, v in res.at.items())
     lines = [
-        f"season comparison by {by}: {res.days} day{'s' * (res.days != 1)}, "
-        f"{res.descents} descents, against {res.reference}" + (f", at {at}" if at else ""),
+        f"season comparison by {by}: {res.counts()}, against {res.reference}"
+        + (f", at {at}" if at else ""),
         f"between-day heterogeneity: τ {res.tau:.5f} (SD of a difference from day to day "
         f"beyond {'the conditions given' if at else 'the within-day uncertainty'}; Q "
         f"{res.q:.1f} on {res.dof} dof"

@@ -107,9 +107,27 @@ class SeasonResult:
     q: float  # Cochran's generalised Q at τ = 0
     dof: int  # N contrasts − p fixed effects
     q_p: float | None
-    days: int
+    days: int  # the days compared against the reference (connected to it, with the --at)
     descents: int
     warnings: list[str] = field(default_factory=list)
+    #: every day with two items or more and its descents: what the items listed count, the
+    #: unconnected ones too (a header of the compared days alone did not add up to the table)
+    listed_days: int = 0
+    listed_descents: int = 0
+
+    def counts(self) -> str:
+        """'3 days, 12 descents listed, 2 days, 8 descents compared': the days the items
+        listed count, and those compared against the reference when that is fewer."""
+
+        def text(days: int, descents: int) -> str:
+            return f"{days} day{'s' * (days != 1)}, {descents} descents"
+
+        if (self.listed_days, self.listed_descents) in ((0, 0), (self.days, self.descents)):
+            return text(self.days, self.descents)
+        return (
+            f"{text(self.listed_days, self.listed_descents)} listed, "
+            f"{text(self.days, self.descents)} compared"
+        )
 
     def heterogeneity(self) -> dict[str, Any]:
         return {"tau": self.tau, "q": self.q, "dof": self.dof, "p": self.q_p}
@@ -155,6 +173,7 @@ def compare_season(
     if not days:
         raise SeasonError("no day with two items or more to compare")
     warnings: list[str] = []
+    listed_days, listed_descents = len(days), sum(sum(d.descents) for d in days)
     count_days: dict[str, int] = {}
     count_desc: dict[str, int] = {}
     for d in days:
@@ -382,4 +401,6 @@ def compare_season(
         days=len(days),
         descents=sum(sum(d.descents) for d in days),
         warnings=warnings,
+        listed_days=listed_days,
+        listed_descents=listed_descents,
     )

@@ -203,8 +203,7 @@ def build_season_report(
                       "grain mm", "items", "descents"], day_rows)))  # fmt: skip
     return render_html(
         "Season comparison",
-        f"{res.days} day{'s' * (res.days != 1)}, {res.descents} descents, by {by}, "
-        f"against {res.reference}",
+        f"{res.counts()}, by {by}, against {res.reference}",
         sections,
     )
 

@@ -170,7 +170,9 @@ def day_effects(
     from station.model.season import DayEffects
 
     s, f, it, cv = schema.sessions, schema.day_fits, schema.items, schema.item_covariance
+    d = schema.descents
     left_out: list[str] = []
+    single: dict[str, list[str]] = {}  # item → the days it had one valid descent on
     out: list[DayEffects] = []
     with store.reading() as conn:
         conds = day_conditions(conn)
@@ -184,6 +186,17 @@ def day_effects(
         covs: dict[str, list[Any]] = {}
         for r in conn.execute(sa.select(cv).where(cv.c.grouping == by)):
             covs.setdefault(r.session_id, []).append(r)
+        # the descents a day fit could take (as collect() chooses them): an item with one of
+        # them on a day is not among its items, and was left out without a word
+        label = d.c.item if by == "item" else d.c[by]
+        valid = (
+            sa.select(d.c.session_id, label.label("label"))
+            .where(d.c.invalid_reason == "", d.c.status.in_(("ok", "ill-conditioned")))
+            .where(d.c.photocells_used >= 3)
+        )
+        tested: dict[str, set[str]] = {}
+        for r in conn.execute(valid):
+            tested.setdefault(r.session_id, set()).add(r.label.strip() or f"(no {by})")
     for sid, name in names.items():
         cond = conds.get(sid, dict.fromkeys(schema.CONDITIONS))
         if where and not all(w.holds(cond.get(w.key)) for w in where):
@@ -199,6 +212,8 @@ def day_effects(
                 f" ({fit.message})" if fit.message else ""))  # fmt: skip
             continue
         rows = items.get(sid, [])
+        for x in tested.get(sid, set()) - {r.item for r in rows}:
+            single.setdefault(x, []).append(name)
         if len(rows) < 2:
             continue
         k = len(rows)
@@ -216,6 +231,14 @@ def day_effects(
                 descents=tuple(r.descents for r in rows),
                 conditions=numeric,
             )
+        )
+    kept = {x for day in out for x in day.items}
+    gone = sorted(x for x in single if x not in kept)
+    if gone:
+        on = "; ".join(f"{x} on {', '.join(single[x])}" for x in gone)
+        left_out.append(
+            f"{len(gone)} {by}(s) with one valid descent a day, too few to compare ({on}): "
+            "one descent's glide cannot be told from its posture"
         )
     named = {names[sid]: cond for sid, cond in conds.items() if sid in names}
     return out, left_out, named
