@@ -107,3 +107,30 @@ def test_only_broken_sessions_is_exit_status_2_and_no_sessions_is_0(recorded, tm
     shutil.rmtree(bad)
     r = sessions(folder)
     assert r.returncode == 0 and "no sessions" in r.stdout
+
+
+def test_an_imported_session_is_listed_by_its_test_day_not_by_the_import(
+    tmp_path, demo_track, run_station
+):
+    """A download imported days later was listed as started at the import (its raw log's first
+    record): now by its first descent's start, the import's time said beside it."""
+    import datetime as dt
+
+    from tests.test_memory_import import _alge_capture
+    from tests.timing_helpers import write_config
+
+    cfg = write_config(tmp_path, "/dev/null")
+    cap = _alge_capture(tmp_path / "day.txt", demo_track, 36_000)
+    folder = tmp_path / "sessions"
+    r = run_station("import", cap, "--config", cfg, "--session-dir", folder / "imp",
+                    "--date", "2026-01-12")  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    today = dt.date.today().isoformat()
+    r = sessions(folder, "--json")
+    assert r.returncode == 0, r.stderr
+    (row,) = json.loads(r.stdout)
+    assert row["started"] == "2026-01-12 10:00", row
+    assert row["imported"].startswith(today), row
+    r = sessions(folder)
+    line = r.stdout.splitlines()[1]
+    assert "2026-01-12 10:00" in line and f"imported {today}" in line, r.stdout

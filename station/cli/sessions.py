@@ -51,12 +51,43 @@ class SessionSummary:
     items: tuple[str, ...]
     status: SessionStatus
     problem: str = ""  # why a broken session cannot be read; "" for the others
+    #: when ``station import`` made it (its raw log's first record), "" for a recorded one:
+    #: ``started`` is then its first descent's start, the test day, not the day of the import
+    imported: str = ""
 
     def to_json(self) -> dict[str, Any]:
         out = asdict(self) | {"items": list(self.items)}
         if not self.problem:
             del out["problem"]  # the listing of a readable session is as it was
+        if not self.imported:
+            del out["imported"]
         return out
+
+
+def _made_by_import(raw: str) -> bool:
+    """Whether the raw log's header says ``station import`` wrote it (port "import FILE"):
+    its records' host times are the import's, not the test day's."""
+    import json
+
+    from station.files import open_regular
+
+    try:
+        with open_regular(raw, MAX_RAWLOG, "raw log") as fh:
+            first = json.loads(fh.readline(64 * 1024))
+        port = first["detail"]["port"] if first.get("event") == "session" else ""
+    except (InputError, OSError, ValueError, KeyError, TypeError, AttributeError):
+        return False
+    return isinstance(port, str) and port.startswith("import ")
+
+
+def _minute(iso: str) -> str:
+    """'2026-01-12 10:00' of a results CSV's start time (ISO 8601 local), "" if it is none."""
+    import datetime as dt
+
+    try:
+        return dt.datetime.fromisoformat(iso).strftime("%Y-%m-%d %H:%M")
+    except (TypeError, ValueError):
+        return ""
 
 
 def session_status(session: Any, has_results: bool) -> SessionStatus:
@@ -93,9 +124,15 @@ def summarise(path: str) -> SessionSummary:
         if r.descent_status != "aborted" and it not in items:
             items.append(it)
     has_results = os.path.lexists(session.file(sessions.RESULTS))
+    started, imported = session.started(), ""
+    if _made_by_import(session.file(sessions.RAW)):
+        first = next((m for m in map(_minute, (r.start_time for r in rows)) if m), "")
+        if first:
+            started, imported = first, started
     return SessionSummary(
         path=path,
-        started=session.started(),
+        started=started,
+        imported=imported,
         descents=sum(r.descent_status != "aborted" for r in rows),
         fitted=sum(r.status == "ok" and not r.invalid_reason for r in rows),
         invalid=sum(bool(r.invalid_reason) for r in rows),
@@ -154,6 +191,8 @@ def cmd_sessions(args: argparse.Namespace) -> int:
         items = "; ".join(s.items) or "—"
         if s.problem:
             items = s.problem
+        if s.imported:
+            items += f"  (imported {s.imported})"
         print(f"{s.path:<{width}}  {s.started or '—':<16}  {s.descents:>8}  {s.fitted:>3}  "
               f"{s.invalid:>5}  {s.status:<11}  {items}")  # fmt: skip
     return status

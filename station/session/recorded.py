@@ -71,6 +71,7 @@ class SessionRow:
     ski: str
     wax: str
     invalid_reason: str
+    start_time: str = ""  # ISO 8601 local, as the CSV has it (an import's day is its descents')
 
 
 def sha256_of(path: str, max_bytes: int, what: str) -> str:
@@ -239,7 +240,8 @@ class RecordedSession:
                 meta = day.metadata_for(n)
                 ski, wax, invalid = meta.ski, meta.wax, day.invalid.get(n, "")
             out.append(SessionRow(n, _text(r.get("descent_status")), _text(r.get("status")),
-                                  _text(ski), _text(wax), _text(invalid)))  # fmt: skip
+                                  _text(ski), _text(wax), _text(invalid),
+                                  _text(r.get("start_time"))))  # fmt: skip
         return out
 
     def descent_numbers(self) -> list[int]:
