@@ -252,3 +252,15 @@ def test_names_drawn_in_pictures_are_never_read_as_math():
     for name in ("wax $x_1$", "pair $\\frac$ b", "$5 and $10"):
         shown, is_math = Text(text=_plain(name))._preprocess_math(_plain(name))
         assert not is_math and shown == name, (name, shown)
+
+
+def test_the_page_names_the_session_by_its_folder_not_its_absolute_path(tmp_path, run_station):
+    """The page is mailed: the session's metadata gave /home/…/sessions/NAME, a path of this
+    machine that means nothing to the reader (and tells what it need not)."""
+    session = make_session(tmp_path, order="AB", annotate=False)
+    r = run_station("report", session, "--out", tmp_path / "o")
+    assert r.returncode == 0, r.stderr
+    page = (tmp_path / "o" / "session.html").read_text()
+    meta = _sections(page)["provenance"]
+    assert f"<td>session</td><td>{session.name}</td>" in meta.replace("\n", ""), meta[:2000]
+    assert str(tmp_path) not in page

@@ -796,7 +796,10 @@ def _comparison_section(day: DayData, colours: dict[str, str], format_comparison
 
 
 def _provenance_section(day: DayData) -> Section:
-    meta = [("session", os.path.abspath(day.session)), ("recording began", day.recorded or "—"),
+    # the folder's name, not its absolute path: the page is mailed, and this machine's folders
+    # mean nothing to its reader (abspath first: "." and "s/" have their name too)
+    name = os.path.basename(os.path.abspath(day.session))
+    meta = [("session", name), ("recording began", day.recorded or "—"),
             ("station version", __version__)]  # fmt: skip
     meta += [(k, v) for k, v in day.header.items()]
     meta.append(("timer data", day.summary))
