@@ -255,3 +255,22 @@ def test_demo_and_live_refuse_an_existing_session_in_one_line(tmp_path, run_stat
             f"station: error: {session}: a session is already recorded there; "
             "choose a new --session-dir\n"
         )
+
+
+def test_the_demo_session_records_the_port_it_opened(tmp_path):
+    """The demo's raw log began with port /tmp/station-timer (the bundled config's) while the
+    demo read a pty of its own behind a temporary link: the first record names the link now,
+    as the 'connected' record after it does, and the current reader reads it."""
+    from station.cli.terminal import demo_config
+    from station.session.acquisition import Acquisition
+    from station.session.rawlog import read_rawlog
+    from station.session.store import load_session_config
+
+    link = str(tmp_path / "station-demo-x" / "timer")
+    cfg = demo_config(link)
+    assert cfg.serial.port == link and f"port: {link}" in cfg.text
+    acq = Acquisition.open(cfg, session_dir=str(tmp_path / "s"))
+    acq.close()
+    first = next(iter(read_rawlog(str(tmp_path / "s" / "raw.jsonl"))))
+    assert first.event == "session" and link in str(first.detail), first
+    assert load_session_config(str(tmp_path / "s")).serial.port == link  # the session's copy

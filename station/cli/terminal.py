@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import random
+import re
 import sys
 import tempfile
 from importlib.resources import files
@@ -42,20 +43,34 @@ def demo_config_path() -> str:
     return str(files("surveys") / "demo_station.yaml")
 
 
+def demo_config(link: str) -> Any:
+    """The demo config with its port the simulated timer's pty (``link``, made when the demo
+    starts): the session's copy of the config, and so its raw log's first record, then name the
+    port the demo opened, not the bundled config's ``/tmp/station-timer``, which it never did."""
+    from dataclasses import replace
+
+    from station.session.config import load_config
+
+    cfg = load_config(demo_config_path())
+    # the session's config is a copy of the text: the port is changed there too (the bundled
+    # file's shape is tested: tests/test_cli.py)
+    text = re.sub(r"(?m)^(\s+port:\s*)\S+", lambda m: m.group(1) + link, cfg.text, count=1)
+    return replace(cfg, text=text, serial=replace(cfg.serial, port=link))
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     # here, not at the top: the UI, numpy and scipy (see station/cli/tui.py and recording.py)
     from station.cli.tui import require_terminal, run_ui
     from station.session import store as sessions
-    from station.session.config import load_config
     from station.ui.app import StationApp
 
-    cfg = load_config(demo_config_path())
     folder = args.session_dir or sessions.default_dir("sessions").replace(
         os.sep + "20", os.sep + "demo-20", 1
     )
     sessions.check_new(folder)  # said in one line here, not as a traceback inside the UI
     require_terminal("demo", "the simulated timer alone: station-sim")
     link = os.path.join(tempfile.mkdtemp(prefix="station-demo-"), "timer")
+    cfg = demo_config(link)
     # the simulated timer runs as a process of its own, as a real timer would
     sim = [
         sys.executable, "-m", "simulators.timer", "--survey", cfg.survey_path, "--link", link,
