@@ -182,7 +182,14 @@ class Timer:
         return text.encode("ascii") + LINE_END[p]
 
     def download(self) -> bytes:
-        """A TAG memory download (``#DL``): DS, every impulse as AN with its bib, DE."""
+        """A TAG memory download (``#DL``): DS, every impulse as AN with its bib, DE; an ALGE
+        timer's memory as its dump sends it (``RSM``): every impulse again, flagged ``m``."""
+        if self.args.protocol == "alge":
+            return b"".join(
+                format_alge(ch, tod_us, bib or n, flag="m", checksum=self.args.checksum).encode()
+                + LINE_END["alge"]
+                for ch, tod_us, bib, n in self.memory
+            )
 
         def frame(data: str) -> bytes:
             return f"{data}\t{tag_cs16(data)}".encode("ascii") + LINE_END["tag"]
@@ -405,7 +412,7 @@ def run(args: argparse.Namespace) -> int:
                     print("station-sim: plugged in again", file=sys.stderr, flush=True)
         if replug_at is not None:
             port.plug()  # back in for the end of the day
-        if args.download_to and args.protocol == "tag":
+        if args.download_to and args.protocol in ("tag", "alge"):
             # the timer's memory saved by its own download program, for `station import`
             with open(args.download_to, "wb") as fh:
                 fh.write(timer.download())
@@ -495,7 +502,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument(
         "--download-to",
         metavar="FILE",
-        help="TAG: write the memory download (DS, AN …, DE) to FILE at the end",
+        help="TAG and ALGE: write the memory download (TAG: DS, AN …, DE; ALGE: every "
+        "impulse again, flagged m) to FILE at the end",
     )
     ap.add_argument(
         "--wait-reader",

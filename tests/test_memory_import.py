@@ -1060,3 +1060,41 @@ def test_a_lost_download_end_is_told_by_the_first_live_time_and_said(tmp_path, d
     assert d.number == 2 and d.status == "complete" and len(d.photocells) == 9, d
     assert "joined: PC3 recorded live, PC4 on from the timer's memory" in d.flags, d.flags
     assert not any(f.startswith("reopened: ") for f in d.flags)
+
+
+def test_an_alge_timers_memory_dump_joins_the_descent_an_unplugged_cable_cut(
+    tmp_path, run_station
+):
+    """As the CP540's above, with an ALGE timer: the simulator's --download-to wrote nothing
+    for ALGE (TAG only), so the README's recipe had no ALGE file to import. Its dump sends
+    every impulse again, flagged m; merged, descent 2 is whole and said joined."""
+    import subprocess
+
+    from tests.conftest import station_cmd
+    from tests.timing_helpers import start_sim
+
+    memory = tmp_path / "alge-memory.txt"
+    sim, port, _truth = start_sim(
+        tmp_path, "--speed", "10", "--descents", "3", "--interval", "40", "--first-after", "2",
+        "--hold", "1", "--seed", "7", "--unplug-during", "2:4", "--disconnect-s", "2",
+        "--download-to", str(memory),
+    )  # fmt: skip
+    cfg = write_config(tmp_path, port, extra="descent: {timeout_s: 15}\n")
+    session = tmp_path / "s"
+    try:
+        rec = subprocess.run(
+            [*station_cmd(), "record", "--config", str(cfg), "--session-dir", str(session),
+             "--max-descents", "3"],
+            capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+    finally:
+        sim.communicate(timeout=60)
+    assert rec.returncode == 0, rec.stderr
+    lines = memory.read_bytes().decode().split("\r")[:-1]
+    assert len(lines) == 27 and all(x.startswith("m") for x in lines), lines[:3]
+    r = run_station("import", memory, "--config", cfg, "--into", session)
+    assert r.returncode == 0, r.stderr
+    assert "22 already in the session, 5 added" in r.stderr
+    assert "descent 2: joined: PC4 recorded live, PC5 on from the timer's memory" in r.stderr
+    df = pd.read_csv(session / "results.csv", comment="#")
+    assert list(df["photocells_used"]) == [9, 9, 9] and list(df["status"]) == ["ok"] * 3
