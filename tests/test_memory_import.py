@@ -1062,9 +1062,7 @@ def test_a_lost_download_end_is_told_by_the_first_live_time_and_said(tmp_path, d
     assert not any(f.startswith("reopened: ") for f in d.flags)
 
 
-def test_an_alge_timers_memory_dump_joins_the_descent_an_unplugged_cable_cut(
-    tmp_path, run_station
-):
+def test_an_alge_timers_memory_dump_joins_the_descent_an_unplugged_cable_cut(tmp_path, run_station):
     """As the CP540's above, with an ALGE timer: the simulator's --download-to wrote nothing
     for ALGE (TAG only), so the README's recipe had no ALGE file to import. Its dump sends
     every impulse again, flagged m; merged, descent 2 is whole and said joined."""
