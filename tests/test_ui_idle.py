@@ -251,3 +251,40 @@ def test_a_descents_last_impulse_is_drawn_with_its_fit(tmp_path, demo_track, mon
         assert first[2] == 1, "the last impulse was drawn before its fit"
     else:  # no fit within HOLD_S: drawn without it, not held until it came
         assert first[2] == 0 and first[0] - start < fit_s
+
+
+@pytest.mark.parametrize("where", ["handler", "quitting"])
+def test_python_gets_its_collector_back_when_the_app_raises(tmp_path, monkeypatch, where):
+    """An exception inside the app (a handler), or while it quits (a port that raises as it
+    closes): Python's thresholds come back, and the objects frozen at the start are again
+    the collector's (a process that goes on, as a test run does, collected none of them)."""
+    from station.session.acquisition import Acquisition
+    from station.session.config import load_config
+    from station.ui.app import StationApp
+    from tests.timing_helpers import write_config
+
+    saved = gc.get_threshold()
+    monkeypatch.setattr(Acquisition, "start_serial", lambda self, serial=None: None)
+    if where == "quitting":
+
+        def unplugged(self) -> None:
+            raise OSError("the port went away as it closed")
+
+        monkeypatch.setattr(Acquisition, "stop", unplugged)
+    app = StationApp(load_config(str(write_config(tmp_path, "loop://"))), mode="live")
+
+    def boom() -> None:
+        raise RuntimeError("a handler failed")
+
+    async def run() -> None:
+        async with app.run_test(size=(80, 24)) as pilot:
+            await wait_for(pilot, lambda: app.acq is not None)
+            assert gc.get_threshold()[2] == NEVER
+            if where == "handler":
+                app.call_later(boom)
+            await pilot.pause(0.3)
+
+    with pytest.raises((RuntimeError, OSError)):
+        asyncio.run(run())
+    assert gc.get_threshold() == saved
+    assert gc.get_freeze_count() == 0, "the app's objects stayed out of the collector's reach"
