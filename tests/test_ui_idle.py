@@ -288,3 +288,39 @@ def test_python_gets_its_collector_back_when_the_app_raises(tmp_path, monkeypatc
         asyncio.run(run())
     assert gc.get_threshold() == saved
     assert gc.get_freeze_count() == 0, "the app's objects stayed out of the collector's reach"
+
+
+def test_a_new_theme_is_drawn_in_the_table():
+    """A theme that changes the cursor's and the header's colours but not the table's
+    background: the table draws it (its kept lines were keyed by the background alone)."""
+    import dataclasses
+
+    from textual.theme import BUILTIN_THEMES
+
+    async def run() -> tuple:
+        app = OneTable()
+        dark = BUILTIN_THEMES["textual-dark"]
+        app.register_theme(
+            dataclasses.replace(dark, name="red", primary="#ff0000", accent="#00ff00")
+        )
+        async with app.run_test(size=(80, 24)) as pilot:
+            table = app.query_one(ResultsTable)
+            table.add_column("n", key="n", width=4)
+            table.add_column("mu", key="mu", width=8)
+            for i in range(5):
+                table.add_row(f"{i:>4}", f"{i / 1e3:8.5f}", key=str(i))
+            await pilot.pause(0.2)
+
+            def lines() -> list:
+                return [list(table.render_line(y)) for y in range(4)]
+
+            before = lines()
+            app.theme = "red"
+            await pilot.pause(0.3)
+            shown = lines()
+            table._clear_caches()  # everything drawn afresh
+            return before, shown, lines()
+
+    before, shown, fresh = asyncio.run(run())
+    assert fresh != before  # the theme does change what the table shows
+    assert shown == fresh
