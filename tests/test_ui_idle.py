@@ -324,3 +324,46 @@ def test_a_new_theme_is_drawn_in_the_table():
     before, shown, fresh = asyncio.run(run())
     assert fresh != before  # the theme does change what the table shows
     assert shown == fresh
+
+
+def test_a_warning_comes_after_the_impulses_held_before_it(tmp_path, demo_track, monkeypatch):
+    """A warning that arrives while a descent's last impulse waits for its fit is written
+    after that impulse in the log, not before it: the log is read top to bottom."""
+    import time
+
+    from station.session.acquisition import Acquisition
+    from station.session.analysis import Analyser
+    from station.session.config import load_config
+    from station.session.rawlog import Chunk
+    from station.ui.app import StationApp
+    from station.ui.messages import AcquisitionWarning
+    from tests.timing_helpers import write_config
+
+    fit = Analyser.run
+
+    def slow_fit(self, job):
+        time.sleep(0.15)
+        return fit(self, job)
+
+    monkeypatch.setattr(Analyser, "run", slow_fit)
+    monkeypatch.setattr(Acquisition, "start_serial", lambda self, serial=None: None)
+    app = StationApp(load_config(str(write_config(tmp_path, "loop://"))), mode="live")
+    lines = descent_lines(demo_track, 1)
+    last = f"C{len(lines) - 1}→"
+
+    async def run() -> list[str]:
+        async with app.run_test(size=(120, 40)) as pilot:
+            await wait_for(pilot, lambda: app.acq is not None)
+            for line in lines[:-1]:
+                app.acq.receive(Chunk(time.time(), line))
+            await wait_for(pilot, lambda: app._fit_imminent())
+            app.acq.receive(Chunk(time.time(), lines[-1]))
+            app.post_message(AcquisitionWarning("something after the last impulse"))
+            await wait_for(pilot, lambda: app.main.query_one("#table").row_count == 1)
+            await pilot.pause(0.4)
+            return [line.text for line in app.main.query_one("#log").lines]
+
+    log = asyncio.run(run())
+    impulse = next(i for i, text in enumerate(log) if last in text)
+    warning = next(i for i, text in enumerate(log) if "something after" in text)
+    assert impulse < warning, log

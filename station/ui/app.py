@@ -588,6 +588,8 @@ class StationApp(App):
         )
 
     def on_acquisition_warning(self, msg: AcquisitionWarning) -> None:
+        # what came before it and waits for a fit, first: the log is read top to bottom
+        self._release()
         self.problem = msg.text
         self._update_status()
         self.main.query_one("#log", RichLog).write(f"! {msg.text}")
