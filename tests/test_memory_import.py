@@ -202,6 +202,36 @@ def test_an_import_is_dated_by_the_test_day_not_by_today(tmp_path, demo_track, r
     assert r.returncode == 2 and "--date is for a new session" in r.stderr
 
 
+def test_a_tag_download_says_it_is_dated_by_the_timer_not_by_the_file(
+    tmp_path, demo_track, run_station
+):
+    """TAG dates its impulses (day counter): the descents get the timer's day whatever the
+    file's date or --date, and the message says so; it said "dated <file's date> by the
+    file's date; give --date …", a date the descents did not get and an option that does
+    nothing for them."""
+    import datetime as dt
+    import os
+
+    cfg = write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)
+    memory = tmp_path / "download.txt"
+    memory.write_text(_download(demo_track, 2), newline="")
+    t_file = dt.datetime(2026, 3, 9, 18, 30).timestamp()
+    os.utime(memory, (t_file, t_file))
+    r = run_station("import", memory, "--config", cfg, "--session-dir", tmp_path / "a")
+    assert r.returncode == 0, r.stderr
+    assert "by the file's date" not in r.stderr, r.stderr
+    assert "dated 2026-01-04 by the timer's own day counter" in r.stderr, r.stderr
+    assert "2026-03-09" in r.stderr  # the date not used is named
+    df = pd.read_csv(tmp_path / "a" / "results.csv", comment="#")
+    assert all(s.startswith("2026-01-04T") for s in df["start_time"])
+    r = run_station("import", memory, "--config", cfg, "--session-dir", tmp_path / "b",
+                    "--date", "2026-01-12")  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert "dated 2026-01-04 by the timer's own day counter (--date 2026-01-12 not used)" in (
+        r.stderr
+    )
+
+
 # -- a descent split between the live log and the timer's memory (the cable came out during it)
 
 

@@ -73,6 +73,14 @@ def test_one_picture_per_section_and_what_they_show(report):
     assert len(re.findall(r"<tr><td>\d+</td><td>2026-02-02 ", prov)) == 8  # every descent
 
 
+def test_the_comparison_describes_the_model_it_fitted(report):
+    """The day model has a posture random effect and a time offset per descent: the page says
+    so and gives the scatter, as the terminal does (it once said "one CdA per skier" only)."""
+    cmp = _sections(report)["comparison"].split("<details>")[0]  # not the terminal's copy
+    assert "varies by the posture scatter" in cmp and "time offset" in cmp
+    assert re.search(r"Posture scatter \(CdA between descents of a skier\): \d+\.\d\d %", cmp)
+
+
 def test_user_text_is_escaped(report):
     prov = _sections(report)["provenance"]
     assert "&lt;script&gt;alert(1)&lt;/script&gt; &amp; more" in prov

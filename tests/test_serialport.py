@@ -155,3 +155,44 @@ def test_second_recorder_exits_2_with_one_line_and_makes_no_session(tmp_path):
         first.wait(30)
         sim.kill()  # it sleeps until its next impulse; nothing to save
         sim.wait(30)
+
+
+@pytest.mark.slow  # a simulated timer on a pty, in real time
+def test_an_open_descent_times_out_while_the_timer_is_unplugged(tmp_path):
+    """The cable comes out during descent 2 and stays out: the descent is ended by its time-out
+    on the host clock (not left open until the timer returns, which may be never), so
+    ``--max-descents 2`` ends the recording, and the session replays to the same CSV."""
+    import pandas as pd
+
+    sim, port, _ = start_sim(
+        tmp_path, "--speed", "10", "--descents", "2", "--interval", "40", "--first-after", "1",
+        "--hold", "0", "--seed", "3", "--unplug-during", "2:4", "--disconnect-s", "90",
+    )  # fmt: skip
+    # 6 s of the device clock (longer than any gap between photocells at 10× speed), judged by
+    # the host's clock while the port is away
+    cfg = write_config(tmp_path, port, extra="descent: {timeout_s: 6}\n")
+    session = tmp_path / "s"
+    try:
+        began = time.monotonic()
+        rec = subprocess.run(
+            [*station_cmd(), "record", "--config", str(cfg), "--session-dir", str(session),
+             "--max-descents", "2"],
+            capture_output=True, text=True, timeout=60,
+        )  # fmt: skip
+        took = time.monotonic() - began
+    finally:
+        sim.kill()  # the cable is still out: nothing more to send
+        sim.wait(30)
+    assert rec.returncode == 0, rec.stderr
+    assert took < 50, took  # well before the timer's return at 90 s
+    live = pd.read_csv(session / "results.csv", comment="#")
+    assert list(live["photocells_used"]) == [9, 4], live
+    assert "no impulse for" in live.loc[1, "flags"], live.loc[1, "flags"]
+    assert "the recording ended" not in live.loc[1, "flags"]
+    out = tmp_path / "replayed.csv"
+    r = subprocess.run(
+        [*station_cmd(), "replay", str(session), "--csv", str(out)],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert out.read_bytes() == (session / "results.csv").read_bytes()

@@ -49,7 +49,21 @@ def cmd_import(args: argparse.Namespace) -> int:
         joined = next((f for f in res.row.flags if f.startswith(JOINED)), None)
         if joined is not None and res.number in mine:
             print(f"descent {res.number}: {joined}", file=sys.stderr)
-    if report.dated is not None and not args.date:
+    results = run.results()
+    if not args.into and results and all(r.descent.day is not None for r in results):
+        # a timer that dates its impulses (TAG's day counter) is believed over --date and the
+        # file's date: say which date the descents got, not the one that was not used
+        days = sorted({r.row.start_time[:10] for r in results if r.row.start_time})
+        unused = (
+            f"--date {args.date}"
+            if args.date
+            else f"the file's date {report.dated.isoformat()}"
+            if report.dated
+            else ""
+        )
+        print(f"dated {', '.join(days)} by the timer's own day counter"
+              + (f" ({unused} not used)" if unused else ""), file=sys.stderr)  # fmt: skip
+    elif report.dated is not None and not args.date:
         print(f"dated {report.dated.isoformat()} by the file's date; give --date YYYY-MM-DD when "
               "the test day was another", file=sys.stderr)  # fmt: skip
     print(day_summary(run), file=sys.stderr)

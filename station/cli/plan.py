@@ -198,7 +198,7 @@ def format_plan(
     lines.append(
         f"assumed: {a.mass_kg:g} kg, air {a.air_density:.3f} kg/m³, CdA {a.cda:.3f} m², "
         f"v0 {a.v0:.1f} m/s, μ {a.mu:.4f}, timer {a.timer_sd_s * 1e3:.2f} ms, posture scatter "
-        f"{a.posture_sd * 100:.2f} % ({posture_source}), drift {a.drift_per_hour:g} per hour"
+        f"{a.posture_sd * 100:.2f} % ({posture_source}), drift {a.drift_per_hour:.4g} per hour"
         + ("" if drift_source in ("given", "default") else f" ({drift_source})")
     )
     return "\n".join(lines)

@@ -516,6 +516,7 @@ h2 { font-size: 1.25em; border-bottom: 2px solid #ddd; padding-bottom: 0.2em; ma
 .sub { color: #666; margin-top: 0; font-size: 0.9em; }
 img { max-width: 100%; height: auto; display: block; margin: 0.8em 0; }
 table { border-collapse: collapse; font-size: 0.88em; margin: 0.8em 0; }
+section { overflow-x: auto; }  /* a table of long item names scrolls, not the whole page */
 th, td { border-bottom: 1px solid #e2e2e2; padding: 0.25em 0.7em; text-align: left;
          vertical-align: top; }
 th { background: #f4f4f4; }
@@ -765,11 +766,21 @@ def _comparison_section(day: DayData, colours: dict[str, str], format_comparison
                     " (fixed)") for g, e in res.cda.items())  # fmt: skip
     notes = "".join(f"<p class='warn'>{_e(w)}</p>" for w in res.warnings)
     left_out = "".join(f"<li>descent {n}: {_e(why)}</li>" for n, why in res.excluded)
+    # the model as it is fitted (compare.py): each descent's drag area varies about its
+    # skier's by the posture scatter, and each descent has its own v0 and time offset
+    posture = f"{res.posture_sd * 100:.2f} %"
+    if res.posture_ci90:
+        posture += f" [{res.posture_ci90[0] * 100:.2f}, {res.posture_ci90[1] * 100:.2f}] %"
+    elif res.posture_sd < 1e-3:
+        posture += " (none seen beyond the timing noise)"
     intro = (
-        f"<p>Joint fit of {len(day.compared)} descents: one μ per item, one CdA per skier, one v0 "
-        f"per descent{', and a drift of μ over the day' if res.drift_per_hour else ''}; "
+        f"<p>Joint fit of {len(day.compared)} descents: one μ per item, one CdA per skier about "
+        "which each descent's drag area varies by the posture scatter, one v0 and one time "
+        f"offset at the first photocell per descent"
+        f"{', and a drift of μ over the day' if res.drift_per_hour else ''}; "
         f"{res.dof} degrees of freedom, timing residual {res.sigma_s * 1000:.2f} ms, "
-        f"status {_e(res.status)}.</p><p>Drift of μ: {_e(drift)}. CdA: {cda}.</p>{notes}"
+        f"status {_e(res.status)}.</p><p>Drift of μ: {_e(drift)}. CdA: {cda}. Posture scatter "
+        f"(CdA between descents of a skier): {_e(posture)}.</p>{notes}"
     )
     mu_head = f"μ at {_hhmm(t_ref)}" if res.drift_per_hour and t_ref is not None else "μ"
     after = _table(["rank", "item", "descents", mu_head, "90 % interval",

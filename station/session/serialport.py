@@ -175,7 +175,7 @@ def _cmdline(pid: int) -> str:
 
 class SerialReader(threading.Thread):
     """Reads until stopped; ``on_chunk(t, data)``, ``on_event(t, event, detail)``, and
-    ``on_idle(t)`` after every read (for time-outs).
+    ``on_idle(t)`` after every read and every retry while the port is away (for time-outs).
 
     If the port is held by another process when the reader starts, the reader ends at once with
     ``error`` set to :class:`PortBusy`; if it is taken while the timer was unplugged, that is
@@ -222,6 +222,7 @@ class SerialReader(threading.Thread):
                     if not reported:
                         self.on_event(time.time(), "open-failed", str(exc))
                         reported = True
+                    self._idle()
                     self._stop_event.wait(self.retry_s)
                     continue
                 except (serial.SerialException, OSError, ValueError) as exc:
@@ -229,6 +230,7 @@ class SerialReader(threading.Thread):
                         self.on_event(time.time(), "open-failed", str(exc))
                         first = False
                         reported = True
+                    self._idle()
                     self._stop_event.wait(self.retry_s)
                     continue
                 self.connected = True
@@ -253,3 +255,11 @@ class SerialReader(threading.Thread):
                 self.on_idle(now)
         if port is not None:
             port.close()
+
+    def _idle(self) -> None:
+        """While the port is away, the host clock still ends a descent whose time-out passed:
+        a skier is off the run whether the cable is in or not. Without it an open descent
+        stayed open for as long as the timer was unplugged (for ever at the end of a day), and
+        ``station record --max-descents N`` never ended."""
+        if self.on_idle is not None:
+            self.on_idle(time.time())
