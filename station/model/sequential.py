@@ -49,7 +49,10 @@ which match the fit's. So
 - "decided" when the interval excludes 0 (the item with the lower μ is faster),
 - "equivalent" when it lies within ±margin (two one-sided tests, Schuirmann 1987), and
 - "undecided" otherwise, with about how many more descents per item would decide at today's
-  scatter (the current estimate and standard error, projected to a larger day).
+  scatter (the current estimate and standard error, projected to a larger day), and always
+  when the comparison carries a caveat (its difference cannot be told from the day's drift,
+  or the joint fit is poor): an interval the fit does not trust decides nothing. This only
+  ever turns "decided" into "undecided", so the error rates measured below can only fall.
 
 Beyond the horizon there is no α left to spend: the last boundary is kept, which is what a
 fixed day of that length would use, and the decision says so (``beyond_horizon``).
