@@ -123,7 +123,8 @@ def table_columns(width: int) -> list[Column]:
 #: statuses in the narrow table (the help explains them; the result panel says them in full)
 SHORT_STATUS = {
     "ok": "ok", "ill-conditioned": "ill", "lift-off": "lift", "stopped": "stop",
-    "too-few-photocells": "few", "not-converged": "nc", "aborted": "abort", "error": "ERR",
+    "too-few-photocells": "few", "not-converged": "nc", "poor-fit": "poor", "aborted": "abort",
+    "error": "ERR", "invalid": "INV",
 }  # fmt: skip
 
 
