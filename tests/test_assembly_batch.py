@@ -163,12 +163,11 @@ def test_real_captures_the_same_every_way(real, configs, demo_track, name, proto
         assert got["lines"][0] > 10  # (the classement print-out has no impulse)
 
 
-def test_a_clean_day_goes_through_the_batch(configs, demo_track, run_times, monkeypatch):
-    """Not correct and useless: on a day of one skier at a time every impulse but the first
-    (it states the timer's resolution) and the second (it decides the pairing) is taken by the
-    batch. (The real ALGE days have two or three skiers on the run at once most of the time:
-    the general path's.)"""
-    taken = []
+@pytest.fixture
+def batch_taken(monkeypatch):
+    """How many impulses each call of the assembler's batch took (the batch counted, not
+    changed)."""
+    taken: list[int] = []
     real_run = DescentAssembler.feed_run
 
     def counted(self, items, start, line):
@@ -177,8 +176,22 @@ def test_a_clean_day_goes_through_the_batch(configs, demo_track, run_times, monk
         return stop, done, started
 
     monkeypatch.setattr(DescentAssembler, "feed_run", counted)
-    lines = [format_alge(f"C{i}", 36_000_000_000 + k * 60_000_000 + int(ti * 1e6), 9 * k + i + 1)
-             for k in range(50) for i, ti in enumerate(run_times)]  # fmt: skip
+    return taken
+
+
+def clean_day(run_times):
+    """50 descents of one skier at a time, a minute apart, every photocell: the batch's case."""
+    return [format_alge(f"C{i}", 36_000_000_000 + k * 60_000_000 + int(ti * 1e6), 9 * k + i + 1)
+            for k in range(50) for i, ti in enumerate(run_times)]  # fmt: skip
+
+
+def test_a_clean_day_goes_through_the_batch(configs, demo_track, run_times, batch_taken):
+    """Not correct and useless: on a day of one skier at a time every impulse but the first
+    (it states the timer's resolution) and the second (it decides the pairing) is taken by the
+    batch. (The real ALGE days have two or three skiers on the run at once most of the time:
+    the general path's.)"""
+    taken = batch_taken
+    lines = clean_day(run_times)
     proc = Processor(configs("alge"), demo_track)
     data = ("\r".join(lines) + "\r").encode()
     done = []
@@ -540,18 +553,9 @@ def test_mutated_sessions_the_same_every_way(configs, demo_track, run_times, see
     all_ways_session(configs("alge", None, pairing), demo_track, session_chunks(lines, seed))
 
 
-def test_a_clean_session_goes_through_the_batch(configs, demo_track, run_times, monkeypatch):
-    taken = []
-    real_run = DescentAssembler.feed_run
-
-    def counted(self, items, start, line):
-        stop, done, started = real_run(self, items, start, line)
-        taken.append(stop - start)
-        return stop, done, started
-
-    monkeypatch.setattr(DescentAssembler, "feed_run", counted)
-    lines = [format_alge(f"C{i}", 36_000_000_000 + k * 60_000_000 + int(ti * 1e6), 9 * k + i + 1)
-             for k in range(50) for i, ti in enumerate(run_times)]  # fmt: skip
+def test_a_clean_session_goes_through_the_batch(configs, demo_track, run_times, batch_taken):
+    taken = batch_taken
+    lines = clean_day(run_times)
     host = 1_767_600_000.0
     chunks = [Chunk(host + 36_000 + k * 60 + ti + 0.01, (line + "\r").encode())
               for line, (k, ti) in zip(lines, [(k, ti) for k in range(50) for ti in run_times],

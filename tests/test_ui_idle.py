@@ -251,3 +251,119 @@ def test_a_descents_last_impulse_is_drawn_with_its_fit(tmp_path, demo_track, mon
         assert first[2] == 1, "the last impulse was drawn before its fit"
     else:  # no fit within HOLD_S: drawn without it, not held until it came
         assert first[2] == 0 and first[0] - start < fit_s
+
+
+@pytest.mark.parametrize("where", ["handler", "quitting"])
+def test_python_gets_its_collector_back_when_the_app_raises(tmp_path, monkeypatch, where):
+    """An exception inside the app (a handler), or while it quits (a port that raises as it
+    closes): Python's thresholds come back, and the objects frozen at the start are again
+    the collector's (a process that goes on, as a test run does, collected none of them)."""
+    from station.session.acquisition import Acquisition
+    from station.session.config import load_config
+    from station.ui.app import StationApp
+    from tests.timing_helpers import write_config
+
+    saved = gc.get_threshold()
+    monkeypatch.setattr(Acquisition, "start_serial", lambda self, serial=None: None)
+    if where == "quitting":
+
+        def unplugged(self) -> None:
+            raise OSError("the port went away as it closed")
+
+        monkeypatch.setattr(Acquisition, "stop", unplugged)
+    app = StationApp(load_config(str(write_config(tmp_path, "loop://"))), mode="live")
+
+    def boom() -> None:
+        raise RuntimeError("a handler failed")
+
+    async def run() -> None:
+        async with app.run_test(size=(80, 24)) as pilot:
+            await wait_for(pilot, lambda: app.acq is not None)
+            assert gc.get_threshold()[2] == NEVER
+            if where == "handler":
+                app.call_later(boom)
+            await pilot.pause(0.3)
+
+    with pytest.raises((RuntimeError, OSError)):
+        asyncio.run(run())
+    assert gc.get_threshold() == saved
+    assert gc.get_freeze_count() == 0, "the app's objects stayed out of the collector's reach"
+
+
+def test_a_new_theme_is_drawn_in_the_table():
+    """A theme that changes the cursor's and the header's colours but not the table's
+    background: the table draws it (its kept lines were keyed by the background alone)."""
+    import dataclasses
+
+    from textual.theme import BUILTIN_THEMES
+
+    async def run() -> tuple:
+        app = OneTable()
+        dark = BUILTIN_THEMES["textual-dark"]
+        app.register_theme(
+            dataclasses.replace(dark, name="red", primary="#ff0000", accent="#00ff00")
+        )
+        async with app.run_test(size=(80, 24)) as pilot:
+            table = app.query_one(ResultsTable)
+            table.add_column("n", key="n", width=4)
+            table.add_column("mu", key="mu", width=8)
+            for i in range(5):
+                table.add_row(f"{i:>4}", f"{i / 1e3:8.5f}", key=str(i))
+            await pilot.pause(0.2)
+
+            def lines() -> list:
+                return [list(table.render_line(y)) for y in range(4)]
+
+            before = lines()
+            app.theme = "red"
+            await pilot.pause(0.3)
+            shown = lines()
+            table._clear_caches()  # everything drawn afresh
+            return before, shown, lines()
+
+    before, shown, fresh = asyncio.run(run())
+    assert fresh != before  # the theme does change what the table shows
+    assert shown == fresh
+
+
+def test_a_warning_comes_after_the_impulses_held_before_it(tmp_path, demo_track, monkeypatch):
+    """A warning that arrives while a descent's last impulse waits for its fit is written
+    after that impulse in the log, not before it: the log is read top to bottom."""
+    import time
+
+    from station.session.acquisition import Acquisition
+    from station.session.analysis import Analyser
+    from station.session.config import load_config
+    from station.session.rawlog import Chunk
+    from station.ui.app import StationApp
+    from station.ui.messages import AcquisitionWarning
+    from tests.timing_helpers import write_config
+
+    fit = Analyser.run
+
+    def slow_fit(self, job):
+        time.sleep(0.15)
+        return fit(self, job)
+
+    monkeypatch.setattr(Analyser, "run", slow_fit)
+    monkeypatch.setattr(Acquisition, "start_serial", lambda self, serial=None: None)
+    app = StationApp(load_config(str(write_config(tmp_path, "loop://"))), mode="live")
+    lines = descent_lines(demo_track, 1)
+    last = f"C{len(lines) - 1}→"
+
+    async def run() -> list[str]:
+        async with app.run_test(size=(120, 40)) as pilot:
+            await wait_for(pilot, lambda: app.acq is not None)
+            for line in lines[:-1]:
+                app.acq.receive(Chunk(time.time(), line))
+            await wait_for(pilot, lambda: app._fit_imminent())
+            app.acq.receive(Chunk(time.time(), lines[-1]))
+            app.post_message(AcquisitionWarning("something after the last impulse"))
+            await wait_for(pilot, lambda: app.main.query_one("#table").row_count == 1)
+            await pilot.pause(0.4)
+            return [line.text for line in app.main.query_one("#log").lines]
+
+    log = asyncio.run(run())
+    impulse = next(i for i, text in enumerate(log) if last in text)
+    warning = next(i for i, text in enumerate(log) if "something after" in text)
+    assert impulse < warning, log

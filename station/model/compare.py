@@ -148,6 +148,15 @@ class Comparison:
     delta_t_s: float  # time a takes minus time b takes over the run
     dof: float | None = None  # of the Student t the interval is equivalent to (sequential)
     note: str = ""
+    #: whether the run order tells the day's drift from this pair's difference (the items
+    #: interleave in time and Δμ is not nearly a multiple of the drift): a pair is judged on
+    #: its own, so an item skied once at the end does not make A vs B "not separable"
+    drift_separable: bool = True
+    #: why the interval is not to be trusted for a decision ("": nothing known against it):
+    #: the drift cannot be told from this difference, or the joint fit is poor or did not
+    #: converge. The sequential decision reads it (station.model.sequential), so the
+    #: console, the UI, ``station compare`` and the report give one answer.
+    caveat: str = ""
 
 
 @dataclass(frozen=True)
@@ -254,6 +263,8 @@ class JointResult:
                     "delta_t_s": c.delta_t_s,
                     "dof": c.dof,
                     "note": c.note,
+                    "drift_separable": c.drift_separable,
+                    "caveat": c.caveat,
                 }
                 for c in self.comparisons
             ],
@@ -926,7 +937,8 @@ def _joint_fit(
         cda_out[g] = Estimate(cda_fixed) if cda_fixed is not None else Estimate(
             float(glob[g_i]), inf.plugin_interval(g_i), float(inf.plugin_sd[g_i])
         )  # fmt: skip
-    drift_out, separable, warnings = _drift(data, lay, inf)
+    drift_out, apart, warnings = _drift(data, lay, inf)
+    separable = all(apart.values())
     gravities = sorted({d.gravity_ms2 for d in data})
     if gravities[-1] - gravities[0] > 1e-6:
         warnings.append(
@@ -956,6 +968,7 @@ def _joint_fit(
             )
         )
     status, message, chi2_p = _status(data, sol, inf, timer_sd_s)
+    comparisons = [_with_caveat(c, apart, status) for c in comparisons]
     base = day.base_cda(glob)
     loc = sol.loc
     effects = tuple(
@@ -999,29 +1012,37 @@ def _item_cov(lay: _Layout, inf: _Inference) -> tuple[tuple[float, ...], ...]:
 
 def _drift(data, lay: _Layout, inf: _Inference):
     """The drift of μ per hour with its interval (None: not fitted), whether the run order
-    separates it from the items, and the warnings about the design of the day."""
+    separates it from each comparable pair's difference (pair -> bool), and the warnings
+    about the design of the day.
+
+    Per pair, not per day: an item skied once, last, has a μ that the drift and its one
+    descent explain alike, yet A and B skied ABBA before it are told from the drift as well
+    as ever. A pair is not separable when its items do not overlap in time (AAABBB) or its
+    Δμ correlates with the drift beyond 0.9."""
     items, glob, cov, sd = lay.items, inf.centre, inf.cov, inf.sd
     warnings: list[str] = []
     drift_out = None
-    separable = True
     i_drift = lay.i_drift
+    comparable = [it for it in items if lay.counts[it] >= 2]
+    apart = {pair: True for pair in combinations(comparable, 2)}
     if lay.use_drift:
         drift_out = (float(glob[i_drift]), inf.interval(i_drift))
-        for ii in range(len(items)):
-            j = lay.i_mu + ii * lay.per_item
-            c = cov[j, i_drift] / (sd[j] * sd[i_drift]) if sd[j] > 0 and sd[i_drift] > 0 else 1.0
-            if abs(c) > 0.9:
-                separable = False
-        if len(items) >= 2:
-            spans = {it: [d.start_hours for d in data if d.item == it] for it in items}
-            for ia, ib in combinations(items, 2):
-                if max(spans[ia]) < min(spans[ib]) or max(spans[ib]) < min(spans[ia]):
-                    separable = False
-        if not separable:
+        spans = {it: [d.start_hours for d in data if d.item == it] for it in comparable}
+        for ia, ib in apart:
+            c = np.zeros(len(glob))
+            c[lay.mu_index(ia)], c[lay.mu_index(ib)] = 1.0, -1.0
+            sd_c = math.sqrt(max(float(c @ cov @ c), 0.0))
+            corr = float(c @ cov[:, i_drift]) / (sd_c * sd[i_drift]) if sd_c > 0 and sd[
+                i_drift] > 0 else 1.0  # fmt: skip
+            disjoint = max(spans[ia]) < min(spans[ib]) or max(spans[ib]) < min(spans[ia])
+            apart[(ia, ib)] = bool(not disjoint and abs(corr) <= 0.9)
+        tangled = [f"{a} and {b}" for (a, b), ok in apart.items() if not ok]
+        if tangled:
             warnings.append(
-                "the run order cannot separate drift from item (e.g. all of one item before the "
-                "other): the difference between items and the drift explain the times equally "
-                "well; interleave the items (ABBA) and repeat the reference through the day"
+                f"the run order cannot separate drift from item for {'; '.join(tangled)} (e.g. "
+                "all of one item before the other): the difference between the items and the "
+                "drift explain the times equally well; interleave the items (ABBA) and repeat "
+                "the reference through the day"
             )
     elif len(items) >= 2 and lay.drift != "off":
         warnings.append(
@@ -1029,13 +1050,37 @@ def _drift(data, lay: _Layout, inf: _Inference):
             "snow during the session would show as a difference between items"
         )
     single = [it for it in items if lay.counts[it] < 2]
-    if single:
+    if len(single) == 1:
         warnings.append(
-            f"{', '.join(single)}: one descent each, so no comparison is possible for "
-            f"{'it' if len(single) == 1 else 'them'}: one descent's glide cannot be told from "
-            "that descent's posture; ski every item at least twice (ABBA)"
+            f"{single[0]}: one descent, so no comparison is possible for it: one descent's "
+            "glide cannot be told from that descent's posture; ski every item at least twice "
+            "(ABBA)"
         )
-    return drift_out, separable, warnings
+    elif single:
+        warnings.append(
+            f"{', '.join(single)}: one descent each, so no comparison is possible for them: one "
+            "descent's glide cannot be told from that descent's posture; ski every item at "
+            "least twice (ABBA)"
+        )
+    return drift_out, apart, warnings
+
+
+def _with_caveat(
+    c: Comparison, apart: dict[tuple[str, str], bool], status: ComparisonStatus
+) -> Comparison:
+    """The comparison with its per-pair separability and why a decision on it is not to be
+    trusted (poor or unconverged fit, drift not separable), for the sequential decision."""
+    if c.ci90 is None:
+        return c
+    ok = apart.get((c.a, c.b), apart.get((c.b, c.a), True))
+    why = []
+    if status == ComparisonStatus.POOR_FIT:
+        why.append("the joint fit is a poor fit (its intervals are not to be trusted)")
+    elif status == ComparisonStatus.NOT_CONVERGED:
+        why.append("the joint fit did not converge")
+    if not ok:
+        why.append(f"the drift is not separable from {c.a} vs {c.b} (interleave them, ABBA)")
+    return replace(c, drift_separable=ok, caveat="; ".join(why))
 
 
 def _run_time(track: Track, day: _DayModel, data, cda_out: dict[str, Estimate], v0: float):
@@ -1134,6 +1179,16 @@ def _count(n: int, word: str) -> str:
     return f"{n} {word}{'s' * (n != 1)}"
 
 
+def chi2_p_words(p: float) -> str:
+    """``p = 0.36``, or ``p > 0.99`` / ``p < 0.001`` at the ends: two significant figures
+    round 0.996 up to "p = 1", which reads as a certainty no test gives."""
+    if p > 0.99:
+        return "p > 0.99"
+    if p < 1e-3:
+        return "p < 0.001"
+    return f"p = {p:.2g}"
+
+
 def format_comparison(res: JointResult, n_desc: int) -> str:
     """The comparison as the terminal shows it (CLI and UI)."""
     verdict = {
@@ -1145,7 +1200,7 @@ def format_comparison(res: JointResult, n_desc: int) -> str:
         f"joint fit of {_count(n_desc, 'descent')}, {_count(len(res.items), 'item')}, "
         f"{res.dof} dof, timing "
         f"residual {res.sigma_s * 1000:.2f} ms against a timer of {res.timer_sd_s * 1000:.2f} ms"
-        + (f" (χ² p = {res.chi2_p:.2g})" if res.chi2_p is not None else "")
+        + (f" (χ² {chi2_p_words(res.chi2_p)})" if res.chi2_p is not None else "")
         + f": {verdict[res.status]}"
     ]
     if res.message:

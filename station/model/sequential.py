@@ -49,7 +49,10 @@ which match the fit's. So
 - "decided" when the interval excludes 0 (the item with the lower μ is faster),
 - "equivalent" when it lies within ±margin (two one-sided tests, Schuirmann 1987), and
 - "undecided" otherwise, with about how many more descents per item would decide at today's
-  scatter (the current estimate and standard error, projected to a larger day).
+  scatter (the current estimate and standard error, projected to a larger day), and always
+  when the comparison carries a caveat (its difference cannot be told from the day's drift,
+  or the joint fit is poor): an interval the fit does not trust decides nothing. This only
+  ever turns "decided" into "undecided", so the error rates measured below can only fall.
 
 Beyond the horizon there is no α left to spend: the last boundary is kept, which is what a
 fixed day of that length would use, and the decision says so (``beyond_horizon``).
@@ -264,6 +267,9 @@ class Decision:
     horizon: int
     beyond_horizon: bool
     margin: float | None
+    #: why the pair is not decided whatever its interval says ("": nothing against it): the
+    #: comparison's caveat (drift not separable from the pair, a poor joint fit)
+    reason: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -276,6 +282,7 @@ class Decision:
             "horizon": self.horizon,
             "beyond_horizon": self.beyond_horizon,
             "margin": self.margin,
+            "reason": self.reason,
         }
 
     def line(self) -> str:
@@ -321,9 +328,15 @@ def decide(
     *,
     horizon: int = DEFAULT_HORIZON,
     margin: float | None = None,
+    caveat: str = "",
 ) -> Decision:
     """The decision on Δμ = μ_a − μ_b (estimate, standard error and degrees of freedom from
-    the day's joint fit) after the descents ``run_items`` (the item of each, in run order)."""
+    the day's joint fit) after the descents ``run_items`` (the item of each, in run order).
+
+    ``caveat`` (the comparison's: the drift cannot be told from this pair's difference, or
+    the joint fit is poor) makes the pair "undecided" whatever its interval says, with the
+    caveat as the reason: an interval the fit itself does not trust decides nothing, and
+    every caller (compare, the UI, record's console, the report) goes through here."""
     if horizon < 2:
         raise ValueError("the horizon is at least 2 descents per item")
     counts = pair_counts(run_items, a, b)
@@ -338,6 +351,9 @@ def decide(
     ct = _t_boundary(c, dof)
     lo, hi = delta_mu - ct * se, delta_mu + ct * se
     beyond = fr[-1] > 1.0
+    if caveat:
+        return Decision(a, b, "undecided", None, len(counts), None, delta_mu, (lo, hi), ct,
+                        horizon, beyond, margin, caveat)  # fmt: skip
     if lo > 0 or hi < 0:
         faster = a if delta_mu < 0 else b
         return Decision(a, b, "decided", faster, len(counts), None, delta_mu, (lo, hi), ct,
@@ -360,6 +376,8 @@ def describe(d: Decision) -> str:
         lo, hi = d.interval
         return (f"equivalent: Δμ {d.delta_mu:+.5f} [{lo:+.5f}, {hi:+.5f}] lies within "
                 f"±{d.margin:g}: no difference that matters")  # fmt: skip
+    if d.reason:
+        return f"not yet: {d.reason}"
     if d.interval is None:
         return "not yet: a comparison needs two descents of each item"
     if d.more_descents_per_item is None:
@@ -385,14 +403,15 @@ def day_decisions(
     margin: float | None = None,
 ) -> list[Decision]:
     """The decision on each of the joint fit's comparisons (``a``, ``b``, ``delta_mu``,
-    ``ci90``, ``dof``, as :class:`station.model.compare.Comparison` has them) after the
-    descents whose items are ``run_items``, in run order."""
+    ``ci90``, ``dof`` and ``caveat``, as :class:`station.model.compare.Comparison` has them)
+    after the descents whose items are ``run_items``, in run order."""
     out = []
     for c in comparisons:
         se = standard_error(c.ci90, c.dof) if c.ci90 is not None else None
         out.append(
-            decide(c.a, c.b, c.delta_mu, se, c.dof, run_items, horizon=horizon, margin=margin)
-        )
+            decide(c.a, c.b, c.delta_mu, se, c.dof, run_items, horizon=horizon,
+                   margin=margin, caveat=getattr(c, "caveat", ""))
+        )  # fmt: skip
     return out
 
 

@@ -628,15 +628,17 @@ class Verdict:
     html: str
 
 
-def verdicts(res) -> list[Verdict]:
+def verdicts(res, run_items: Sequence[str]) -> list[Verdict]:
     """One headline per item against the reference: which is faster, Δμ with its 90 %
     interval, the time it makes over the run, how sure, how many descents, decided or not.
-    Decided: the 90 % interval of Δμ excludes 0 and the joint fit is ok (a poor fit's or a
-    not separable drift's intervals are not to be trusted)."""
+    Decided or not is :func:`station.model.sequential.day_decisions`'s answer after the
+    descents ``run_items`` (their items in run order), the one ``station compare``, the UI
+    and the console give: a poor fit or a drift not separable from the pair decides nothing."""
+    from station.model.sequential import day_decisions, describe
+
     out: list[Verdict] = []
     by = {i.item: i for i in res.items}
     ref = res.reference
-    trusted = res.status == "ok" and (not res.drift_per_hour or res.drift_separable)
     for name in res.ranking:
         if name == ref:
             continue
@@ -665,19 +667,18 @@ def verdicts(res) -> list[Verdict]:
             f"run at v0 {res.typical_v0:.1f} m/s; P({_e(better)} faster) {sure}; "
             f"{len(it.descents)} descents of {_e(name)}, {n_ref} of {_e(ref)}"
         )
-        if (lo > 0 or hi < 0) and trusted:
+        decision = day_decisions([cmp], run_items)[0]
+        if decision.state == "decided":
             head = f"<b>{_e(better)}</b> glides better than <b>{_e(worse)}</b>"
-            tail = "<b>decided</b>: the 90 % interval excludes 0"
+            tail = ("<b>decided</b>: the 90 % interval excludes 0, widened for a look after "
+                    "every descent as station compare decides")  # fmt: skip
             kind = "decided"
         else:
             head = f"<b>{_e(better)}</b> ahead of <b>{_e(worse)}</b>"
-            if not trusted:
-                why = [f"the joint fit is {_e(res.status)}"] if res.status != "ok" else []
-                if res.drift_per_hour and not res.drift_separable:
-                    why.append("the drift is not separable from the items")
-                tail = f"<b>not decided</b>: {'; '.join(why)}"
-            else:
-                tail = "<b>not decided</b>: the 90 % interval includes 0; more descents needed"
+            why = describe(decision).removeprefix("not yet: ")
+            if not decision.reason and (lo > 0 or hi < 0):
+                why = f"the 90 % interval excludes 0 but not yet at this look's boundary; {why}"
+            tail = f"<b>not decided</b>: {_e(why)}"
             kind = "open"
         out.append(Verdict(kind, f"{head} <span class='numbers'>{numbers}</span>. {tail}."))
     if len(res.items) == 1:
@@ -706,7 +707,7 @@ def _verdict_section(day: DayData) -> Section:
         return Section("verdict", "Verdict",
                        f"<p class='err'>No comparison: {_e(day.comparison_error or 'no data')}"
                        ".</p>")  # fmt: skip
-    lines = verdicts(res)
+    lines = verdicts(res, [d.item for d in day.compared])
     items = "".join(f"<li class='{v.kind}'>{v.html}</li>" for v in lines)
     intro = f"<ul class='verdicts'>{items}</ul>"
     notes = []

@@ -1051,9 +1051,13 @@ class DescentAssembler:
         return self._accept(p_imp, p_line, p_t, None)
 
     def disconnected(self, detail: str = "") -> None:
-        """The connection to the timer broke: the open descents say so."""
+        """The connection to the timer broke: the open descents say so, once each and in a
+        few words (the raw log keeps the port's full message; a descent's flags are read in a
+        table cell, where pyserial's sentence, repeated at every reconnection, hid the rest)."""
+        flag = "timer disconnected" + (f" ({short_detail(detail)})" if detail else "")
         for d in self.open:
-            d.flags.append("timer disconnected" + (f" ({detail})" if detail else ""))
+            if flag not in d.flags:
+                d.flags.append(flag)
 
     def _kept_before(self, channel: str, t: int) -> bool:
         """``t`` is among the channel's older kept times (sorted)."""
@@ -1368,3 +1372,24 @@ class DescentAssembler:
                     f"{e.kind}: {pc} {when} {what} descent {d.number}"
                     + ("" if is_open else " (refitted)"), d.number)  # fmt: skip
         return [] if is_open else [d]
+
+
+#: the serial port's messages in a few words: pyserial's sentences for an unplugged adapter
+_SHORT_DETAILS = (
+    ("device reports readiness to read but returned no data", "no data: unplugged or in use"),
+    ("device disconnected or multiple access on port", "unplugged or in use"),
+)
+#: the most of a port's message a descent's flag carries
+DETAIL_CHARS = 40
+
+
+def short_detail(detail: str) -> str:
+    """The port's message in at most :data:`DETAIL_CHARS` characters for a descent's flag:
+    a known pyserial sentence in a few words, any other cut at its first parenthesis and, if
+    still long, with an ellipsis."""
+    text = " ".join(detail.split())
+    for long, short in _SHORT_DETAILS:
+        if long in text:
+            return short
+    head = text.split(" (", 1)[0].strip() or text
+    return head if len(head) <= DETAIL_CHARS else head[: DETAIL_CHARS - 1].rstrip() + "…"

@@ -123,7 +123,8 @@ def table_columns(width: int) -> list[Column]:
 #: statuses in the narrow table (the help explains them; the result panel says them in full)
 SHORT_STATUS = {
     "ok": "ok", "ill-conditioned": "ill", "lift-off": "lift", "stopped": "stop",
-    "too-few-photocells": "few", "not-converged": "nc", "aborted": "abort", "error": "ERR",
+    "too-few-photocells": "few", "not-converged": "nc", "poor-fit": "poor", "aborted": "abort",
+    "error": "ERR", "invalid": "INV",
 }  # fmt: skip
 
 
@@ -588,6 +589,8 @@ class StationApp(App):
         )
 
     def on_acquisition_warning(self, msg: AcquisitionWarning) -> None:
+        # what came before it and waits for a fit, first: the log is read top to bottom
+        self._release()
         self.problem = msg.text
         self._update_status()
         self.main.query_one("#log", RichLog).write(f"! {msg.text}")
@@ -806,15 +809,22 @@ class StationApp(App):
 
     def on_unmount(self) -> None:
         """Quitting ends the day as Ctrl-C ends ``station record``: the open descent is ended
-        and fitted, the results CSV written, the raw log closed."""
-        if self.acq is not None:
-            self.acq.stop()  # no more bytes: the simulator may go now
-        if self.sim is not None:
-            self.sim.terminate()  # it ends while the day is closed, not after
-        if self.acq is not None:
-            self.acq.close()
-        if self.comparer is not None:
-            self.comparer.close()
-        if self.sim is not None:
-            self.sim.stop(timeout=0.05)
+        and fitted, the results CSV written, the raw log closed.
+
+        Python's garbage collector is given back first: a failure below (a port that raises
+        as it closes) must not leave a process that goes on (a test, an embedding program)
+        with no full collection ever, nor the app's objects frozen out of its reach."""
         self.collector.stop()
+        gc.unfreeze()
+        try:
+            if self.acq is not None:
+                self.acq.stop()  # no more bytes: the simulator may go now
+            if self.sim is not None:
+                self.sim.terminate()  # it ends while the day is closed, not after
+            if self.acq is not None:
+                self.acq.close()
+        finally:  # the comparison's process and the simulator end whatever happened above
+            if self.comparer is not None:
+                self.comparer.close()
+            if self.sim is not None:
+                self.sim.stop(timeout=0.05)

@@ -42,7 +42,8 @@ HELP = """\
       residuals: computed − measured time per photocell · speed on the run
 [b]Table[/b]  st: ok · ill ill-conditioned (— where not identifiable) · lift
       lift-off · stop · few too few photocells · nc not converged · abort
-      · ERR the fit failed · INV marked invalid; v velocity model; ! flags
+      · poor residuals beyond the timer's precision · ERR the fit failed
+      · INV marked invalid; v velocity model; ! flags
 
 Every byte from the timer is recorded first: [i]station replay SESSION --ui[/i]"""
 

@@ -41,6 +41,15 @@ class ResultsTable(DataTable[str]):
         self._plain_lines.clear()
         self._reset_order()
 
+    def notify_style_update(self) -> None:
+        """A new theme or style: the lines and cells kept are forgotten. DataTable clears its
+        own caches here, not through ``_clear_caches``, and ours are keyed by the table's base
+        style, not by the cursor's or the header's: a theme that changes those but not the
+        table's background kept the old colours."""
+        super().notify_style_update()
+        self._plain_cells.clear()
+        self._plain_lines.clear()
+
     # -- rows in order, and the row on each line: extended as rows are added
 
     def _reset_order(self) -> None:
