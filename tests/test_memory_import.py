@@ -390,6 +390,7 @@ def test_a_descent_split_by_an_unplugged_cable_is_whole_after_the_memory_import(
     assert r.returncode == 0, r.stderr
     assert "27 impulses" in r.stderr and "22 already in the session, 5 added" in r.stderr
     assert "descent 2: joined: PC4 recorded live, PC5 on from the timer's memory" in r.stderr
+    assert "27 impulses (5 from the timer's memory), 0 edits" in r.stderr, r.stderr
     df = pd.read_csv(session / "results.csv", comment="#")
     assert list(df["descent"]) == [1, 2, 3]
     assert list(df["photocells_used"]) == [9, 9, 9] and list(df["status"]) == ["ok"] * 3
@@ -1094,5 +1095,7 @@ def test_an_alge_timers_memory_dump_joins_the_descent_an_unplugged_cable_cut(tmp
     assert r.returncode == 0, r.stderr
     assert "22 already in the session, 5 added" in r.stderr
     assert "descent 2: joined: PC4 recorded live, PC5 on from the timer's memory" in r.stderr
+    # the memory's m lines are impulses (laid out as edits): the summary counted them as edits
+    assert "27 impulses (5 from the timer's memory), 0 edits" in r.stderr, r.stderr
     df = pd.read_csv(session / "results.csv", comment="#")
     assert list(df["photocells_used"]) == [9, 9, 9] and list(df["status"]) == ["ok"] * 3

@@ -98,7 +98,7 @@ def _replay_no_fit(args: argparse.Namespace, cfg: Any) -> int:
     measure of the replay's own throughput (benchmarks/replay_speed.py)."""
     import gc
 
-    from station.report.text import count
+    from station.report.text import count, impulses_text
     from station.session.processor import Processor
     from station.session.replay import bulk_chunks, write_events
     from station.survey.load import load_survey
@@ -154,7 +154,7 @@ def _replay_no_fit(args: argparse.Namespace, cfg: Any) -> int:
     c = proc.line_counts()
     parts = ", ".join(f"{v} {k}" for k, v in sorted(by_status.items()))
     print(
-        f"{count(c.lines, 'line')}: {count(c.impulses, 'impulse')}, {count(c.edits, 'edit')}, "
+        f"{count(c.lines, 'line')}: {impulses_text(c)}, {count(c.edits, 'edit')}, "
         f"{count(c.skipped, 'other timer line')}, {c.unparsed} unparsed; "
         f"{count(len(ended), 'descent')}" + (f" ({parts})" if parts else "") + "; not fitted",
         file=sys.stderr,

@@ -59,6 +59,13 @@ def describe(res: DescentResult) -> str:
     return text + mark
 
 
+def impulses_text(counts: LineCounts) -> str:
+    """``N impulses`` and how many of them came from the timer's memory: an import's memory
+    lines (ALGE ``m``) are impulses, and were counted as edits."""
+    memory = f" ({counts.from_memory} from the timer's memory)" if counts.from_memory else ""
+    return count(counts.impulses, "impulse") + memory
+
+
 def summary(counts: LineCounts, results: Sequence[DescentResult]) -> str:
     """Lines by kind, descents by status."""
     st: dict[str, int] = {}
@@ -67,7 +74,7 @@ def summary(counts: LineCounts, results: Sequence[DescentResult]) -> str:
     parts = ", ".join(f"{v} {k}" for k, v in sorted(st.items()))
     invalid = sum(1 for r in results if r.row.invalid)
     return (
-        f"{count(counts.lines, 'line')}: {count(counts.impulses, 'impulse')}, "
+        f"{count(counts.lines, 'line')}: {impulses_text(counts)}, "
         f"{count(counts.edits, 'edit')}, {count(counts.skipped, 'other timer line')}, "
         f"{counts.unparsed} unparsed; "
         f"{count(len(results), 'descent')}"

@@ -37,7 +37,7 @@ from station.session.config import StationConfig
 from station.session.rawlog import RawLogWriter, read_rawlog
 from station.timing.assembly import JOINED
 from station.timing.framing import LineFramer
-from station.timing.impulses import DAY_US, Edit, Impulse
+from station.timing.impulses import DAY_US, MEMORY_REPEAT, Edit, Impulse
 from station.timing.wireformats import make_parser
 
 if TYPE_CHECKING:
@@ -83,7 +83,7 @@ def read_import(path: str) -> bytes:
 
 def _is_impulse(p) -> bool:
     """An impulse line, or an ALGE line repeated from the timer's memory (flag ``m``)."""
-    return isinstance(p, Impulse) or (isinstance(p, Edit) and p.kind == "repeated from memory")
+    return isinstance(p, Impulse) or (isinstance(p, Edit) and p.kind == MEMORY_REPEAT)
 
 
 def _identity(p: object) -> tuple[str, ...] | None:

@@ -22,7 +22,7 @@ from station.session.records import LineCounts
 from station.survey.track import Track
 from station.timing.assembly import DescentAssembler, ImpulseEvent, TimedDescent
 from station.timing.framing import LineFramer
-from station.timing.impulses import Edit, Impulse, Parsed, Skip, Unparsed
+from station.timing.impulses import MEMORY_REPEAT, Edit, Impulse, Parsed, Skip, Unparsed
 from station.timing.wireformats import make_parser
 
 #: unparsed lines listed (line, reason, first 100 characters): a day of line noise stays within
@@ -94,7 +94,7 @@ class Processor:
             pairing=config.descent.pairing,
         )
         self.lines = 0
-        self.counts: Counter[str] = Counter()  # edits, skipped and unparsed lines
+        self.counts: Counter[str] = Counter()  # edits, skipped, unparsed, memory impulses
         self.impulses = 0  # counted apart: one per impulse line, the common case
         self.unparsed: list[tuple[int, str, str]] = []  # line number, reason, text (first 100)
         self.connection: list[tuple[float, str, str]] = []
@@ -128,7 +128,17 @@ class Processor:
     def line_counts(self) -> LineCounts:
         """A snapshot of the counts, for the summary and the UI."""
         c = self.counts
-        return LineCounts(self.lines, self.impulses, c["edit"], c["skipped"], c["unparsed"])
+        return LineCounts(
+            self.lines, self.impulses, c["edit"], c["skipped"], c["unparsed"], c["memory"]
+        )
+
+    def _count_impulses(self, n: int) -> None:
+        """``n`` impulse lines; those that came while the timer's memory comes (a TAG
+        ``DS`` … ``DE``, an import) counted apart too: the summary says how many were the
+        memory's."""
+        self.impulses += n
+        if self.assembler.from_memory:
+            self.counts["memory"] += n
 
     def feed(self, chunk: Chunk) -> list[TimedDescent]:
         if chunk.event:
@@ -189,7 +199,7 @@ class Processor:
                     stop, ended, started = feed_run(parsed_lines, i, self.lines + 1)
                     if stop > i:
                         self.lines += stop - i
-                        self.impulses += stop - i
+                        self._count_impulses(stop - i)
                         for d in started:  # no host clock: each start undated, judged
                             start_host[d.number] = None
                             started_judged(d)
@@ -198,7 +208,7 @@ class Processor:
                         continue
                 # one the batch does not take, the general way
                 self.lines += 1
-                self.impulses += 1
+                self._count_impulses(1)
                 before = asm.count
                 ended = feed(parsed, self.lines, None)
                 if asm.count > before:  # no host clock: each start undated, judged
@@ -297,7 +307,7 @@ class Processor:
                 stop, ended, started = feed_run(parsed_lines, i, first)
                 if stop > i:
                     self.lines += stop - i
-                    self.impulses += stop - i
+                    self._count_impulses(stop - i)
                     clock = asm.clock
                     assert clock is not None  # (the batch keeps impulses only with a clock)
                     if asm.from_memory:  # (the memory's times are not the timer's now)
@@ -328,7 +338,7 @@ class Processor:
         if self.download_line is not None and isinstance(parsed, Impulse | Edit):
             self._live_after_download(parsed)
         if type(parsed) is Impulse:
-            self.impulses += 1
+            self._count_impulses(1)
             asm = self.assembler
             if self.resolution_us is None and parsed.channel in self._photocell_channels:
                 self.resolution_us = parsed.resolution_us
@@ -358,8 +368,14 @@ class Processor:
                 self._new_descents(before, done, t, judge=True)
             return done
         if isinstance(parsed, Edit):
-            self.counts["edit"] += 1
             asm = self.assembler
+            if parsed.kind == MEMORY_REPEAT:
+                # ALGE `m`: an impulse from the timer's memory, laid out as an edit; counted
+                # as the impulse it is (an import's summary called its memory lines edits)
+                self.impulses += 1
+                self.counts["memory"] += 1
+            else:
+                self.counts["edit"] += 1
             before = asm.count
             done = asm.edit(parsed, self.lines)
             self._recent.append((self.lines, t))

@@ -409,6 +409,8 @@ class LineCounts:
     edits: int = 0
     skipped: int = 0
     unparsed: int = 0
+    #: of the impulses, those from the timer's memory (an ALGE ``m`` line, a TAG download's)
+    from_memory: int = 0
 
 
 @dataclass(frozen=True)

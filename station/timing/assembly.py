@@ -50,7 +50,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
-from station.timing.impulses import DAMAGED_FLAG, DAY_US, Edit, Impulse, format_tod
+from station.timing.impulses import (
+    DAMAGED_FLAG,
+    DAY_US,
+    MEMORY_REPEAT,
+    Edit,
+    Impulse,
+    format_tod,
+)
 
 HALF_DAY_US = DAY_US // 2
 PAIRINGS = ("auto", "bib", "order")
@@ -1217,7 +1224,7 @@ class DescentAssembler:
             return self._remove(e, line, pc, bib)[0]
         if e.kind in ENTERING:
             return self._enter(e, line, pc, bib)
-        if e.kind == "repeated from memory":
+        if e.kind == MEMORY_REPEAT:
             # ALGE `m`: an impulse from the timer's memory (a download): kept unless it is
             # already (a live impulse the memory repeats is not doubled)
             held: list[TimedDescent] = []

@@ -41,6 +41,12 @@ class Edit(NamedTuple):
     day: int | None = None  # days since 2000-01-01 where the device says (TAG)
 
 
+#: the :attr:`Edit.kind` of a line that repeats an impulse from the timer's memory (ALGE
+#: ``m``): an impulse, not an edit (the assembler keeps it unless it is already; the counts
+#: call it an impulse)
+MEMORY_REPEAT = "repeated from memory"
+
+
 class Skip(NamedTuple):
     """A line the timer sends that is not an impulse (status, running time, print-out)."""
 

@@ -21,6 +21,7 @@ import re
 
 from station.timing.impulses import (
     DAMAGED_FLAG,
+    MEMORY_REPEAT,
     Edit,
     Impulse,
     Parsed,
@@ -106,7 +107,7 @@ ALGE_EDIT_FLAGS = {
     "C": "memory time deleted",
     "d": "disqualified",
     "i": "edited",
-    "m": "repeated from memory",
+    "m": MEMORY_REPEAT,
 }
 ALGE_STATUS_PREFIXES = (
     "TIMY:",
