@@ -247,3 +247,35 @@ def test_items_left_out_are_named_and_the_header_counts_what_is_listed(run_stati
     assert len(rows) == 4 and sum(int(ln.split()[6]) for ln in rows) == 12, lines
     left = [ln for ln in r.stderr.splitlines() if "pair E" in ln]
     assert len(left) == 1 and "one valid descent" in left[0], r.stderr
+
+
+def test_the_items_named_left_out_follow_the_day_fits_own_rule(run_station, tmp_path, monkeypatch):
+    """Which descents a day fit takes is one rule (compare's DAY_FIT_STATUSES and
+    DAY_FIT_MIN_PHOTOCELLS): `season compare` names the items left out by it, not by a copy of
+    it in the store's query that could drift apart. Changed, both the day's selection and the
+    names follow."""
+    from station.model import compare
+    from station.session import store as sessions
+    from station.session.acquisition import replay
+
+    base = tmp_path / "s"
+    mus = {"A": 0.020, "B": 0.021, "E": 0.020}
+    days = [
+        make_day(base, "d1", dt.date(2026, 2, 1), "ABBAE", mus, seed=1),
+        make_day(base, "d2", dt.date(2026, 2, 2), "ABBAE", mus, seed=2),
+    ]
+    store = str(tmp_path / "season.db")
+    assert run_station("season", "add", *days, "--store", store).returncode == 0
+    args = ("season", "compare", "--reference", "pair A", "--store", store)
+    r = run_station(*args)
+    assert r.returncode == 0, r.stderr
+    assert any("pair E" in ln and "one valid descent" in ln for ln in r.stderr.splitlines())
+    # a rule no descent of the demo run's 9 photocells meets: the day fit takes none, and E
+    # is no longer called one that had a valid descent (the query read the same constant)
+    monkeypatch.setattr(compare, "DAY_FIT_MIN_PHOTOCELLS", 10)
+    results = replay(str(days[0]), sessions.load_session_config(str(days[0]))).results()
+    inputs = compare.collect(results)
+    assert not inputs.data and len(inputs.excluded) == 5, inputs.excluded
+    assert all(why == "fewer than 10 photocells" for _, why in inputs.excluded)
+    r = run_station(*args)
+    assert not any("pair E" in ln for ln in r.stderr.splitlines()), r.stderr

@@ -1270,6 +1270,15 @@ def item_name(ski: str | None, wax: str | None) -> str:
     return ski or wax or "(no item)"
 
 
+#: the fit statuses of a descent that enters a day's comparison (:func:`collect`). One rule:
+#: the season store's query of the items a day fit could take (station.store.queries) reads
+#: it and :data:`DAY_FIT_MIN_PHOTOCELLS`, so the items `station season compare` names as left
+#: out are those the day fit left out, not a copy of its rule that could drift from it
+DAY_FIT_STATUSES: tuple[str, ...] = ("ok", "ill-conditioned")
+#: the fewest photocells of a descent that enters a day's comparison (two intervals)
+DAY_FIT_MIN_PHOTOCELLS = 3
+
+
 def collect(results: Iterable[Any], wind_limit_ms: float = 1.0) -> DayInputs:
     """The descents that enter the comparison, those left out (with why) and those flagged for
     wind, from a day's results (:class:`station.session.analysis.DescentResult`, in order)."""
@@ -1287,11 +1296,11 @@ def collect(results: Iterable[Any], wind_limit_ms: float = 1.0) -> DayInputs:
             why = "; ".join(row.flags[-1:]) if row.status == "error" else ""
             excluded.append((n, f"{row.status}: {why}" if why else str(row.status)))
             continue
-        if row.status not in ("ok", "ill-conditioned"):
+        if row.status not in DAY_FIT_STATUSES:
             excluded.append((n, str(row.status)))
             continue
-        if len(d.photocells) < 3:
-            excluded.append((n, "fewer than 3 photocells"))
+        if len(d.photocells) < DAY_FIT_MIN_PHOTOCELLS:
+            excluded.append((n, f"fewer than {DAY_FIT_MIN_PHOTOCELLS} photocells"))
             continue
         wind = float(row.wind_ms or 0.0)
         if abs(wind) > wind_limit_ms:

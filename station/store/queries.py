@@ -167,6 +167,7 @@ def day_effects(
 ) -> tuple[list[Any], list[str], dict[str, dict[str, Any]]]:
     """Each selected day's item effects for ``by`` (:class:`station.model.season.DayEffects`),
     the days left out with why, and every day's conditions (by session name)."""
+    from station.model.compare import DAY_FIT_MIN_PHOTOCELLS, DAY_FIT_STATUSES
     from station.model.season import DayEffects
 
     s, f, it, cv = schema.sessions, schema.day_fits, schema.items, schema.item_covariance
@@ -186,13 +187,13 @@ def day_effects(
         covs: dict[str, list[Any]] = {}
         for r in conn.execute(sa.select(cv).where(cv.c.grouping == by)):
             covs.setdefault(r.session_id, []).append(r)
-        # the descents a day fit could take (as collect() chooses them): an item with one of
-        # them on a day is not among its items, and was left out without a word
+        # the descents a day fit could take (collect()'s own rule, its constants): an item
+        # with one of them on a day is not among its items, and was left out without a word
         label = d.c.item if by == "item" else d.c[by]
         valid = (
             sa.select(d.c.session_id, label.label("label"))
-            .where(d.c.invalid_reason == "", d.c.status.in_(("ok", "ill-conditioned")))
-            .where(d.c.photocells_used >= 3)
+            .where(d.c.invalid_reason == "", d.c.status.in_(DAY_FIT_STATUSES))
+            .where(d.c.photocells_used >= DAY_FIT_MIN_PHOTOCELLS)
         )
         tested: dict[str, set[str]] = {}
         for r in conn.execute(valid):
