@@ -45,11 +45,13 @@ def cmd_import(args: argparse.Namespace) -> int:
     # the descents this download completed: said, not only flagged (not those an earlier
     # import joined: they are flagged still)
     mine = memory_import.joined_by_last_import(run.day.processor)
-    for res in run.results():
-        joined = next((f for f in res.row.flags if f.startswith(JOINED)), None)
-        if joined is not None and res.number in mine:
-            print(f"descent {res.number}: {joined}", file=sys.stderr)
     results = run.results()
+    for res in results:
+        if res.number not in mine:
+            continue
+        joined = next((f for f in res.row.flags if f.startswith(JOINED)), None)
+        if joined is not None:
+            print(f"descent {res.number}: {joined}", file=sys.stderr)
     if not args.into and results and all(r.descent.day is not None for r in results):
         # a timer that dates its impulses (TAG's day counter) is believed over --date and the
         # file's date: say which date the descents got, not the one that was not used

@@ -35,7 +35,7 @@ from station.files import read_bytes
 from station.session import store as sessions
 from station.session.config import StationConfig
 from station.session.rawlog import RawLogWriter, read_rawlog
-from station.timing.assembly import JOINED
+from station.timing.assembly import is_joined
 from station.timing.framing import LineFramer
 from station.timing.impulses import DAY_US, MEMORY_REPEAT, Edit, Impulse
 from station.timing.wireformats import make_parser
@@ -69,11 +69,7 @@ def joined_by_last_import(processor: Processor) -> set[int]:
     if since is None:
         return set()
     touched = {e.descent for e in processor.events if e.kept and e.line > since}
-    return {
-        d.number
-        for d in processor.assembler.finished
-        if d.number in touched and any(f.startswith(JOINED) for f in d.flags)
-    }
+    return {d.number for d in processor.assembler.finished if d.number in touched and is_joined(d)}
 
 
 def read_import(path: str) -> bytes:

@@ -157,8 +157,7 @@ class Processor:
                 return self._memory_follows(chunk.t, fresh_clock=True)
             if chunk.event == "disconnected":
                 self.assembler.disconnected(chunk.detail)
-                self.assembler.from_memory = False  # a download on the line ends with it
-                self.download_line = None
+                self._memory_ends()  # a download on the line ends with it
             return []
         lines = self.framer.feed(chunk.data)
         t: float | None = chunk.t  # None: a plain capture (replay_chunks)
@@ -389,8 +388,7 @@ class Processor:
                     done = self._memory_follows(t, fresh_clock=False)
                     self.download_line = self.lines
                     return done
-                self.assembler.from_memory = False
-                self.download_line = None
+                self._memory_ends()
         elif isinstance(parsed, Unparsed):
             self.counts["unparsed"] += 1
             # it may have been a skier's start: the assembler may start that descent later
@@ -403,6 +401,12 @@ class Processor:
                 )
         return []
 
+    def _memory_ends(self) -> None:
+        """The timer's memory is over (a ``DE``, a disconnect, a live time after a lost ``DE``):
+        the impulses that follow are live again, and no download is on the line."""
+        self.assembler.from_memory = False
+        self.download_line = None
+
     def _live_after_download(self, parsed: Impulse | Edit) -> None:
         """A time message while a download is on the line (:attr:`download_line`): a live
         one (``TN`` new time, ``T+``/``T-``/… an edit at the timer: THCOM08 sends the memory
@@ -413,8 +417,7 @@ class Processor:
         far past the download's last does not tell it: a day's memory has gaps of hours."""
         if parsed.line.lstrip("#")[:1] != "T" or not self.assembler.from_memory:
             return
-        self.download_line = None
-        self.assembler.from_memory = False
+        self._memory_ends()
         kind = parsed.line.lstrip("#")[:2]
         n = self.lines
         why = f"download end DE not seen; memory taken as ended at line {n} (a live {kind})"

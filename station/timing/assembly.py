@@ -132,6 +132,17 @@ _LISTS = ("photocells", "times_us", "flags", "missing", "channels")
 SEEN_RECENT = 64
 
 
+def is_joined(d: TimedDescent) -> bool:
+    """Whether ``d`` says it was joined (live crossings and the timer's memory in one)."""
+    return any(f.startswith(JOINED) for f in d.flags)
+
+
+def _live_then_memory(last: str, pc: str) -> str:
+    """The flag of a descent recorded live up to ``last`` and from the timer's memory on
+    from ``pc``: one wording whether the memory reopened it or continued it."""
+    return f"{JOINED}{last} recorded live, {pc} on from the timer's memory"
+
+
 @dataclass
 class _Damage:
     """A line the caller could not read: where it came in the device's time."""
@@ -875,7 +886,7 @@ class DescentAssembler:
                 del d.flags[i]
                 break
         d.missing = [p for p in d.missing if p not in tail]
-        if d.number in self._memory_starts and not any(f.startswith(JOINED) for f in d.flags):
+        if d.number in self._memory_starts and not is_joined(d):
             # begun in the memory and nothing live taken since: a tick while the download
             # came (a pause on the line, by the memory's clock) ended it, and the memory goes
             # on with it. It said "recorded live" here: the import listed it as joined
@@ -884,7 +895,7 @@ class DescentAssembler:
                 "those before (a time-out while the download came had ended it)"
             )
         else:
-            d.flags.append(f"{JOINED}{last} recorded live, {pc} on from the timer's memory")
+            d.flags.append(_live_then_memory(last, pc))
         d.status = "open"
         self.finished.remove(d)
         self._short.remove(d)
@@ -900,10 +911,10 @@ class DescentAssembler:
         to ``d``; "" otherwise (a descent from the memory, or one that says so already).
         Without it a descent the download continued in time said only "timer disconnected",
         while one it reopened (:meth:`_rejoin`) said it was joined."""
-        if d.number in self._memory_starts or any(f.startswith(JOINED) for f in d.flags):
+        if d.number in self._memory_starts or is_joined(d):
             return ""
         d.thaw()
-        flag = f"{JOINED}{d.photocells[-1]} recorded live, {pc} on from the timer's memory"
+        flag = _live_then_memory(d.photocells[-1], pc)
         d.flags.append(flag)
         return flag
 
