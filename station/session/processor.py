@@ -245,11 +245,8 @@ class Processor:
                     k, n = 0, len(got)
                     while k < n:  # runs of SESSION_RUN lines for the batch
                         room = SESSION_RUN - len(lines)
-                        if k == 0 and not lines and n <= room:
-                            lines, hosts = list(got), list(ends)
-                        else:
-                            lines += got[k : k + room]
-                            hosts += ends[k : k + room]
+                        lines += got[k : k + room]
+                        hosts += ends[k : k + room]
                         k += room
                         if len(lines) >= SESSION_RUN:
                             done += self._session_lines(lines, hosts)
