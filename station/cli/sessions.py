@@ -64,22 +64,6 @@ class SessionSummary:
         return out
 
 
-def _made_by_import(raw: str) -> bool:
-    """Whether the raw log's header says ``station import`` wrote it (port "import FILE"):
-    its records' host times are the import's, not the test day's."""
-    import json
-
-    from station.files import open_regular
-
-    try:
-        with open_regular(raw, MAX_RAWLOG, "raw log") as fh:
-            first = json.loads(fh.readline(64 * 1024))
-        port = first["detail"]["port"] if first.get("event") == "session" else ""
-    except (InputError, OSError, ValueError, KeyError, TypeError, AttributeError):
-        return False
-    return isinstance(port, str) and port.startswith("import ")
-
-
 def _minute(iso: str) -> str:
     """'2026-01-12 10:00' of a results CSV's start time (ISO 8601 local), "" if it is none."""
     import datetime as dt
@@ -124,8 +108,9 @@ def summarise(path: str) -> SessionSummary:
         if r.descent_status != "aborted" and it not in items:
             items.append(it)
     has_results = os.path.lexists(session.file(sessions.RESULTS))
-    started, imported = session.started(), ""
-    if _made_by_import(session.file(sessions.RAW)):
+    head = session.first_record()
+    started, imported = session.started(head), ""
+    if session.made_by_import(head):
         first = next((m for m in map(_minute, (r.start_time for r in rows)) if m), "")
         if first:
             started, imported = first, started

@@ -123,16 +123,37 @@ class RecordedSession:
     def recording_state(self) -> sessions.Recording:
         return sessions.recording_state(self.path)
 
-    def started(self) -> str:
-        """Local date and time of the first raw-log record, "" when it cannot be read: a
-        bounded read of a regular file (a FIFO or a link to a device is "")."""
+    def first_record(self) -> Any:
+        """The raw log's first record as JSON gives it (the session header), None when it
+        cannot be read: a bounded read of a regular file (a FIFO or a link to a device is
+        None)."""
         try:
             with open_regular(self.file(sessions.RAW), MAX_RAWLOG, "raw log") as fh:
-                first = fh.readline(64 * 1024)
-            t = float(json.loads(first)["t"])
+                return json.loads(fh.readline(64 * 1024))
+        except (InputError, OSError, ValueError):
+            return None
+
+    def started(self, first: Any = None) -> str:
+        """Local date and time of the first raw-log record (``first``, if read already), ""
+        when it cannot be read."""
+        if first is None:
+            first = self.first_record()
+        try:
+            t = float(first["t"])
             return dt.datetime.fromtimestamp(t).strftime("%Y-%m-%d %H:%M")
-        except (InputError, OSError, ValueError, KeyError, TypeError, OverflowError):
+        except (ValueError, KeyError, TypeError, OverflowError):
             return ""
+
+    def made_by_import(self, first: Any = None) -> bool:
+        """Whether the raw log's header says ``station import`` wrote it (port "import
+        FILE"): its records' host times are the import's, not the test day's."""
+        if first is None:
+            first = self.first_record()
+        try:
+            port = first["detail"]["port"] if first.get("event") == "session" else ""
+        except (KeyError, TypeError, AttributeError):
+            return False
+        return isinstance(port, str) and port.startswith("import ")
 
     def provenance(self) -> Provenance:
         """What the results are computed from (reads the raw log, config and survey)."""
