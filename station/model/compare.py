@@ -1050,16 +1050,11 @@ def _drift(data, lay: _Layout, inf: _Inference):
             "snow during the session would show as a difference between items"
         )
     single = [it for it in items if lay.counts[it] < 2]
-    if len(single) == 1:
+    if single:
+        each, it = ("", "it") if len(single) == 1 else (" each", "them")
         warnings.append(
-            f"{single[0]}: one descent, so no comparison is possible for it: one descent's "
-            "glide cannot be told from that descent's posture; ski every item at least twice "
-            "(ABBA)"
-        )
-    elif single:
-        warnings.append(
-            f"{', '.join(single)}: one descent each, so no comparison is possible for them: one "
-            "descent's glide cannot be told from that descent's posture; ski every item at "
+            f"{', '.join(single)}: one descent{each}, so no comparison is possible for {it}: "
+            "one descent's glide cannot be told from that descent's posture; ski every item at "
             "least twice (ABBA)"
         )
     return drift_out, apart, warnings
@@ -1189,6 +1184,17 @@ def chi2_p_words(p: float) -> str:
     return f"p = {p:.2g}"
 
 
+def posture_words(res: JointResult) -> str:
+    """The posture scatter as the text, the report and the UI say it: "1.08 % [0.69, 1.68] %",
+    or "0.00 % (none seen beyond the timing noise)" when no interval and below 0.1 %."""
+    words = f"{res.posture_sd * 100:.2f} %"
+    if res.posture_ci90:
+        return words + f" [{res.posture_ci90[0] * 100:.2f}, {res.posture_ci90[1] * 100:.2f}] %"
+    if res.posture_sd < 1e-3:
+        return words + " (none seen beyond the timing noise)"
+    return words
+
+
 def format_comparison(res: JointResult, n_desc: int) -> str:
     """The comparison as the terminal shows it (CLI and UI)."""
     verdict = {
@@ -1209,16 +1215,7 @@ def format_comparison(res: JointResult, n_desc: int) -> str:
         c = est.ci90
         rng = f"[{c[0]:.4f}, {c[1]:.4f}]" if c else "(fixed)"
         lines.append(f"  CdA {g}: {est.value:.4f} m² {rng} (mean over the skier's descents)")
-    pci = (
-        f" [{res.posture_ci90[0] * 100:.2f}, {res.posture_ci90[1] * 100:.2f}] %"
-        if res.posture_ci90
-        else ""
-    )
-    if not res.posture_ci90 and res.posture_sd < 1e-3:
-        pci = " (none seen beyond the timing noise)"
-    lines.append(
-        f"  posture scatter (CdA between descents of a skier): {res.posture_sd * 100:.2f} %{pci}"
-    )
+    lines.append(f"  posture scatter (CdA between descents of a skier): {posture_words(res)}")
     if res.drift_per_hour:
         d, (lo, hi) = res.drift_per_hour
         sep = "" if res.drift_separable else "  NOT SEPARABLE FROM ITEM"

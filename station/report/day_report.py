@@ -769,11 +769,9 @@ def _comparison_section(day: DayData, colours: dict[str, str], format_comparison
     left_out = "".join(f"<li>descent {n}: {_e(why)}</li>" for n, why in res.excluded)
     # the model as it is fitted (compare.py): each descent's drag area varies about its
     # skier's by the posture scatter, and each descent has its own v0 and time offset
-    posture = f"{res.posture_sd * 100:.2f} %"
-    if res.posture_ci90:
-        posture += f" [{res.posture_ci90[0] * 100:.2f}, {res.posture_ci90[1] * 100:.2f}] %"
-    elif res.posture_sd < 1e-3:
-        posture += " (none seen beyond the timing noise)"
+    from station.model.compare import posture_words
+
+    posture = posture_words(res)
     intro = (
         f"<p>Joint fit of {len(day.compared)} descents: one μ per item, one CdA per skier about "
         "which each descent's drag area varies by the posture scatter, one v0 and one time "
