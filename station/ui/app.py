@@ -284,8 +284,7 @@ class StationApp(App):
         #: drawn with the fit that is due (HOLD_S): the log's lines, the progress's text
         self._held_log: list[str] = []
         self._held_progress: str | None = None
-        self._holding = False
-        self._hold_timer: Any = None
+        self._hold_timer: Any = None  # set while lines are held (see _holding)
         self.photocell_ids: tuple[str, ...] = ()
         # what the messages brought: the UI's own snapshots of the day
         self.results: dict[int, DescentResult] = {}
@@ -453,23 +452,25 @@ class StationApp(App):
         if lines:  # one write: the log (500 lines at most) is drawn once for the chunk
             self.main.query_one("#log", RichLog).write("\n".join(lines))
 
+    @property
+    def _holding(self) -> bool:
+        """Whether lines are held for a fit: exactly while the timer that releases them runs."""
+        return self._hold_timer is not None
+
     def _hold(self, lines: list[str]) -> None:
         """The last impulse of a descent, and what comes with it, drawn with its fit: a frame
         of their own (the whole screen behind a dialog, ~6 ms at 120×40) took the UI's
         thread while the fit was being computed, and the fit's frame came after it."""
-        if not self._holding:
-            self._holding = True
+        if self._hold_timer is None:
             self._hold_timer = self.set_timer(HOLD_S, self._release)
         self._held_log += lines
 
     def _release(self) -> None:
         """What was held for the fit, drawn (with it, or HOLD_S later if none came)."""
-        if not self._holding:
+        timer, self._hold_timer = self._hold_timer, None
+        if timer is None:
             return
-        self._holding = False
-        if self._hold_timer is not None:
-            self._hold_timer.stop()
-            self._hold_timer = None
+        timer.stop()
         lines, self._held_log = self._held_log, []
         text, self._held_progress = self._held_progress, None
         self._update_status()
