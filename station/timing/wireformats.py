@@ -18,6 +18,7 @@ uses them, and the tests use them for round trips.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 
 from station.timing.impulses import (
     DAMAGED_FLAG,
@@ -97,6 +98,20 @@ _ALGE_CHANNEL = {
 
 def _frac(tod_us: int, decimals: int) -> str:
     return format_tod(tod_us, decimals)
+
+
+class _ParseEach:
+    """``parse_lines`` for a parser whose chunk is read a line at a time through its own
+    ``parse`` (TAG's and Racetime's; ALGE's has a loop of its own). Why a base: the two
+    parsers had the same method word for word, and a replay and the live path must read a
+    chunk alike for every protocol, so it is written once."""
+
+    parse: Callable[[str], Parsed]
+
+    def parse_lines(self, lines: list[str]) -> list[Parsed]:
+        """:meth:`parse` of each line, in order."""
+        parse = self.parse
+        return [parse(line) for line in lines]
 
 
 # ----------------------------------------------------------------------------- ALGE
@@ -309,7 +324,7 @@ TAG_IMPULSES = {"TN": "", "AN": "from memory"}
 _N4 = r"(?: {4}| {3}[0-9]| {2}[0-9]{2}| [0-9]{3}|[0-9]{4})"
 
 
-class TagParser:
+class TagParser(_ParseEach):
     """TAG Heuer THCOM08 (CP540/545, HL440/940/975): ``Tx NNNN SSSS CC HH:MM:SS.FFFFF DDDDD``.
 
     ``AN`` lines of a memory download (``DS`` … ``DE``) are impulses with their bib, laid out
@@ -344,11 +359,6 @@ class TagParser:
                 10, "" if bib else "?", bib, None if day is None else int(day), line,
             ))  # fmt: skip
         return self.parse_general(line)
-
-    def parse_lines(self, lines: list[str]) -> list[Parsed]:
-        """:meth:`parse` of each line, in order."""
-        parse = self.parse
-        return [parse(line) for line in lines]
 
     def parse_general(self, line: str) -> Parsed:
         """Any line, however damaged: what it is, or why it is nothing."""
@@ -403,7 +413,7 @@ def format_tag(
 # ----------------------------------------------------------------------------- Microgate
 
 
-class RacetimeParser:
+class RacetimeParser(_ParseEach):
     """Microgate Racetime2 ASCII record: ``QQQQSSSSRRRCCCLLLIOPHHMMSSttt`` (29 characters)."""
 
     name = "microgate"
@@ -423,11 +433,6 @@ class RacetimeParser:
                 1000, "", s[4:8].lstrip("0"), None, s,
             ))  # fmt: skip
         return self.parse_general(s)
-
-    def parse_lines(self, lines: list[str]) -> list[Parsed]:
-        """:meth:`parse` of each line, in order."""
-        parse = self.parse
-        return [parse(line) for line in lines]
 
     def parse_general(self, line: str) -> Parsed:
         """Any line, however damaged: what it is, or why it is nothing."""
