@@ -412,28 +412,13 @@ class DescentAssembler:
         the clock, no repeat, no double trigger of the descent that just ended): the descent
         starts, as :meth:`_accept` starts it. False, having changed nothing, otherwise."""
         mode = self.mode
-        clock = self._clock
-        if mode is None or clock is None or imp.day is not None:
+        if mode is None or imp.day is not None:
             return False
         ch, pc, _k, _step = fast
         tod = imp.tod_us
-        t = self._day_offset * DAY_US + tod  # the one unwrap (see _time)
-        if t < clock - HALF_DAY_US:
-            t += DAY_US
-        jump = self.jump_us
-        if not -jump <= t - clock <= jump:
+        t = self._fast_time(ch, pc, tod)
+        if t is None:
             return False
-        seen = self._seen.get(ch)
-        if (seen is not None and t in seen) or t <= self._old_max:
-            return False  # (a time as old as the sorted kept ones: the general path looks)
-        last_done = self._last_done
-        if (
-            last_done is not None
-            and last_done.photocells
-            and last_done.photocells[-1] == pc
-            and 0 <= t - last_done.times_us[-1] <= self.debounce_us
-        ):
-            return False  # a double trigger of the descent that just ended
         flag = imp.flag
         bib = "" if mode == "order" or flag == "?" else imp.bib.strip().lstrip("0")
         self.count += 1
@@ -441,18 +426,51 @@ class DescentAssembler:
         if self.from_memory:
             self._memory_starts.add(d.number)
         self.open.append(d)
-        if self._damaged:
-            self._move_clock(t)
-        else:
-            self._clock = t
-            self._day_offset = t // DAY_US
-        if seen is None:
-            seen = self._seen[ch] = set()
-        seen.add(t)
-        self.events.append(_new_event(ImpulseEvent, (line, ch, pc, tod, flag, True, "", d.number)))
+        self._fast_keep(line, ch, pc, tod, flag, t, d.number)
         if flag == DAMAGED_FLAG:
             _flag_damaged(d, imp, line)
         return True
+
+    def _fast_time(self, ch: str, pc: str, tod: int) -> int | None:
+        """The device time of an impulse at ``pc`` (channel ``ch``, ``tod`` its time of day)
+        that a fast path (:meth:`_start`, :meth:`_next_photocell`) may keep, or None where
+        the general path must look: no clock yet, the time far from the clock, a repeat of a
+        kept impulse or a time as old as the sorted kept ones, a double trigger of the
+        descent that just ended. One unwrap, as :meth:`_time` does it without a day counter.
+        Why one method: the two fast paths checked this line for line alike, and must go on
+        agreeing with each other and with :meth:`feed_run` (which has it inline: its loop is a
+        replay's every impulse)."""
+        clock = self._clock
+        if clock is None:
+            return None
+        t = self._day_offset * DAY_US + tod
+        if t < clock - HALF_DAY_US:
+            t += DAY_US
+        jump = self.jump_us
+        if not -jump <= t - clock <= jump:
+            return None
+        seen = self._seen.get(ch)
+        if (seen is not None and t in seen) or t <= self._old_max:
+            return None  # (a time as old as the sorted kept ones: the general path looks)
+        last_done = self._last_done
+        if (
+            last_done is not None
+            and last_done.photocells
+            and last_done.photocells[-1] == pc
+            and 0 <= t - last_done.times_us[-1] <= self.debounce_us
+        ):
+            return None  # a double trigger of the descent that just ended
+        return t
+
+    def _fast_keep(
+        self, line: int, ch: str, pc: str, tod: int, flag: str, t: int, number: int
+    ) -> None:
+        """What a fast path leaves for an impulse it kept (descent ``number``): the clock at its
+        time, the time kept against repeats, its event, as :meth:`_accept` leaves them; one
+        method for both fast paths, which had it word for word."""
+        self._move_clock(t)
+        self._keep(ch, t)
+        self.events.append(_new_event(ImpulseEvent, (line, ch, pc, tod, flag, True, "", number)))
 
     def _feed(self, imp: Impulse, line: int, now_us: int | None) -> list[TimedDescent]:
         """:meth:`feed`'s general path: every impulse the fast path does not take."""
@@ -514,31 +532,16 @@ class DescentAssembler:
                 return None
         elif mode != "order":
             return None
-        clock = self._clock
-        if clock is None or day is not None:
+        if day is not None:
             return None
         ch, pc, k, step_m = fast
-        t = self._day_offset * DAY_US + tod  # the one unwrap (see _time)
-        if t < clock - HALF_DAY_US:
-            t += DAY_US
-        jump = self.jump_us
-        if not -jump <= t - clock <= jump:
-            return None
         photocells = d.photocells
         j = k - 1
         if self.order[photocells[-1]] != j:
             return None
-        seen = self._seen.get(ch)
-        if (seen is not None and t in seen) or t <= self._old_max:
-            return None  # (a time as old as the sorted kept ones: the general path looks)
-        last_done = self._last_done
-        if (
-            last_done is not None
-            and last_done.photocells
-            and last_done.photocells[-1] == pc
-            and 0 <= t - last_done.times_us[-1] <= self.debounce_us
-        ):
-            return None  # a double trigger of the descent that just ended
+        t = self._fast_time(ch, pc, tod)
+        if t is None:
+            return None
         # what _why_not checks for the next photocell, in its words (no call: every impulse)
         times = d.times_us
         last = times[-1]
@@ -561,15 +564,7 @@ class DescentAssembler:
         photocells.append(pc)
         times.append(t)
         d.channels.append(ch)
-        if self._damaged:
-            self._move_clock(t)
-        else:
-            self._clock = t
-            self._day_offset = t // DAY_US
-        if seen is None:
-            seen = self._seen[ch] = set()
-        seen.add(t)
-        self.events.append(_new_event(ImpulseEvent, (line, ch, pc, tod, flag, True, "", d.number)))
+        self._fast_keep(line, ch, pc, tod, flag, t, d.number)
         if k != self._last_k:
             return []  # the descent goes on; it was updated now, so nothing times out
         self.open.clear()
