@@ -580,9 +580,19 @@ _EMPTY = ':""}\n'
 _RUN = re.compile(r'(?:\{"t":' + _NUM + r',"rx":"(?=[^"])' + _TXT + r'(?:\\r)?"\}\n)+').match
 
 
-def _run_of(t: list[float], rxs: list[str], one_line: bool) -> Lines:
-    """The run of the common records of host times ``t`` and texts ``rxs`` (the lines, when
-    ``one_line``; else as written)."""
+def _tails(text: str, a: int, b: int, n: int) -> tuple[list[str], bool]:
+    """The texts of the ``n`` lines ``text[a:b]`` as their tails give them, and whether each
+    ends in an escaped CR (then the tails give the lines themselves, without it). Why one
+    function: a block checked whole (:func:`_common_run`) and a run found by ``_RUN``
+    (:func:`_found_run`) must read their texts alike, and each had these lines."""
+    one_line = text.count(_ENDS_CR, a, b) == n
+    return (_TAIL_LINE if one_line else _TAIL)(text, a, b), one_line
+
+
+def _run_of(ts: list[str], rxs: list[str], one_line: bool) -> Lines:
+    """The run of the common records of host times ``ts`` (as written) and texts ``rxs``
+    (the lines, when ``one_line``; else as written)."""
+    t = list(map(float, ts))
     if one_line:
         return Lines(t, rxs, None, "")
     text = "".join(rxs)
@@ -609,23 +619,21 @@ def _common_run(text: str, a: int, b: int) -> Lines | int:
     ts = _HEAD(text, a - 1, b)
     if len(ts) != n:
         return max(1, n - len(ts))
-    one_line = text.count(_ENDS_CR, a, b) == n
-    rxs = (_TAIL_LINE if one_line else _TAIL)(text, a, b)
+    rxs, one_line = _tails(text, a, b, n)
     if len(rxs) != n:
         return max(1, n - len(rxs))
     if (17 if one_line else 15) * n + len("".join(ts)) + len("".join(rxs)) != b - a:
         return 1
     if not one_line and text.find(_EMPTY, a, b) >= 0:
         return 1
-    return _run_of(list(map(float, ts)), rxs, one_line)
+    return _run_of(ts, rxs, one_line)
 
 
 def _found_run(text: str, a: int, b: int) -> Lines:
     """The run of common records ``text[a:b]`` found by ``_RUN``: their heads and tails, one
     of each a line."""
-    one_line = text.count(_ENDS_CR, a, b) == text.count("\n", a, b)
-    rxs = (_TAIL_LINE if one_line else _TAIL)(text, a, b)
-    return _run_of(list(map(float, _HEAD(text, a - 1, b))), rxs, one_line)
+    rxs, one_line = _tails(text, a, b, text.count("\n", a, b))
+    return _run_of(_HEAD(text, a - 1, b), rxs, one_line)
 
 
 def read_rawlog_bulk(path: str, warnings: list[str] | None = None) -> Iterator[Chunk | Lines]:
