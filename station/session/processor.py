@@ -249,8 +249,7 @@ class Processor:
                         hosts += ends[k : k + room]
                         k += room
                         if len(lines) >= SESSION_RUN:
-                            done += self._session_lines(lines, hosts)
-                            lines, hosts = [], []
+                            done += self._hand_on(lines, hosts)
                     continue
             else:
                 group = (item,)
@@ -263,21 +262,27 @@ class Processor:
                         lines.append(got[0])
                         hosts.append(t)
                         if len(lines) >= SESSION_RUN:
-                            done += self._session_lines(lines, hosts)
-                            lines, hosts = [], []
+                            done += self._hand_on(lines, hosts)
                         continue
-                    if lines:
-                        done += self._session_lines(lines, hosts)
-                        lines, hosts = [], []
+                    done += self._hand_on(lines, hosts)
                     for line in got:  # as feed does with a chunk of several lines (or none)
                         done += self._line(line, t)
                     continue
-                if lines:
-                    done += self._session_lines(lines, hosts)
-                    lines, hosts = [], []
+                done += self._hand_on(lines, hosts)
                 done += self.feed(chunk)
-        if lines:
-            done += self._session_lines(lines, hosts)
+        done += self._hand_on(lines, hosts)
+        return done
+
+    def _hand_on(self, lines: list[str], hosts: list[float]) -> list[TimedDescent]:
+        """:meth:`_session_lines` of the batch :meth:`feed_chunks` gathered (nothing when it is
+        empty), the batch then emptied in place for the lines that follow. Why: the batch is
+        handed on when full, before a chunk of several lines, before any other chunk and at
+        the end, and each of the four places had these lines."""
+        if not lines:
+            return []
+        done = self._session_lines(lines, hosts)
+        lines.clear()
+        hosts.clear()
         return done
 
     def _session_lines(self, lines: list[str], hosts: list[float]) -> list[TimedDescent]:
