@@ -27,7 +27,7 @@ import defusedxml.ElementTree as DET  # type: ignore[import-untyped]
 from defusedxml import DefusedXmlException
 
 from station.errors import InputError
-from station.survey.polar import KnownPoint, Observation, ObservationSet, Setup
+from station.survey.polar import KnownPoint, Observation, ObservationSet, Setup, read_number
 from station.survey.topcon import packed_dms
 
 LINEAR = {
@@ -99,26 +99,20 @@ class _Reader:
         self.metres, self.angular = 1.0, "deg"
         self.points: dict[str, tuple[float, float, float]] = {}
 
-    def error(self, msg: str, elem: ET.Element, attr: str) -> InputError:
+    def where(self, elem: ET.Element, attr: str) -> tuple[int | None, str]:
+        """The line and field an error about ``elem``'s attribute ``attr`` names."""
         ident = elem.get("id") or elem.get("name") or ""
-        return InputError(
-            msg,
-            path=self.path,
-            line=self.lines.get(id(elem)),
-            field=f"{_local(elem.tag)}{' ' + ident if ident else ''} {attr}",
-        )
+        return self.lines.get(id(elem)), f"{_local(elem.tag)}{' ' + ident if ident else ''} {attr}"
+
+    def error(self, msg: str, elem: ET.Element, attr: str) -> InputError:
+        line, field = self.where(elem, attr)
+        return InputError(msg, path=self.path, line=line, field=field)
 
     def num(self, elem: ET.Element, attr: str) -> float | None:
         raw = elem.get(attr)
         if raw is None or not raw.strip():
             return None
-        try:
-            v = float(raw)
-        except ValueError:
-            v = math.nan
-        if not math.isfinite(v):
-            raise self.error(f"{raw!r} is not a number", elem, attr)
-        return v
+        return read_number(raw, self.path, *self.where(elem, attr))
 
     def angle(self, elem: ET.Element, attr: str) -> float | None:
         raw = elem.get(attr)

@@ -217,6 +217,19 @@ def _code_block_setup(b: GsiBlock, path: str) -> Setup:
     return Setup(station=name, instrument_height=hi, line=b.line, known=False)
 
 
+def read_number(raw: str, path: str, line: int | None, field: str) -> float:
+    """``raw`` as a finite number, or the :class:`InputError` naming file, line and field.
+    Why one function: each text reader (RW5, GTS-7, SDR, LandXML) had these lines, and a
+    damaged value must be refused alike whatever format it came in."""
+    try:
+        v = float(raw)
+    except ValueError:
+        v = math.nan
+    if not math.isfinite(v):
+        raise InputError(f"{raw!r} is not a number", path=path, line=line, field=field)
+    return v
+
+
 def unreduced_warning(
     unreduced: dict[str, int], noun: str = "block", why: str = "with angles but no distance"
 ) -> str:

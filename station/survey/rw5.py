@@ -26,6 +26,7 @@ from station.survey.polar import (
     Observation,
     ObservationSet,
     Setup,
+    read_number,
     unreduced_warning,
 )
 from station.survey.topcon import packed_dms
@@ -75,15 +76,7 @@ class _Reader:
         raw = f.get(tag, "")
         if not raw:
             return None
-        try:
-            v = float(raw)
-        except ValueError:
-            v = math.nan
-        if not math.isfinite(v):
-            raise InputError(
-                f"{raw!r} is not a number", path=self.path, line=lineno, field=f"{key} {tag}"
-            )
-        return v
+        return read_number(raw, self.path, lineno, f"{key} {tag}")
 
     def angle(self, f: dict[str, str], tag: str, key: str, lineno: int) -> float | None:
         raw = f.get(tag, "")

@@ -35,6 +35,7 @@ from station.survey.polar import (
     Observation,
     ObservationSet,
     Setup,
+    read_number,
     unreduced_warning,
 )
 
@@ -102,18 +103,7 @@ class _Record:
         self.pos += w
         if not raw:
             return None
-        try:
-            value = float(raw)
-        except ValueError:
-            value = math.nan
-        if not math.isfinite(value):
-            raise InputError(
-                f"{raw!r} is not a number",
-                path=self.path,
-                line=self.lineno,
-                field=f"{self.line[:4]} {name}",
-            )
-        return value
+        return read_number(raw, self.path, self.lineno, f"{self.line[:4]} {name}")
 
     def text(self, width: int) -> str:
         raw = self.line[self.pos : self.pos + width].strip()

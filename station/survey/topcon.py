@@ -27,6 +27,7 @@ from station.survey.polar import (
     Observation,
     ObservationSet,
     Setup,
+    read_number,
     unreduced_warning,
 )
 
@@ -66,15 +67,7 @@ class _Reader:
         raw = vals[i].strip() if i < len(vals) else ""
         if not raw:
             return None
-        try:
-            v = float(raw)
-        except ValueError:
-            v = math.nan
-        if not math.isfinite(v):
-            raise InputError(
-                f"{raw!r} is not a number", path=self.path, line=lineno, field=f"{key} {name}"
-            )
-        return v
+        return read_number(raw, self.path, lineno, f"{key} {name}")
 
     def angle(self, vals: list[str], i: int, key: str, lineno: int, name: str) -> float:
         raw = vals[i].strip() if i < len(vals) else ""
