@@ -115,6 +115,15 @@ class ObservationSet:
     #: the format's name as shown to the user (e.g. "Leica GSI-16")
     format: str = ""
 
+    def replace_setup(self, old: Setup, new: Setup) -> Setup:
+        """``new`` in the place of ``old`` among the setups, returned: a reader learns a
+        setup's coordinates, heights or orientation after the record that opened it, and a
+        :class:`Setup` is frozen. One method for the RW5, GTS-7 and SDR readers, which each
+        had it."""
+        i = next(i for i, s in enumerate(self.setups) if s is old)
+        self.setups[i] = new
+        return new
+
 
 def curvature_refraction(hd: float, k: float | None) -> float:
     """Height correction for earth curvature and refraction, (1 − k)·HD²/(2R); 0 if k is None."""

@@ -115,20 +115,17 @@ class _Reader:
         elif key == "LS":
             hi, hr = self.num(f, "HI", key, lineno), self.num(f, "HR", key, lineno)
             if hi is not None and self.setup is not None:
-                self._replace(replace(self.setup, instrument_height=hi * self.metres))
+                new = replace(self.setup, instrument_height=hi * self.metres)
+                self.setup = self.out.replace_setup(self.setup, new)
             if hr is not None:
                 self.hr = hr * self.metres
         elif key == "BK" and self.setup is not None:
             az = self.angle(f, "BS", key, lineno) or 0.0
             circle = self.angle(f, "BC", key, lineno) or 0.0
-            self._replace(replace(self.setup, orientation=az - circle, oriented=True))
+            new = replace(self.setup, orientation=az - circle, oriented=True)
+            self.setup = self.out.replace_setup(self.setup, new)
         elif key in ("SS", "BD", "FD", "TR"):
             self.shot(f, key, lineno)
-
-    def _replace(self, new: Setup) -> None:
-        i = next(i for i, s in enumerate(self.out.setups) if s is self.setup)
-        self.out.setups[i] = new
-        self.setup = new
 
     def shot(self, f: dict[str, str], key: str, lineno: int) -> None:
         if self.setup is None:

@@ -195,13 +195,8 @@ class _Reader:
         reading = (circle or 0.0) * u.angle
         if not u.clockwise:
             reading = -reading
-        self.set_setup(replace(self.setup, orientation=azimuth - reading, oriented=True))
-
-    def set_setup(self, new: Setup) -> None:
-        assert self.setup is not None
-        i = next(i for i, s in enumerate(self.out.setups) if s is self.setup)
-        self.out.setups[i] = new
-        self.setup = new
+        new = replace(self.setup, orientation=azimuth - reading, oriented=True)
+        self.setup = self.out.replace_setup(self.setup, new)
 
     def coordinate(self, line: str, lineno: int) -> None:
         r = self.rec(line, lineno)

@@ -108,17 +108,12 @@ class _Reader:
         k = self.metres
         if self.last == "STN" and self.setup is not None:
             new = replace(self.setup, e=e * k, n=n * k, h=(h or 0.0) * k, known=True)
-            self._replace_setup(new)
+            self.setup = self.out.replace_setup(self.setup, new)
         elif self.last == "BKB" and self.backsight:
             self.coords[self.backsight] = KnownPoint(
                 self.backsight, e * k, n * k, (h or 0.0) * k, lineno
             )
             self.out.known.append(self.coords[self.backsight])
-
-    def _replace_setup(self, new: Setup) -> None:
-        i = next(i for i, s in enumerate(self.out.setups) if s is self.setup)
-        self.out.setups[i] = new
-        self.setup = new
 
     def observe(self, key: str, vals: list[str], lineno: int) -> None:
         if self.setup is None or self.last not in ("BS", "FS", "SS"):
@@ -197,7 +192,8 @@ class _Reader:
         self.backsight = vals[0].strip() if vals else ""
         az = self.angle(vals, 1, "BKB", lineno, "azimuth")
         reading = self.angle(vals, 2, "BKB", lineno, "circle reading")
-        self._replace_setup(replace(self.setup, orientation=az - reading, oriented=True))
+        new = replace(self.setup, orientation=az - reading, oriented=True)
+        self.setup = self.out.replace_setup(self.setup, new)
         self.last = "BKB"
 
 
