@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from station.errors import InputError
 from station.survey.polar import ObservationSet, Setup, interpret_gsi
 
+#: the international foot (every reader of a file in feet uses this one)
 FOOT_M = 0.3048
 
 #: unit digit -> (kind, divisor, factor to SI). Angles go to radians, lengths to metres.

@@ -20,7 +20,7 @@ import math
 from dataclasses import replace
 
 from station.errors import InputError
-from station.survey.gsi import split_lines
+from station.survey.gsi import FOOT_M, split_lines
 from station.survey.polar import (
     KnownPoint,
     Observation,
@@ -31,7 +31,7 @@ from station.survey.polar import (
 )
 from station.survey.topcon import packed_dms
 
-UNITS = {"0": 1200.0 / 3937.0, "1": 1.0, "2": 0.3048}  # US survey foot, metre, foot
+UNITS = {"0": 1200.0 / 3937.0, "1": 1.0, "2": FOOT_M}  # US survey foot, metre, foot
 
 
 class _Reader:

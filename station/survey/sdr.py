@@ -29,7 +29,7 @@ import re
 from dataclasses import dataclass, replace
 
 from station.errors import InputError
-from station.survey.gsi import split_lines
+from station.survey.gsi import FOOT_M, split_lines
 from station.survey.polar import (
     KnownPoint,
     Observation,
@@ -39,7 +39,6 @@ from station.survey.polar import (
     unreduced_warning,
 )
 
-FOOT_M = 0.3048
 _CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
 ANGLE = {
     "1": ("degrees", math.pi / 180.0),

@@ -21,7 +21,7 @@ import math
 from dataclasses import replace
 
 from station.errors import InputError
-from station.survey.gsi import split_lines
+from station.survey.gsi import FOOT_M, split_lines
 from station.survey.polar import (
     KnownPoint,
     Observation,
@@ -30,8 +30,6 @@ from station.survey.polar import (
     read_number,
     unreduced_warning,
 )
-
-FOOT_M = 0.3048
 
 
 def packed_dms(text: str) -> float:
