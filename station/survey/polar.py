@@ -124,6 +124,19 @@ class ObservationSet:
         self.setups[i] = new
         return new
 
+    def warn_unreduced(self, noun: str = "block", why: str = "with angles but no distance") -> None:
+        """The one warning every observation reader gives for the shots it could not reduce,
+        when there are any, naming the first eight with their lines (a photocell on one of
+        them is refused later, naming that line: survey.load). A method, not a function each
+        reader guards and appends: the four readers had those lines alike."""
+        unreduced = self.unreduced
+        if not unreduced:
+            return
+        shown = ", ".join(f"{pid} (line {line})" for pid, line in list(unreduced.items())[:8])
+        more = f" and {len(unreduced) - 8} more" if len(unreduced) > 8 else ""
+        n = len(unreduced)
+        self.warnings.append(f"{n} {noun}{'s' * (n != 1)} {why} not reduced: {shown}{more}")
+
 
 def curvature_refraction(hd: float, k: float | None) -> float:
     """Height correction for earth curvature and refraction, (1 − k)·HD²/(2R); 0 if k is None."""
@@ -239,18 +252,6 @@ def read_number(raw: str, path: str, line: int | None, field: str) -> float:
     return v
 
 
-def unreduced_warning(
-    unreduced: dict[str, int], noun: str = "block", why: str = "with angles but no distance"
-) -> str:
-    """The one warning every observation reader gives for the shots it could not reduce,
-    naming the first eight with their lines (a photocell on one of them is refused later,
-    naming that line: survey.load)."""
-    shown = ", ".join(f"{pid} (line {line})" for pid, line in list(unreduced.items())[:8])
-    more = f" and {len(unreduced) - 8} more" if len(unreduced) > 8 else ""
-    n = len(unreduced)
-    return f"{n} {noun}{'s' * (n != 1)} {why} not reduced: {shown}{more}"
-
-
 def interpret_gsi(
     blocks: list[GsiBlock], path: str, default_setup: Setup | None = None
 ) -> ObservationSet:
@@ -317,10 +318,7 @@ def interpret_gsi(
     first = out.setups[0]
     if not any(o.setup is first for o in out.observations):
         out.setups.remove(first)  # a file that starts with its station block: no such setup
-    if out.unreduced:
-        out.warnings.append(
-            unreduced_warning(out.unreduced, why="with angles but no distance (WI 31 or 32)")
-        )
+    out.warn_unreduced(why="with angles but no distance (WI 31 or 32)")
     if any(b.gsi16 for b in blocks):
         out.format = "Leica GSI-16"
     elif blocks:

@@ -27,7 +27,6 @@ from station.survey.polar import (
     ObservationSet,
     Setup,
     read_number,
-    unreduced_warning,
 )
 from station.survey.topcon import packed_dms
 
@@ -156,8 +155,5 @@ def parse_rw5(text: str, path: str = "<rw5>") -> ObservationSet:
     for lineno, line in split_lines(text):
         reader.feed(line, lineno)
     out = reader.out
-    if out.unreduced:
-        out.warnings.append(
-            unreduced_warning(out.unreduced, "shot", "without angles and a slope distance")
-        )
+    out.warn_unreduced("shot", "without angles and a slope distance")
     return out

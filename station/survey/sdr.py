@@ -36,7 +36,6 @@ from station.survey.polar import (
     ObservationSet,
     Setup,
     read_number,
-    unreduced_warning,
 )
 
 _CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
@@ -281,9 +280,6 @@ def parse_sdr(text: str, path: str = "<sdr>") -> ObservationSet:
     for lineno, line in split_lines(text):
         reader.feed(line.rstrip("\n"), lineno)
     out = reader.out
-    if out.unreduced:
-        out.warnings.append(
-            unreduced_warning(out.unreduced, "observation", "without a slope distance")
-        )
+    out.warn_unreduced("observation", "without a slope distance")
     out.format = "Sokkia SDR33" if reader.id_w == 16 else "Sokkia SDR2x"
     return out

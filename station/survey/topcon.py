@@ -28,7 +28,6 @@ from station.survey.polar import (
     ObservationSet,
     Setup,
     read_number,
-    unreduced_warning,
 )
 
 
@@ -201,6 +200,5 @@ def parse_gts7(text: str, path: str = "<gts7>") -> ObservationSet:
     for lineno, line in split_lines(text):
         reader.feed(line, lineno)
     out = reader.out
-    if out.unreduced:
-        out.warnings.append(unreduced_warning(out.unreduced, "shot", "with angles but no distance"))
+    out.warn_unreduced("shot", "with angles but no distance")
     return out
