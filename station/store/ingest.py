@@ -21,7 +21,7 @@ from typing import Any
 
 from station import __version__
 from station.errors import InputError
-from station.store.schema import CONDITIONS, GROUPINGS, ITEM_PARTS
+from station.store.schema import CONDITIONS, DESCENT_NUMBERS, GROUPINGS, ITEM_PARTS
 
 _CHUNK = 1 << 20
 
@@ -134,6 +134,7 @@ def read(session: str, identity: Identity | None = None) -> SessionRecord:
         meta = row.metadata
         meta_of[row.descent] = meta
         v0_ci = fit.v0.ci90 if fit is not None else None
+        from_fit = {"v0_lo": v0_ci[0] if v0_ci else None, "v0_hi": v0_ci[1] if v0_ci else None}
         rec.descents.append(
             {
                 "session_id": ident.id,
@@ -143,25 +144,7 @@ def read(session: str, identity: Identity | None = None) -> SessionRecord:
                 "descent_status": str(row.descent_status),
                 "model": str(row.model),
                 "photocells_used": row.photocells_used,
-                **{
-                    k: getattr(row, k)
-                    for k in (
-                        "mu",
-                        "mu_lo",
-                        "mu_hi",
-                        "mu1",
-                        "cda",
-                        "cda_lo",
-                        "cda_hi",
-                        "v0",
-                        "mass_kg",
-                        "air_density",
-                        "gravity",
-                    )
-                },  # fmt: skip
-                "rms_residual_ms": row.rms_residual_ms,
-                "v0_lo": v0_ci[0] if v0_ci else None,
-                "v0_hi": v0_ci[1] if v0_ci else None,
+                **{k: from_fit[k] if k in from_fit else getattr(row, k) for k in DESCENT_NUMBERS},
                 "flags": "; ".join(row.flags),
                 "invalid_reason": row.invalid_reason,
                 "item": item_of(row),

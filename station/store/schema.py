@@ -36,6 +36,25 @@ TEXT_CONDITIONS = ("snow_type", "wetness", "hardness")
 CONDITIONS = NUMERIC_CONDITIONS + TEXT_CONDITIONS
 #: what a descent's item is made of (``--by``)
 ITEM_PARTS = ("skier", "ski", "wax", "grind", "base")
+#: a descent's numbers, a column each: the results row's own, but v0's interval (``v0_lo``,
+#: ``v0_hi``: the fit's). One list for the table and the ingest that fills it, so that a number
+#: added to one cannot be missed by the other
+DESCENT_NUMBERS = (
+    "mu",
+    "mu_lo",
+    "mu_hi",
+    "mu1",
+    "cda",
+    "cda_lo",
+    "cda_hi",
+    "v0",
+    "v0_lo",
+    "v0_hi",
+    "rms_residual_ms",
+    "mass_kg",
+    "air_density",
+    "gravity",
+)
 #: the groupings a day's items are compared by (``season compare --by``)
 GROUPINGS = ("item", "ski", "wax", "grind")
 
@@ -73,25 +92,7 @@ descents = sa.Table(
     sa.Column("descent_status", sa.Text, nullable=False),
     sa.Column("model", sa.Text, nullable=False),
     sa.Column("photocells_used", sa.Integer, nullable=False),
-    *(
-        sa.Column(name, sa.Double)
-        for name in (
-            "mu",
-            "mu_lo",
-            "mu_hi",
-            "mu1",
-            "cda",
-            "cda_lo",
-            "cda_hi",
-            "v0",
-            "v0_lo",
-            "v0_hi",
-            "rms_residual_ms",
-            "mass_kg",
-            "air_density",
-            "gravity",
-        )
-    ),  # fmt: skip
+    *(sa.Column(name, sa.Double) for name in DESCENT_NUMBERS),
     sa.Column("flags", sa.Text, nullable=False),
     sa.Column("invalid_reason", sa.Text, nullable=False),
     sa.Column("item", sa.Text, nullable=False),  # ski / wax, as the day comparison names it
