@@ -77,15 +77,23 @@ sessions = sa.Table(
     sa.Column("updated_t", sa.Double, nullable=False),
 )
 
-descents = sa.Table(
-    "descents",
-    metadata,
-    sa.Column(
+
+def _session_key() -> sa.Column:
+    """The first key column of each table a session brings: the session it belongs to, whose
+    rows go with it (``ON DELETE CASCADE``). A function, not a column shared: a column belongs
+    to one table; one definition for the six tables that each wrote it out."""
+    return sa.Column(
         "session_id",
         sa.String(64),
         sa.ForeignKey("sessions.id", ondelete="CASCADE"),
         primary_key=True,
-    ),  # fmt: skip
+    )
+
+
+descents = sa.Table(
+    "descents",
+    metadata,
+    _session_key(),
     sa.Column("number", sa.Integer, primary_key=True),
     sa.Column("start_time", sa.Text, nullable=False),
     sa.Column("status", sa.Text, nullable=False),  # the fit's verdict (records.Status)
@@ -103,12 +111,7 @@ descents = sa.Table(
 annotation_log = sa.Table(
     "annotations",
     metadata,
-    sa.Column(
-        "session_id",
-        sa.String(64),
-        sa.ForeignKey("sessions.id", ondelete="CASCADE"),
-        primary_key=True,
-    ),  # fmt: skip
+    _session_key(),
     sa.Column("seq", sa.Integer, primary_key=True),  # its place in annotations.jsonl
     sa.Column("t", sa.Double),  # when it was entered
     sa.Column("kind", sa.Text, nullable=False),  # metadata | invalid | valid | model
@@ -118,12 +121,7 @@ annotation_log = sa.Table(
 conditions = sa.Table(
     "conditions",
     metadata,
-    sa.Column(
-        "session_id",
-        sa.String(64),
-        sa.ForeignKey("sessions.id", ondelete="CASCADE"),
-        primary_key=True,
-    ),  # fmt: skip
+    _session_key(),
     sa.Column("descent", sa.Integer, primary_key=True),
     *(sa.Column(name, sa.Double) for name in NUMERIC_CONDITIONS),
     *(sa.Column(name, sa.Text) for name in TEXT_CONDITIONS),
@@ -133,12 +131,7 @@ conditions = sa.Table(
 day_fits = sa.Table(
     "day_fits",
     metadata,
-    sa.Column(
-        "session_id",
-        sa.String(64),
-        sa.ForeignKey("sessions.id", ondelete="CASCADE"),
-        primary_key=True,
-    ),  # fmt: skip
+    _session_key(),
     sa.Column("grouping", sa.Text, primary_key=True),
     sa.Column("status", sa.Text, nullable=False),
     sa.Column("message", sa.Text, nullable=False),
@@ -151,12 +144,7 @@ day_fits = sa.Table(
 items = sa.Table(
     "items",
     metadata,
-    sa.Column(
-        "session_id",
-        sa.String(64),
-        sa.ForeignKey("sessions.id", ondelete="CASCADE"),
-        primary_key=True,
-    ),  # fmt: skip
+    _session_key(),
     sa.Column("grouping", sa.Text, primary_key=True),
     sa.Column("position", sa.Integer, primary_key=True),
     sa.Column("item", sa.Text, nullable=False),
@@ -169,12 +157,7 @@ items = sa.Table(
 item_covariance = sa.Table(
     "item_covariance",
     metadata,
-    sa.Column(
-        "session_id",
-        sa.String(64),
-        sa.ForeignKey("sessions.id", ondelete="CASCADE"),
-        primary_key=True,
-    ),  # fmt: skip
+    _session_key(),
     sa.Column("grouping", sa.Text, primary_key=True),
     sa.Column("a", sa.Integer, primary_key=True),
     sa.Column("b", sa.Integer, primary_key=True),
