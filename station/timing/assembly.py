@@ -825,16 +825,8 @@ class DescentAssembler:
                 del self._orphans[:-MAX_ORPHANS]
             return done
         d = chosen
-        j = self.order[d.photocells[-1]]
-        skipped = self.photocells[j + 1 : k]
-        if skipped:
-            d.flags.append(f"missed {', '.join(skipped)}")
-            d.missing += skipped
-        d.photocells.append(pc)
-        d.times_us.append(t)
-        d.channels.append(imp.channel)
+        self._join(d, pc, k, t, imp.channel)
         self._move_clock(t)
-        self._keep(imp.channel, t)
         # (the events list says where the memory's times begin, as the row's flags do)
         self._event(imp, line, pc, True, joined, d.number)
         _flag_damaged(d, imp, line)
@@ -846,6 +838,21 @@ class DescentAssembler:
             done.append(d)
         done += self._expire(t)
         return done
+
+    def _join(self, d: TimedDescent, pc: str, k: int, t: int, ch: str) -> None:
+        """Photocell ``pc`` (index ``k``) at ``t`` on channel ``ch`` taken into descent ``d``:
+        the photocells it skipped flagged and listed missing, the time kept against repeats.
+        One method for a live impulse joining its descent (:meth:`_accept`) and a live one
+        taken into a descent begun in the timer's memory (:meth:`_adopt`), which each had it
+        line for line: a descent's missed photocells must read the same either way."""
+        skipped = self.photocells[self.order[d.photocells[-1]] + 1 : k]
+        if skipped:
+            d.flags.append(f"missed {', '.join(skipped)}")
+            d.missing += skipped
+        d.photocells.append(pc)
+        d.times_us.append(t)
+        d.channels.append(ch)
+        self._keep(ch, t)
 
     def _rejoin(self, pc: str, k: int, t: int, bib: str) -> TimedDescent | None:
         """A descent that ended short of photocell ``k`` (timed out, the timer disconnected,
@@ -1168,14 +1175,7 @@ class DescentAssembler:
                 continue
             if self._rival(d, pc, k, t, bib if by_bib else ""):
                 continue  # an open descent would reach it when expected: its skier's
-            skipped = self.photocells[self.order[d.photocells[-1]] + 1 : k]
-            if skipped:
-                d.flags.append(f"missed {', '.join(skipped)}")
-                d.missing += skipped
-            d.photocells.append(pc)
-            d.times_us.append(t)
-            d.channels.append(ch)
-            self._keep(ch, t)
+            self._join(d, pc, k, t, ch)
             taken.append(o)
             # its event said "without a start": a second one says where it went (--events)
             self.events.append(ImpulseEvent(line, ch, pc, tod, flag, True, f"{JOINED}taken by "
