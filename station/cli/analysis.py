@@ -24,7 +24,7 @@ from station.cli.common import (
     open_output,
     output_path,
     plausible,
-    unique_prefix,
+    reference_item,
 )
 from station.errors import InputError
 from station.limits import PLAUSIBLE
@@ -102,7 +102,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from station.cli.console import replayed  # here: see cmd_annotate
     from station.model.compare import format_comparison
     from station.model.sequential import day_decisions, decision_block
-    from station.session.comparison import compare_results, compared_items
+    from station.session.comparison import compare_results
     from station.session.recorded import RecordedSession
 
     session = RecordedSession(args.session)
@@ -110,10 +110,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     results = replayed(session).results()
     if args.upto is not None:  # the day as it stood after descent K
         results = tuple(r for r in results if r.row.descent <= args.upto)
-    reference = args.reference
-    if reference is not None:
-        items = compared_items(results, args.wind_limit)
-        reference = unique_prefix(reference, items, "item", "--reference")
+    reference = reference_item(args.reference, results, args.wind_limit)
     day = compare_results(
         session.track, results, wind_limit_ms=args.wind_limit, reference=reference,
         cda_fixed=args.cda, model=args.model, drift=args.drift,

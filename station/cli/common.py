@@ -12,8 +12,8 @@ import os
 import re
 import sys
 import tempfile
-from collections.abc import Callable, Iterator
-from typing import IO, Any, NoReturn
+from collections.abc import Callable, Iterable, Iterator
+from typing import IO, TYPE_CHECKING, Any, NoReturn
 
 from station.errors import InputError
 from station.files import check_output, staged_output
@@ -25,6 +25,9 @@ from station.model.air import (
     air_density,
 )
 from station.numbers import parse_number
+
+if TYPE_CHECKING:  # the day's results: numpy and scipy, loaded when a command runs
+    from station.session.analysis import DescentResult
 
 EXIT_BAD_INPUT = 2
 
@@ -290,6 +293,20 @@ def unique_prefix(text: str, choices: list[str], what: str, option: str) -> str:
                          field=option)  # fmt: skip
     raise InputError(f"no {what} {text!r}; there are {', '.join(map(repr, choices))}",
                      field=option)  # fmt: skip
+
+
+def reference_item(
+    reference: str | None, results: Iterable[DescentResult], wind_limit_ms: float
+) -> str | None:
+    """``--reference`` as the item it names (:func:`unique_prefix`) among those a comparison
+    of ``results`` would compare; None when not given. One for ``compare`` and ``report``,
+    which each resolved it so: the same words name the same item in both."""
+    if reference is None:
+        return None
+    from station.session.comparison import compared_items  # (numpy: when a command runs)
+
+    items = compared_items(results, wind_limit_ms)
+    return unique_prefix(reference, items, "item", "--reference")
 
 
 # ----------------------------------------------------------------------------- output paths

@@ -8,7 +8,7 @@ import os
 import sys
 from typing import Any
 
-from station.cli.common import _positive, open_output, output_dir, unique_prefix
+from station.cli.common import _positive, open_output, output_dir, reference_item
 
 
 def cmd_report(args: argparse.Namespace) -> int:
@@ -17,7 +17,6 @@ def cmd_report(args: argparse.Namespace) -> int:
     from station.report.day_report import DayData, build_day_report, descent_views
     from station.report.text import count
     from station.session import store as sessions
-    from station.session.comparison import compared_items
     from station.session.recorded import RecordedSession
 
     session = RecordedSession(args.session, speed_curves=True)  # the report draws them
@@ -39,10 +38,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     with open(session.file(sessions.CONFIG), encoding="utf-8") as fh:
         day.config_text = fh.read()
     day.warnings = list(acq.track.warnings)
-    reference = args.reference
-    if reference is not None:
-        items = compared_items(results, args.wind_limit)
-        reference = unique_prefix(reference, items, "item", "--reference")
+    reference = reference_item(args.reference, results, args.wind_limit)
     compared = session.compare(wind_limit_ms=args.wind_limit, reference=reference, drift=args.drift)
     if compared.result is None:
         day.comparison_error = compared.error
