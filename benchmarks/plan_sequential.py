@@ -58,6 +58,8 @@ from simulators.days import DaySetup, simulate_day  # noqa: E402
 from station.model.compare import joint_fit  # noqa: E402
 from station.model.plan import run_order  # noqa: E402
 from station.model.sequential import (  # noqa: E402
+    ALPHA,
+    SPEND,
     decide,
     look_boundaries,
     look_fractions,
@@ -91,9 +93,10 @@ def looks_of_day(args: tuple[str, float, float, int]) -> list[Look]:
     return out
 
 
-def judge(looks: list[Look]) -> tuple[bool, bool, bool, int | None]:
+def judge(looks: list[Look], spend: float = SPEND) -> tuple[bool, bool, bool, int | None]:
     """(declared A faster at some look, declared B faster at some look, the naive 90 %
-    interval excluded 0 at some look, descents per item at the first decision)."""
+    interval excluded 0 at some look, descents per item at the first decision), the
+    boundaries spending ``spend`` (the rule's SPEND; ALPHA for what spending it all gives)."""
     from scipy.special import stdtrit
 
     a_won = b_won = naive = False
@@ -101,7 +104,7 @@ def judge(looks: list[Look]) -> tuple[bool, bool, bool, int | None]:
     for j, (delta, se, dof) in enumerate(looks):
         k = j + 4
         naive = naive or abs(delta) >= float(stdtrit(dof, 0.95)) * se
-        d = decide("A", "B", delta, se, dof, ORDER[:k], horizon=HORIZON)
+        d = decide("A", "B", delta, se, dof, ORDER[:k], horizon=HORIZON, spend=spend)
         if d.state == "decided":
             a_won = a_won or d.faster == "A"
             b_won = b_won or d.faster == "B"
@@ -264,6 +267,7 @@ def main() -> int:
             print(f"\nsetup {setup}: {len(track(setup).photocells)} photocells, timer "
                   f"{SETUPS[setup][1] * 1e3:g} ms")  # fmt: skip
             print(f"{'scatter':>7} | {'equal: winner declared':>22} | {'95 % upper':>10} | "
+                  f"{'spending all 10 %':>17} | "
                   f"{'naive 90 % rule':>15} | {'SD(z) mid/last':>14} | "
                   f"{'Δμ 0.001: wrong ski':>19} | {'decided':>7} | "
                   f"{'descents/item at decision':>25}")  # fmt: skip
@@ -275,6 +279,7 @@ def main() -> int:
                 eq = [judge(x) for x in eq_looks]
                 df = [judge(x) for x in df_looks]
                 hits = sum(a or b for a, b, _, _ in eq)
+                all10 = np.mean([a or b for a, b, _, _ in (judge(x, ALPHA) for x in eq_looks)])
                 declared = hits / len(eq)
                 naive = np.mean([n for _, _, n, _ in eq])
                 z = np.array([[d / s for d, s, _ in x] for x in eq_looks])
@@ -284,7 +289,8 @@ def main() -> int:
                 firsts = [f for *_, f in df if f is not None]
                 med = f"{np.median(firsts):.1f}" if firsts else "—"
                 print(f"{scatter * 100:>6.1f}% | {declared * 100:>21.1f}% | "
-                      f"{upper95(hits, len(eq)) * 100:>9.1f}% | {naive * 100:>14.1f}% | "
+                      f"{upper95(hits, len(eq)) * 100:>9.1f}% | {all10 * 100:>16.1f}% | "
+                      f"{naive * 100:>14.1f}% | "
                       f"{sdz:>14} | {wrong * 100:>18.1f}% | {decided * 100:>6.1f}% | "
                       f"{med:>25}")  # fmt: skip
                 if args.per_look:

@@ -751,6 +751,20 @@ class _Inference:
     then at least 41 points over it; each point is one linear solve of the day (no new model
     solves).
 
+    Kenward-Roger's correction. Each component's scale σ̂²(γ)·S⁻¹(γ) is that of a day whose
+    scatter is known; estimated, the scatter moves the estimates (the spread of the centres
+    over the posterior, Λ, Kackar-Harville's term) and the scales themselves come out low by
+    about as much: for a covariance linear in its parameters (σ² and s², as here) E[φ(θ̂)] ≈
+    φ(θ) − Λ, so the variance is φ + 2Λ (Kenward & Roger 1997). Without it the components'
+    mean scale was 2-8 % below the variance at the true scatter on the demo run (nine
+    photocells) and about as much as Λ below on four photocells (benchmarks/
+    compare_se_oracle.py), and equal skis were declared different after every descent on
+    10.4-11.7 % (nine photocells) and 16.8 % (four) of simulated days (issue 21). So every
+    component's scale gets Λ added: the variance is then the mean scale plus 2Λ, and every
+    interval widens by what the day does not know of its scatter (nothing where the day
+    pins it). The degrees of freedom of a comparison count that uncertainty too
+    (:meth:`satterthwaite_dof`).
+
     Every number about the globals comes from that one mixture of t distributions:
     intervals (its quantiles), P(a faster), P(best), the covariance (the mixture's scale:
     mean of the scales plus the spread of the centres) and the standard errors from it, and
@@ -791,7 +805,12 @@ class _Inference:
         self._mixture(pc, lg)
         mean = self.centre = self.w @ self.beta
         spread = self.beta - mean
-        self.cov = np.einsum("k,kij->ij", self.w, self.scale) + (spread.T * self.w) @ spread
+        #: the components' own scales, before the correction below (the degrees of freedom
+        #: of a contrast are counted from them: equivalent_dof)
+        self.scale0 = self.scale
+        lam = (spread.T * self.w) @ spread  # the spread of the centres: Kackar-Harville's Λ
+        self.scale = self.scale0 + lam[None, :, :]
+        self.cov = np.einsum("k,kij->ij", self.w, self.scale) + lam
         self.sd = np.sqrt(np.maximum(np.diag(self.cov), 0.0))
 
     def _mixture(self, pc: _Pieces, lg_hat: float) -> None:
@@ -888,17 +907,42 @@ class _Inference:
         return g - q, g + q
 
     def equivalent_dof(self, c: np.ndarray, ci: tuple[float, float]) -> float:
-        """The degrees of freedom of the Student t with the scale √(c·cov·c) whose 90 %
-        interval is as wide as the mixture's: what a caller that rebuilds a standard error
-        from the interval and the degrees of freedom (station.model.sequential) must use to
-        get that scale back."""
+        """The degrees of freedom of the Student t that stands for the mixture of c·globals
+        beyond its 90 % interval (the sequential rule's boundaries lie there: z 1.9 to 4.4):
+        the t with the scale √(c·cov·c) whose 90 % interval is as wide as the mixture's, and
+        no more than Satterthwaite's count for that variance (:meth:`satterthwaite_dof`). A
+        caller that rebuilds a standard error from the interval and the degrees of freedom
+        (station.model.sequential) gets the interval back at 90 % and the heavier tail
+        beyond."""
         se = math.sqrt(max(float(c @ self.cov @ c), 0.0))
         ratio = (ci[1] - ci[0]) / 2 / se if se > 0 else 0.0
         if not ratio > float(stdtrit(self.dof, 0.95)):
-            return float(self.dof)
-        if ratio >= float(stdtrit(1.0, 0.95)):
-            return 1.0
-        return float(brentq(lambda nu: float(stdtrit(nu, 0.95)) - ratio, 1.0, float(self.dof)))
+            nu = float(self.dof)
+        elif ratio >= float(stdtrit(1.0, 0.95)):
+            nu = 1.0
+        else:
+            nu = float(brentq(lambda v: float(stdtrit(v, 0.95)) - ratio, 1.0, float(self.dof)))
+        return max(1.0, min(nu, self.satterthwaite_dof(c)))
+
+    def satterthwaite_dof(self, c: np.ndarray) -> float:
+        """Degrees of freedom of the variance of c·globals counted as Satterthwaite does:
+        that variance is the components' mean scale E[φ] plus twice the spread of their
+        centres Λ (Kenward-Roger), and each part is uncertain: φ by the timing noise's χ² (2/ν
+        in log) and by how it varies over the scatter's posterior (Var log φ), Λ as one χ²
+        degree of freedom (the centres move along one direction, the scatter). Where the day
+        pins the scatter (nine photocells) this is the timing noise's ν; where it does not
+        (four photocells, two descents an item) it is a handful, and the decision's tail is
+        that heavy: with the t at the interval's own degrees of freedom, equal skis were
+        declared different on 16.8 % of simulated four-photocell days (issue 21)."""
+        m = self.beta @ c
+        phi = np.maximum(np.einsum("i,kij,j->k", c, self.scale0, c), 1e-300)
+        lam = float(self.w @ (m - self.w @ m) ** 2)
+        e_phi = float(self.w @ phi)
+        log_phi = np.log(phi)
+        var_log = float(self.w @ (log_phi - self.w @ log_phi) ** 2)
+        tot = e_phi + 2.0 * lam
+        den = e_phi**2 * (var_log + 2.0 / self.dof) / 2.0 + (2.0 * lam) ** 2
+        return float(tot**2 / den) if den > 0 else float(self.dof)
 
     def draws(self, cols: list[int], n: int, rng: np.random.Generator) -> np.ndarray:
         """``n`` draws of the globals ``cols`` from the mixture (seeded by the caller)."""

@@ -16,7 +16,7 @@ number of descents (the skier tires, the snow changes), so we spend α over a *h
 (``horizon`` descents per item, default 10, or the plan's number) with the O'Brien–Fleming-
 type spending function, α/2 · 2(1 − Φ(z₁₋α/₄ / √t)) on each side: it spends almost nothing on
 the first looks, when the posture scatter is estimated from a handful of descents, and keeps
-the last boundary close to the fixed one (1.645 → 1.84 at a horizon of 10 with a look after
+the last boundary close to the fixed one (1.645 → 1.87 at a horizon of 10 with a look after
 every descent), so a day planned with ``station plan`` loses little power to being watched.
 
 The information time of a pair (a, b) at a look is t = I/I_N: I the information about Δμ of
@@ -36,15 +36,25 @@ N(0, Δt).
 
 The decision uses the repeated confidence interval Δμ̂ ± c_k·se at look k (c_k turned into a
 Student t quantile at the degrees of freedom of the fit's interval with the same nominal
-level): these intervals hold the true Δμ at all looks at once with probability ≥ 90 % when the
-fit's Δμ̂/se is the t it claims to be (on Brownian motion with the timing noise re-estimated at
-every look the rule declares on 10.0 % of equal-item days). Measured on simulated days
-(benchmarks/plan_sequential.py --per-look): it is a little wider before the horizon (SD 1.05–1.12
-times the t's at two descents an item, up to 1.07 in the middle of the day, about 1 at the
-horizon), the estimates' information coming later than the fit's standard errors say, and the
-rule then declares a winner between equal skis on 11–12 % of days, not 10 %: a matter of the
-joint fit's small-day uncertainty (README), not of the boundaries or the information times,
-which match the fit's. So
+level): these intervals hold the true Δμ at all looks at once with probability ≥ 1 − α spent
+when the fit's Δμ̂/se is the t it claims to be (on Brownian motion with the timing noise
+re-estimated at every look the rule declares on exactly the α it spends).
+
+Why the boundaries spend 9 %, not the 10 % promised (``SPEND`` against ``ALPHA``). The fit's
+Δμ̂/se is a Wald statistic of a nonlinear model with an estimated posture scatter. Its
+standard error carries Kenward-Roger's correction and its degrees of freedom count the
+scatter's uncertainty (station.model.compare._Inference), which brought the share of
+equal-ski days declared different from 10.4-11.7 % to 9.9-11.0 % on the demo run (nine
+photocells) and from 16.8 to 13.8 % on four photocells, and with the scatter known the rule
+declared on 10.1-11.3 % (the model's own small-sample excess: the Wald z is 1-2 % wider than
+its t even then). That remainder is measured, not derived, so the rule keeps back what it
+costs: 1 % of the 10 %, which brought every simulated set on the demo run to ≤ 10 %
+(benchmarks/plan_sequential.py; the README has the table). It costs one boundary (at the
+horizon 1.87 instead of 1.83, a look after every descent, 10 an item) and about 0.05 descents
+an item at Δμ = 0.001. The single 90 % interval ``station compare`` prints is not touched. On
+four photocells the bar is not met (12 % at 1 % scatter): there one descent's posture is
+barely told from its v0 and offset, and the scatter's estimate moves Δμ̂ more than the
+correction carries. So
 
 - "decided" when the interval excludes 0 (the item with the lower μ is faster),
 - "equivalent" when it lies within ±margin (two one-sided tests, Schuirmann 1987), and
@@ -68,8 +78,11 @@ from typing import Any
 
 import numpy as np
 
-#: two-sided error rate over all looks: that of the 90 % interval
+#: the two-sided error rate promised over all the looks of a day: that of the 90 % interval
 ALPHA = 0.10
+#: the α the boundaries spend: less than ALPHA by the measured cost of the fit's Δμ̂/se being a
+#: little wider than its t on small days (module docstring; benchmarks/plan_sequential.py)
+SPEND = 0.09
 #: descents per item over which α is spent when no plan says otherwise
 DEFAULT_HORIZON = 10
 #: the furthest the "more descents per item" projection looks ahead
@@ -78,7 +91,7 @@ MAX_MORE = 50
 GRID = 401
 
 
-def spent(t: float, alpha: float = ALPHA) -> float:
+def spent(t: float, alpha: float = SPEND) -> float:
     """α spent by information time ``t``: O'Brien–Fleming type (Lan & DeMets 1983), α/2 on
     each side, 2 − 2Φ(z₁₋α/₄ / √t) per side."""
     from scipy.special import ndtr, ndtri
@@ -90,7 +103,7 @@ def spent(t: float, alpha: float = ALPHA) -> float:
 
 
 @lru_cache(maxsize=256)
-def boundaries(fractions: tuple[float, ...], alpha: float = ALPHA) -> tuple[float, ...]:
+def boundaries(fractions: tuple[float, ...], alpha: float = SPEND) -> tuple[float, ...]:
     """z boundaries c_k (decide when |Z_k| ≥ c_k) for looks at increasing information times
     ``fractions`` (≤ 1), so that P(|Z_k| ≥ c_k at some look | no difference) = α(t_last)."""
     from scipy.optimize import brentq
@@ -203,14 +216,14 @@ def look_fractions(run_items: Sequence[str], a: str, b: str, horizon: int) -> li
     return [i / (horizon / 2.0) for i in information(run_items, a, b)]
 
 
-def look_boundaries(fractions: Sequence[float]) -> list[float]:
+def look_boundaries(fractions: Sequence[float], alpha: float = SPEND) -> list[float]:
     """The z boundary of every look at information times ``fractions``; looks beyond the
     horizon (t ≥ 1) keep the horizon's boundary (computed as if the last look within it had
     been at the horizon itself)."""
     inside = [f for f in fractions if f < 1.0]
     if len(inside) < len(fractions):
         inside.append(1.0)
-    bounds = list(boundaries(tuple(inside))) if inside else []
+    bounds = list(boundaries(tuple(inside), alpha)) if inside else []
     return [bounds[min(k, len(bounds) - 1)] for k in range(len(fractions))]
 
 
@@ -298,6 +311,7 @@ def _more(
     b: str,
     horizon: int,
     margin: float | None,
+    spend: float = SPEND,
 ) -> int | None:
     """About how many more descents per item decide the pair (or show it equivalent) if the
     estimate stays and the standard error shrinks as the information grows (m more of each,
@@ -306,7 +320,7 @@ def _more(
     fr = look_fractions(ext, a, b, horizon)
     now = len(pair_counts(run_items, a, b)) - 1
     # a look's boundary depends on the looks before it only: one computation serves all m
-    bounds = look_boundaries(fr)
+    bounds = look_boundaries(fr, spend)
     for m in range(1, MAX_MORE + 1):
         k = now + 2 * m
         c = bounds[k]
@@ -329,6 +343,7 @@ def decide(
     horizon: int = DEFAULT_HORIZON,
     margin: float | None = None,
     caveat: str = "",
+    spend: float = SPEND,
 ) -> Decision:
     """The decision on Δμ = μ_a − μ_b (estimate, standard error and degrees of freedom from
     the day's joint fit) after the descents ``run_items`` (the item of each, in run order).
@@ -336,7 +351,9 @@ def decide(
     ``caveat`` (the comparison's: the drift cannot be told from this pair's difference, or
     the joint fit is poor) makes the pair "undecided" whatever its interval says, with the
     caveat as the reason: an interval the fit itself does not trust decides nothing, and
-    every caller (compare, the UI, record's console, the report) goes through here."""
+    every caller (compare, the UI, record's console, the report) goes through here.
+    ``spend``: the α the boundaries spend (SPEND; a benchmark judges the same looks at
+    another to show what keeping some back buys)."""
     if horizon < 2:
         raise ValueError("the horizon is at least 2 descents per item")
     counts = pair_counts(run_items, a, b)
@@ -347,7 +364,7 @@ def decide(
         return Decision(a, b, "undecided", None, 0, more, delta_mu, None, None, horizon,
                         False, margin)  # fmt: skip
     fr = look_fractions(run_items, a, b, horizon)
-    c = look_boundaries(fr)[-1]
+    c = look_boundaries(fr, spend)[-1]
     ct = _t_boundary(c, dof)
     lo, hi = delta_mu - ct * se, delta_mu + ct * se
     beyond = fr[-1] > 1.0
@@ -361,7 +378,7 @@ def decide(
     if margin is not None and -margin < lo and hi < margin:
         return Decision(a, b, "equivalent", None, len(counts), None, delta_mu, (lo, hi), ct,
                         horizon, beyond, margin)  # fmt: skip
-    more = _more(delta_mu, se, run_items, a, b, horizon, margin)
+    more = _more(delta_mu, se, run_items, a, b, horizon, margin, spend)
     return Decision(a, b, "undecided", None, len(counts), more, delta_mu, (lo, hi), ct,
                     horizon, beyond, margin)  # fmt: skip
 
