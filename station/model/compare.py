@@ -776,6 +776,7 @@ class _Inference:
     mean CdA stay at γ̂ with their plug-in intervals (:meth:`plugin_interval`)."""
 
     H = 0.05  # step in log γ of the curvature's differences (the posture's interval)
+    scale: np.ndarray  # (K, G, G) the components' scale matrices (set by _mixture, corrected)
 
     def __init__(self, sol: _Solution, dof: int) -> None:
         self.sol, self.dof = sol, dof
