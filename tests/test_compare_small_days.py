@@ -134,3 +134,11 @@ def test_the_estimates_are_the_centres_of_their_intervals(demo_track):
         for it in day.items:
             half = (it.ci90[1] - it.ci90[0]) / 2
             assert abs(it.mu - (it.ci90[0] + it.ci90[1]) / 2) < 0.25 * half
+
+
+def test_probabilities_stay_within_0_and_1(demo_track):
+    """A clear day: P(A faster) is 1 at most (the mixture's weights summed to 1 + 2e-16 and
+    the report showed P(faster) as −0.000)."""
+    for seed in range(6):
+        c = joint_fit(demo_track, _day(demo_track, seed, 4, 0.005)).comparisons[0]
+        assert c.p_a_faster is not None and 0.0 <= c.p_a_faster <= 1.0, c.p_a_faster

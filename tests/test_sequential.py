@@ -95,6 +95,11 @@ def test_the_decision_states():
     d = decide("A", "B", 0.00005, 0.0001, 50, run, margin=0.001)
     assert d.state == "equivalent" and d.faster is None
     assert "no difference that matters" in describe(d)
+    # a real difference smaller than the margin: equivalent, the faster item still named (it
+    # said "decided" when the margin was only looked at for intervals holding 0)
+    d = decide("A", "B", -0.001, 0.0001, 50, run, margin=0.002)
+    assert d.state == "equivalent" and d.faster == "A"
+    assert describe(d).endswith("no difference that matters (A faster, by less than that)")
     d = decide("A", "B", 0.0002, 0.0001, 50, run)
     assert d.state == "undecided" and d.more_descents_per_item is not None
     assert describe(d) == (

@@ -39,7 +39,8 @@ estimate with the scale σ̂²·S⁻¹ (S the Schur complement: the fixed-effect
 mixed-model equations' inverse). The scatter is itself estimated, and on small days poorly (2
 descents an item: at 0 on one day in ten at 0.5 % scatter), so every interval, P(a faster),
 P(best) and the items' covariance come from that t integrated over γ's posterior (its REML
-likelihood, a prior flat in the scatter): :class:`_Inference`. Where the day pins the scatter
+likelihood, a prior flat in the scatter), each scale with Kenward-Roger's correction for the
+scatter being estimated: :class:`_Inference`. Where the day pins the scatter
 (ABBAABBA with nine photocells) this is the plug-in answer; where it does not, the answer keeps
 the scatters the day cannot rule out (benchmarks/compare_small_days.py).
 
@@ -869,9 +870,10 @@ class _Inference:
         return m, s
 
     def cdf(self, c: np.ndarray, x: float) -> float:
-        """P(c·globals ≤ x)."""
+        """P(c·globals ≤ x) (within [0, 1]: the weights' rounding gave 1.0000000000000002,
+        which the report showed as a P(faster) of −0.000)."""
         m, s = self.parts(c)
-        return float(self.w @ stdtr(self.dof, (x - m) / s))
+        return min(max(float(self.w @ stdtr(self.dof, (x - m) / s)), 0.0), 1.0)
 
     def quantile(self, c: np.ndarray, p: float) -> float:
         m, s = self.parts(c)

@@ -670,8 +670,10 @@ def verdicts(res, run_items: Sequence[str]) -> list[Verdict]:
         decision = day_decisions([cmp], run_items)[0]
         if decision.state == "decided":
             head = f"<b>{_e(better)}</b> glides better than <b>{_e(worse)}</b>"
-            tail = ("<b>decided</b>: the 90 % interval excludes 0, widened for a look after "
-                    "every descent as station compare decides")  # fmt: skip
+            r_lo, r_hi = sorted(abs(v) for v in decision.interval or (lo, hi))
+            tail = (f"<b>decided</b>: the interval widened for a look after every "
+                    f"descent, [{r_lo:+.5f}, {r_hi:+.5f}], excludes 0, as station compare "
+                    "decides")  # fmt: skip
             kind = "decided"
         else:
             head = f"<b>{_e(better)}</b> ahead of <b>{_e(worse)}</b>"
