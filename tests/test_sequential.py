@@ -30,8 +30,8 @@ def test_the_boundaries_are_the_published_obrien_fleming_type_ones():
 
 def test_looking_after_every_descent_declares_equal_items_different_at_most_alpha():
     """Brownian motion in information time, looked at on an ABBA day's schedule: the z
-    statistic crosses a boundary at some look on exactly the α the boundaries spend (9 %,
-    1 % of the promised 10 % kept back for the fit's small-day z being a little wider than
+    statistic crosses a boundary at some look on exactly the α the boundaries spend (8.5 %,
+    1.5 % of the promised 10 % kept back for the fit's small-day z being a little wider than
     its t); the 90 % interval looked at the same way would cross on far more."""
     from station.model.sequential import ALPHA, SPEND
 
@@ -252,7 +252,7 @@ def test_the_comparison_panel_and_the_record_console_say_decided_or_not(session)
 
 
 def test_the_watched_power_spends_alpha_on_one_side_and_costs_little():
-    """With no difference the rule names a given item faster on half the α it spends (4.5 %
+    """With no difference the rule names a given item faster on half the α it spends (4.25 %
     of days); with a difference a fixed day resolves with 90 % power, watching every descent
     over the same horizon keeps most of it."""
     from station.model.sequential import SPEND, power_watched
