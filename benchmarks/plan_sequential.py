@@ -24,14 +24,13 @@ rule can be judged again without fitting again (the cache is keyed by setup, sca
 (looks only from 3, 4 or 5 descents a ski; a t at the descents' own degrees of freedom) judged
 on the same looks (:func:`variants`).
 
-Measured (load 4–5, 2 processes, about 6 minutes of fits per 600 days): winners between equal
-skis on 12.0 % of 600 days at 0.5 %, 11.0 % of 600 at 1 %, 12.2 % of 1200 at 2 % (95 % upper
-14.4, 13.3, 13.8 %); Δμ = 0.001: never the wrong ski, all decided, at 2 descents per item
-(median). The rule on Brownian motion with the t's noise: 10.0 %; the fit's z is 5–12 % wider
-than its t at two descents per item and up to 7 % in the middle of the day (README). With Δμ̂ the
-centre of the fit's own interval (the mixture's mean, not the solution at γ̂): 10.5, 11.2 and
-10.8 % of the first 400 of those days (42, 45, 43 declared; 43, 44, 43 before), upper 13.4, 14.2,
-13.6 %, Δμ = 0.001 all decided for the right ski (load 3.5-5, 2 processes, 20 minutes in all).
+Measured after the fit's Kenward-Roger correction and Satterthwaite degrees of freedom (issue
+21; load 2-4, 2 processes, about 12 minutes of fits per 2000-day row): on the default seeds
+(--days 2000 --days-diff 400), winners between equal skis on 9.7 / 8.9 / 10.3 % of days at 0.5
+/ 1 / 2 % with the boundaries spending 9 % (10.6 / 9.8 / 11.5 % spending all 10 %), and on the
+same looks 9.3 / 8.3 / 9.8 % at 8.5 %, the rule's SPEND; on fresh seeds (--seed0 400000
+--days 1500 --days-diff 200) 8.1 / 8.3 / 8.9 % at 8.5 %. Δμ = 0.001: never the wrong ski, all decided, at 2
+descents per item (median). The README has the table.
 
 Run: python benchmarks/plan_sequential.py [--days 200] [--days-diff 100] [--jobs 2]
      [--setup demo|sparse|both] [--cache FILE] [--scatter S] [--seed0 N] [--per-look]
