@@ -29,8 +29,8 @@ Measured after the fit's Kenward-Roger correction and Satterthwaite degrees of f
 (--days 2000 --days-diff 400), winners between equal skis on 9.7 / 8.9 / 10.3 % of days at 0.5
 / 1 / 2 % with the boundaries spending 9 % (10.6 / 9.8 / 11.5 % spending all 10 %), and on the
 same looks 9.3 / 8.3 / 9.8 % at 8.5 %, the rule's SPEND; on fresh seeds (--seed0 400000
---days 1500 --days-diff 200) 8.1 / 8.3 / 8.9 % at 8.5 %. Δμ = 0.001: never the wrong ski, all decided, at 2
-descents per item (median). The README has the table.
+--days 1500 --days-diff 200) 8.1 / 8.3 / 8.9 % at 8.5 %. Δμ = 0.001: never the wrong ski, all
+decided, at 2 descents per item (median). The README has the table.
 
 Run: python benchmarks/plan_sequential.py [--days 200] [--days-diff 100] [--jobs 2]
      [--setup demo|sparse|both] [--cache FILE] [--scatter S] [--seed0 N] [--per-look]
