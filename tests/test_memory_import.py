@@ -355,12 +355,10 @@ def test_a_descent_split_by_an_unplugged_cable_is_whole_after_the_memory_import(
     PC9; merged, the timer's memory download (saved by its own program) gives it whole, with
     the timer's crossing times, fitted, and a note that it was joined; replays agree."""
     import json
-    import subprocess
 
     from station.session import store
     from station.session.acquisition import replay
     from station.timing.impulses import DAY_US
-    from tests.conftest import station_cmd
     from tests.timing_helpers import start_sim
 
     memory = tmp_path / "download.txt"
@@ -372,14 +370,7 @@ def test_a_descent_split_by_an_unplugged_cable_is_whole_after_the_memory_import(
     # the time-out by the device clock (the simulator's runs 10 times faster than the host's)
     cfg = write_config(tmp_path, port, "tag", TAG_CHANNELS, extra="descent: {timeout_s: 15}\n")
     session = tmp_path / "s"
-    try:
-        rec = subprocess.run(
-            [*station_cmd(), "record", "--config", str(cfg), "--session-dir", str(session),
-             "--max-descents", "3"],
-            capture_output=True, text=True, timeout=120,
-        )  # fmt: skip
-    finally:
-        _, err = sim.communicate(timeout=60)
+    rec, err = _record_three(cfg, session, sim)
     assert rec.returncode == 0, rec.stderr
     assert "unplugged during descent 2" in err and "plugged in again" in err
     live = pd.read_csv(session / "results.csv", comment="#")
@@ -1067,9 +1058,7 @@ def test_an_alge_timers_memory_dump_joins_the_descent_an_unplugged_cable_cut(tmp
     """As the CP540's above, with an ALGE timer: the simulator's --download-to wrote nothing
     for ALGE (TAG only), so the README's recipe had no ALGE file to import. Its dump sends
     every impulse again, flagged m; merged, descent 2 is whole and said joined."""
-    import subprocess
 
-    from tests.conftest import station_cmd
     from tests.timing_helpers import start_sim
 
     memory = tmp_path / "alge-memory.txt"
@@ -1080,14 +1069,7 @@ def test_an_alge_timers_memory_dump_joins_the_descent_an_unplugged_cable_cut(tmp
     )  # fmt: skip
     cfg = write_config(tmp_path, port, extra="descent: {timeout_s: 15}\n")
     session = tmp_path / "s"
-    try:
-        rec = subprocess.run(
-            [*station_cmd(), "record", "--config", str(cfg), "--session-dir", str(session),
-             "--max-descents", "3"],
-            capture_output=True, text=True, timeout=120,
-        )  # fmt: skip
-    finally:
-        sim.communicate(timeout=60)
+    rec, _err = _record_three(cfg, session, sim)
     assert rec.returncode == 0, rec.stderr
     lines = memory.read_bytes().decode().split("\r")[:-1]
     assert len(lines) == 27 and all(x.startswith("m") for x in lines), lines[:3]
@@ -1099,3 +1081,21 @@ def test_an_alge_timers_memory_dump_joins_the_descent_an_unplugged_cable_cut(tmp
     assert "27 impulses (5 from the timer's memory), 0 edits" in r.stderr, r.stderr
     df = pd.read_csv(session / "results.csv", comment="#")
     assert list(df["photocells_used"]) == [9, 9, 9] and list(df["status"]) == ["ok"] * 3
+
+
+def _record_three(cfg, session, sim):
+    """`station record --max-descents 3` on the simulated timer ``sim`` (then waited for): the
+    recording and the simulator's stderr, for the unplugged-cable tests."""
+    import subprocess
+
+    from tests.conftest import station_cmd
+
+    try:
+        rec = subprocess.run(
+            [*station_cmd(), "record", "--config", str(cfg), "--session-dir", str(session),
+             "--max-descents", "3"],
+            capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+    finally:
+        _, err = sim.communicate(timeout=60)
+    return rec, err

@@ -145,11 +145,7 @@ def test_the_table_extends_its_rows_in_order_as_datatable_lists_them():
     async def run() -> None:
         app = OneTable()
         async with app.run_test(size=(80, 24)) as pilot:
-            table = app.query_one(ResultsTable)
-            table.add_column("n", key="n", width=4)
-            table.add_column("mu", key="mu", width=8)
-            for i in range(5):
-                table.add_row(f"{i:>4}", f"{i / 1e3:8.5f}", key=str(i))
+            table = _five_rows(app.query_one(ResultsTable))
             first = table.ordered_rows
             same(table)
             table.add_row("   5", " 0.00500", key="5")
@@ -304,11 +300,7 @@ def test_a_new_theme_is_drawn_in_the_table():
             dataclasses.replace(dark, name="red", primary="#ff0000", accent="#00ff00")
         )
         async with app.run_test(size=(80, 24)) as pilot:
-            table = app.query_one(ResultsTable)
-            table.add_column("n", key="n", width=4)
-            table.add_column("mu", key="mu", width=8)
-            for i in range(5):
-                table.add_row(f"{i:>4}", f"{i / 1e3:8.5f}", key=str(i))
+            table = _five_rows(app.query_one(ResultsTable))
             await pilot.pause(0.2)
 
             def lines() -> list:
@@ -367,3 +359,12 @@ def test_a_warning_comes_after_the_impulses_held_before_it(tmp_path, demo_track,
     impulse = next(i for i, text in enumerate(log) if last in text)
     warning = next(i for i, text in enumerate(log) if "something after" in text)
     assert impulse < warning, log
+
+
+def _five_rows(table):
+    """The results table with two fixed-width columns and five rows (the table tests')."""
+    table.add_column("n", key="n", width=4)
+    table.add_column("mu", key="mu", width=8)
+    for i in range(5):
+        table.add_row(f"{i:>4}", f"{i / 1e3:8.5f}", key=str(i))
+    return table

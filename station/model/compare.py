@@ -147,7 +147,9 @@ class Comparison:
     ci90: tuple[float, float] | None  # None: no comparison possible (see note)
     p_a_faster: float | None  # P(μ_a < μ_b)
     delta_t_s: float  # time a takes minus time b takes over the run
-    dof: float | None = None  # of the Student t the interval is equivalent to (sequential)
+    #: of the Student t that stands for the interval and its tail beyond (the sequential
+    #: rule's): the one as wide at 90 %, capped by Satterthwaite's count (_Inference)
+    dof: float | None = None
     note: str = ""
     #: whether the run order tells the day's drift from this pair's difference (the items
     #: interleave in time and Δμ is not nearly a multiple of the drift): a pair is judged on
