@@ -89,7 +89,8 @@ def test_a_poor_joint_fit_is_not_decided_anywhere(run_station, tmp_path):
 
 
 def test_decide_obeys_a_caveat_whatever_the_interval():
-    from station.model.sequential import decide, describe
+    from station.model.sequential import decide
+    from station.report.day_text import decision_words as describe
 
     run = "ABBAABBA"
     assert decide("A", "B", -0.001, 1e-5, 50.0, run).state == "decided"

@@ -39,11 +39,9 @@ def cmd_report(args: argparse.Namespace) -> int:
         day.config_text = fh.read()
     day.warnings = list(acq.track.warnings)
     reference = reference_item(args.reference, results, args.wind_limit)
-    compared = session.compare(wind_limit_ms=args.wind_limit, reference=reference, drift=args.drift)
-    if compared.result is None:
-        day.comparison_error = compared.error
-    else:
-        day.comparison, day.compared = compared.result, compared.compared
+    day.day_comparison = session.compare(
+        wind_limit_ms=args.wind_limit, reference=reference, drift=args.drift
+    )
     page = build_day_report(day)
     with open_output(path, "--out") as fh:
         fh.write(page)

@@ -33,6 +33,7 @@ from station.model.estimate import MISSING, Estimate
 
 if TYPE_CHECKING:
     from station.model.compare import JointResult
+    from station.session.comparison import DayComparison
 
 #: colours of the test items, in order of their first descent (matplotlib's tab10)
 PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd",
@@ -100,13 +101,26 @@ class DayData:
     header: dict[str, str] = field(default_factory=dict)  # what the results were computed from
     summary: str = ""  # what the timer sent
     config_metadata: dict[str, Any] = field(default_factory=dict)
-    comparison: JointResult | None = None
-    comparison_error: str | None = None
-    compared: list[Any] = field(default_factory=list)  # DescentData that entered the fit
+    #: the day's comparison with its decisions (None: not computed)
+    day_comparison: DayComparison | None = None
     config_text: str = ""
     recorded: str = ""  # local date and time the recording began
     annotations: int = 0
     warnings: list[str] = field(default_factory=list)
+
+    @property
+    def comparison(self) -> JointResult | None:
+        return None if self.day_comparison is None else self.day_comparison.result
+
+    @property
+    def comparison_error(self) -> str | None:
+        return None if self.day_comparison is None else self.day_comparison.error or None
+
+    @property
+    def compared(self) -> list[Any]:
+        """The descents (DescentData) that entered the joint fit (none without one)."""
+        dc = self.day_comparison
+        return [] if dc is None or dc.result is None else dc.compared
 
 
 def descent_views(results: Sequence[Any]) -> list[DescentView]:
@@ -416,6 +430,8 @@ def comparison_figure(res, colours: dict[str, str]) -> str:
     """Left: μ of each item with its 90 % interval, best on top. Right: Δμ = item − reference
     with its interval, P(faster) and the time it makes over the run; an item that cannot be
     compared (one valid descent) says so instead."""
+    from station.model.versus import versus
+
     fig = _figure(0.45 * len(res.ranking) + 1.0)
     left, right = fig.subplots(1, 2, sharey=True)
     names = list(reversed(res.ranking))  # best at the top
@@ -431,16 +447,16 @@ def comparison_figure(res, colours: dict[str, str]) -> str:
             right.annotate("reference", (0, k), textcoords="offset points", xytext=(8, -3),
                            fontsize=8)  # fmt: skip
             continue
-        cmp = reference_comparison(res, name)
-        if cmp is None or cmp.ci90 is None or cmp.p_a_faster is None:
+        v = versus(res, name)
+        if v is None:
             right.annotate(f"not comparable ({count_valid(it)})", (0, k),
                            textcoords="offset points", xytext=(8, -3), fontsize=8,
                            color="#b00020")  # fmt: skip
             continue
-        dm, lo, hi = -cmp.delta_mu, -cmp.ci90[1], -cmp.ci90[0]
+        dm, (lo, hi) = v.delta_mu, v.ci90
         right.errorbar([dm], [k], xerr=[[dm - lo], [hi - dm]], fmt="o", color=c, capsize=4,
                        ms=7)  # fmt: skip
-        right.annotate(f"P(faster) {1 - cmp.p_a_faster:.2f}, {-cmp.delta_t_s * 1000:+.0f} ms",
+        right.annotate(f"P(faster) {v.p_faster:.2f}, {v.delta_t_s * 1000:+.0f} ms",
                        (hi, k), textcoords="offset points", xytext=(6, -3), fontsize=8)  # fmt: skip
     right.axvline(0, color="#555555", linewidth=0.8)
     left.set_yticks(y, [f"{len(names) - k}. {_plain(n)}" for k, n in enumerate(names)])
@@ -452,13 +468,6 @@ def comparison_figure(res, colours: dict[str, str]) -> str:
     for a in (left, right):
         _style(a)
     return _png(fig)
-
-
-def reference_comparison(res, name: str):
-    """The comparison of item ``name`` with the reference (``a`` the reference), or None."""
-    if name == res.reference:
-        return None
-    return next((c for c in res.comparisons if c.a == res.reference and c.b == name), None)
 
 
 def count_valid(it) -> str:
@@ -628,14 +637,16 @@ class Verdict:
     html: str
 
 
-def verdicts(res, run_items: Sequence[str]) -> list[Verdict]:
+def verdicts(day: DayComparison) -> list[Verdict]:
     """One headline per item against the reference: which is faster, Δμ with its 90 %
     interval, the time it makes over the run, how sure, how many descents, decided or not.
-    Decided or not is :func:`station.model.sequential.day_decisions`'s answer after the
-    descents ``run_items`` (their items in run order), the one ``station compare``, the UI
+    Decided or not is the day comparison's own decision, the one ``station compare``, the UI
     and the console give: a poor fit or a drift not separable from the pair decides nothing."""
-    from station.model.sequential import day_decisions, describe
+    from station.model.versus import versus
+    from station.report.day_text import decision_words
 
+    res = day.result
+    assert res is not None
     out: list[Verdict] = []
     by = {i.item: i for i in res.items}
     ref = res.reference
@@ -643,8 +654,8 @@ def verdicts(res, run_items: Sequence[str]) -> list[Verdict]:
         if name == ref:
             continue
         it = by[name]
-        cmp = reference_comparison(res, name)
-        if cmp is None or cmp.ci90 is None or cmp.p_a_faster is None:
+        v = versus(res, name)
+        if v is None:
             why = count_valid(it) if len(it.descents) < 2 else "no interval"
             if ref in by and len(by[ref].descents) < 2:
                 why = ("" if why == "no interval" else why + "; ") + (
@@ -653,12 +664,13 @@ def verdicts(res, run_items: Sequence[str]) -> list[Verdict]:
             out.append(Verdict("none", f"<b>{_e(name)}</b> against <b>{_e(ref)}</b>: "
                                        f"not comparable ({why})"))  # fmt: skip
             continue
-        dm, lo, hi = -cmp.delta_mu, -cmp.ci90[1], -cmp.ci90[0]  # item − reference
+        cmp = v.comparison
+        dm, (lo, hi) = v.delta_mu, v.ci90
         item_better = dm < 0
         better, worse = (name, ref) if item_better else (ref, name)
         # in words, the better item first: Δμ = worse − better > 0 and the time it gains
         by_mu, by_lo, by_hi = (-dm, -hi, -lo) if item_better else (dm, lo, hi)
-        p_better = 1.0 - cmp.p_a_faster if item_better else cmp.p_a_faster
+        p_better = v.p_faster if item_better else 1.0 - v.p_faster
         gain_ms = abs(cmp.delta_t_s) * 1000
         n_ref = len(by[ref].descents) if ref in by else 0
         sure = "> 0.999" if p_better > 0.999 else f"{p_better:.3f}"
@@ -667,17 +679,18 @@ def verdicts(res, run_items: Sequence[str]) -> list[Verdict]:
             f"run at v0 {res.typical_v0:.1f} m/s; P({_e(better)} faster) {sure}; "
             f"{len(it.descents)} descents of {_e(name)}, {n_ref} of {_e(ref)}"
         )
-        decision = day_decisions([cmp], run_items)[0]
+        decision = day.decision(cmp)
+        assert decision is not None
         if decision.state == "decided":
             head = f"<b>{_e(better)}</b> glides better than <b>{_e(worse)}</b>"
-            r_lo, r_hi = sorted(abs(v) for v in decision.interval or (lo, hi))
+            r_lo, r_hi = sorted(abs(x) for x in decision.interval or (lo, hi))
             tail = (f"<b>decided</b>: the interval widened for a look after every "
                     f"descent, [{r_lo:+.5f}, {r_hi:+.5f}], excludes 0, as station compare "
                     "decides")  # fmt: skip
             kind = "decided"
         else:
             head = f"<b>{_e(better)}</b> ahead of <b>{_e(worse)}</b>"
-            why = describe(decision).removeprefix("not yet: ")
+            why = decision_words(decision).removeprefix("not yet: ")
             if not decision.reason and (lo > 0 or hi < 0):
                 why = f"the 90 % interval excludes 0 but not yet at this look's boundary; {why}"
             tail = f"<b>not decided</b>: {_e(why)}"
@@ -709,7 +722,8 @@ def _verdict_section(day: DayData) -> Section:
         return Section("verdict", "Verdict",
                        f"<p class='err'>No comparison: {_e(day.comparison_error or 'no data')}"
                        ".</p>")  # fmt: skip
-    lines = verdicts(res, [d.item for d in day.compared])
+    assert day.day_comparison is not None
+    lines = verdicts(day.day_comparison)
     items = "".join(f"<li class='{v.kind}'>{v.html}</li>" for v in lines)
     intro = f"<ul class='verdicts'>{items}</ul>"
     notes = []
@@ -741,19 +755,21 @@ def _comparison_section(day: DayData, colours: dict[str, str], format_comparison
             "Comparison of the items",
             f"<p class='err'>No comparison: {_e(day.comparison_error or 'no data')}.</p>",
         )
+    from station.model.versus import versus
+
     rows = []
     by = {i.item: i for i in res.items}
     for k, name in enumerate(res.ranking, start=1):
         it = by[name]
-        cmp = reference_comparison(res, name)
+        v = versus(res, name)
         if name == res.reference:
             delta = p = dtime = "reference"
-        elif cmp is None or cmp.ci90 is None or cmp.p_a_faster is None:
+        elif v is None:
             delta, p, dtime = f"not comparable ({count_valid(it)})", "—", "—"
         else:
-            delta = f"{-cmp.delta_mu:+.5f} [{-cmp.ci90[1]:+.5f}, {-cmp.ci90[0]:+.5f}]"
-            p = f"{1 - cmp.p_a_faster:.3f}"
-            dtime = f"{-cmp.delta_t_s * 1000:+.1f}"
+            delta = f"{v.delta_mu:+.5f} [{v.ci90[0]:+.5f}, {v.ci90[1]:+.5f}]"
+            p = f"{v.p_faster:.3f}"
+            dtime = f"{v.delta_t_s * 1000:+.1f}"
         rows.append([k, name, len(it.descents), f"{it.mu:.5f}",
                      f"[{it.ci90[0]:.5f}, {it.ci90[1]:.5f}]", delta, p, dtime])  # fmt: skip
     drift = "not fitted"
