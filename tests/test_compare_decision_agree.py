@@ -103,7 +103,7 @@ def test_decide_obeys_a_caveat_whatever_the_interval():
     [(0.9999, "p > 0.99"), (0.996, "p > 0.99"), (0.36, "p = 0.36"), (1e-9, "p < 0.001")],
 )
 def test_chi2_p_never_reads_as_one(p, words):
-    from station.model.compare import chi2_p_words
+    from station.report.comparison_text import chi2_p_words
 
     assert chi2_p_words(p) == words
 

