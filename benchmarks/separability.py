@@ -82,7 +82,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-import station.model.compare as compare_mod  # noqa: E402
+import station.model.compare_result as compare_mod  # noqa: E402
 from benchmarks.plan_power import MU_A, track  # noqa: E402
 from simulators.days import DaySetup, simulate_day  # noqa: E402
 from station.model.compare import joint_fit  # noqa: E402

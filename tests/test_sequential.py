@@ -18,7 +18,7 @@ from station.model.sequential import (
     look_fractions,
     pair_counts,
 )
-from station.report.day_text import decision_words as describe
+from station.report.comparison_text import decision_words as describe
 
 
 def test_the_boundaries_are_the_published_obrien_fleming_type_ones():
@@ -231,7 +231,7 @@ def test_the_comparison_panel_and_the_record_console_say_decided_or_not(session)
     """The UI's comparison panel renders the day's comparison with its decisions; `station
     record`'s console (PrintListener) prints the decision block, once for each change."""
     from station.cli.console import PrintListener
-    from station.report.day_text import comparison_view
+    from station.report.comparison_text import comparison_view
     from station.session.comparison import compare_results
     from station.session.recorded import RecordedSession
 

@@ -95,7 +95,7 @@ def cmd_annotate(args: argparse.Namespace) -> int:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from station.cli.console import replayed  # here: see cmd_annotate
-    from station.report.day_text import compare_text, comparison_json, write_ranking_csv
+    from station.report.comparison_text import compare_text, comparison_json, write_ranking_csv
     from station.session.comparison import compare_results
     from station.session.recorded import RecordedSession
 

@@ -63,7 +63,7 @@ class PrintListener(Listener):
     def comparison(self, day: DayComparison) -> None:
         """The decision on each pair of items ("decided: …" or "not yet: …") when it changed;
         the rest of the comparison is for the UI and ``station compare``."""
-        from station.report.day_text import decision_block
+        from station.report.comparison_text import decision_block
 
         block = decision_block(day)
         if block and tuple(block[1:]) != self._decisions:

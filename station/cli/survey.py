@@ -355,7 +355,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 def cmd_fit(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from station.model.fit import CI_METHOD, fit_descent
+    from station.model.fit import fit_descent
+    from station.model.fit_result import CI_METHOD
     from station.model.physics import Conditions, gravity_for
     from station.model.track_error import survey_error
     from station.timing.timesfile import read_times

@@ -43,7 +43,7 @@ re-estimated at every look the rule declares on exactly the α it spends).
 Why the boundaries spend 8.5 %, not the 10 % promised (``SPEND`` against ``ALPHA``). The
 fit's Δμ̂/se is a Wald statistic of a nonlinear model with an estimated posture scatter. Its
 standard error carries Kenward-Roger's correction and its degrees of freedom count the
-scatter's uncertainty (station.model.compare._Inference), which brought the share of
+scatter's uncertainty (station.model.compare_inference.Inference), which brought the share of
 equal-ski days declared different from 10.4-11.7 % to 9.9-11.0 % on the demo run (nine
 photocells) and from 16.8 to 13.8 % on four photocells; with the scatter known the rule
 declared on 10.0-11.3 % (the model's own small-sample excess: the Wald z is 1-2 % wider than

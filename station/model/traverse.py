@@ -26,7 +26,8 @@ from scipy.optimize import least_squares
 from station.errors import InputError
 from station.files import MAX_TIMES, read_text
 from station.model.estimate import Estimate, FitStatus
-from station.model.fit import CI_METHOD, TOLERANCES, uncertainty
+from station.model.fit_result import CI_METHOD, uncertainty
+from station.model.fit_search import TOLERANCES
 from station.model.physics import G_STANDARD
 
 NAMES = ["cda", "mu", "v0", "s0"]

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from station.model.compare import Comparison, JointResult
+from station.model.compare_types import Comparison, JointResult
 
 
 @dataclass(frozen=True)

@@ -575,7 +575,7 @@ def build_day_report(day: DayData) -> str:
     """The page of one test day: the answer first (a verdict per comparison, then μ and CdA
     over the day), then the comparison's detail, the track, every descent's residuals (folded)
     and the provenance."""
-    from station.model.compare import format_comparison
+    from station.report.comparison_text import format_comparison
 
     track = day.track
     descents = day.descents
@@ -643,7 +643,7 @@ def verdicts(day: DayComparison) -> list[Verdict]:
     Decided or not is the day comparison's own decision, the one ``station compare``, the UI
     and the console give: a poor fit or a drift not separable from the pair decides nothing."""
     from station.model.versus import versus
-    from station.report.day_text import decision_words
+    from station.report.comparison_text import decision_words
 
     res = day.result
     assert res is not None
@@ -787,7 +787,7 @@ def _comparison_section(day: DayData, colours: dict[str, str], format_comparison
     left_out = "".join(f"<li>descent {n}: {_e(why)}</li>" for n, why in res.excluded)
     # the model as it is fitted (compare.py): each descent's drag area varies about its
     # skier's by the posture scatter, and each descent has its own v0 and time offset
-    from station.model.compare import posture_words
+    from station.report.comparison_text import posture_words
 
     posture = posture_words(res)
     intro = (

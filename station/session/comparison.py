@@ -3,7 +3,7 @@ compare``, ``station report``, ``station record``'s console and the UI's compari
 
 It chooses the descents, fits them jointly, notes the ones left out and those with wind, and
 decides each pair (:mod:`station.model.sequential`); every view renders the typed
-:class:`DayComparison` it returns (:mod:`station.report.day_text`), none computes its own.
+:class:`DayComparison` it returns (:mod:`station.report.comparison_text`), none computes its own.
 """
 
 from __future__ import annotations
@@ -11,14 +11,8 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
-from station.model.compare import (
-    CompareError,
-    Comparison,
-    DescentData,
-    JointResult,
-    collect,
-    joint_fit,
-)
+from station.model.compare import collect, joint_fit
+from station.model.compare_types import CompareError, Comparison, DescentData, JointResult
 from station.model.sequential import DEFAULT_HORIZON, Decision, day_decisions
 from station.session.analysis import DescentResult
 from station.survey.track import Track

@@ -24,7 +24,7 @@ from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, RichLog, Static
 
 from station.model.estimate import Estimate
-from station.report.day_text import comparison_view
+from station.report.comparison_text import comparison_view
 from station.report.text import count, local_time
 from station.session.acquisition import Acquisition
 from station.session.analysis import DescentResult
