@@ -14,7 +14,8 @@ from station.cli.common import _positive, open_output, output_dir, reference_ite
 def cmd_report(args: argparse.Namespace) -> int:
     # here, not at the top: numpy, scipy and matplotlib (see recording.py's note)
     from station.cli.console import day_summary, replayed
-    from station.report.day_report import DayData, build_day_report, descent_views
+    from station.report.day_data import DayData, descent_views
+    from station.report.day_report import build_day_report
     from station.report.text import count
     from station.session import store as sessions
     from station.session.recorded import RecordedSession
