@@ -4,7 +4,6 @@ or merged into an existing one without doubling impulses (station.session.memory
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from typing import Any
 
@@ -18,6 +17,7 @@ def cmd_import(args: argparse.Namespace) -> int:
     from station.session import store as sessions
     from station.session.acquisition import replay
     from station.session.config import load_config
+    from station.session.resultsstate import annotations_digest
     from station.timing.assembly import JOINED
 
     if args.into and args.date:
@@ -35,8 +35,10 @@ def cmd_import(args: argparse.Namespace) -> int:
         config = sessions.load_session_config(args.session_dir)
     if report.repaired:
         print(f"station: warning: {report.repaired}", file=sys.stderr)
+    # with the state a recording leaves: the next annotate changes rows in place
+    digest = annotations_digest(report.session)  # before the replay reads them
     run = replay(report.session, config)
-    run.write_csv(os.path.join(report.session, sessions.RESULTS))
+    run.write_session_results(report.session, digest)
     print(
         f"{report.impulses_in_file} impulses in {args.file}: {report.already_there} already in "
         f"the session, {report.added} added; the file is kept as {report.kept_as}",

@@ -11,6 +11,7 @@ import os
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from station.files import write_atomic
 from station.report.day_figures import figure, item_colours, plain, png, style
 from station.report.page import Section, esc, num, render_html, table
 
@@ -203,8 +204,5 @@ def write_season_report(
 ) -> str:
     path = os.path.join(folder, REPORT)
     page = build_season_report(res, days, conditions, by)
-    tmp = path + ".tmp"
-    with open(tmp, "w", encoding="utf-8") as fh:
-        fh.write(page)
-    os.replace(tmp, path)
+    write_atomic(path, [page.encode("utf-8")])
     return path

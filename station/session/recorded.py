@@ -11,7 +11,7 @@ comparison was glued together three times.
 No I/O happens when the object is made but the check that the folder is a session; the
 replay is run once, when a result is first asked for, and kept. An annotation that changes no
 fit changes the rows it concerns without a replay, when the results CSV is the one a replay
-wrote (:mod:`station.session.resultsstate`).
+wrote (:mod:`station.session.resultsfile`).
 """
 
 from __future__ import annotations
@@ -30,8 +30,10 @@ from station.files import MAX_OBSERVATIONS, MAX_RAWLOG, check_output, open_regul
 from station.session import resultsstate
 from station.session import store as sessions
 from station.session.config import StationConfig
+from station.session.marks import Marks
 from station.session.records import Annotation
 from station.session.results import read_results
+from station.session.resultsfile import ResultsFile
 
 # the replay, the fits and the comparison load numpy and scipy (a second): imported where
 # they are used, so ``station annotate`` that needs no fit, and ``station sessions``, do not
@@ -249,7 +251,7 @@ class RecordedSession:
         day = None
         if records:
             try:
-                day = resultsstate.Marks.of(self.config, records)
+                day = Marks.of(self.config, records)
             except InputError:
                 day = None
         out = []
@@ -336,9 +338,8 @@ class RecordedSession:
             return None  # the replay says why
         after = resultsstate.annotations_digest(self.path)
         try:
-            return self._saved(
-                lambda: resultsstate.in_place(self.path, config, cur, records, after)
-            )
+            edit = ResultsFile(self.path).edit
+            return self._saved(lambda: edit(config, cur, records, after))
         except InputError:
             raise  # the CSV cannot be written: a replay would not write it either
         except Exception as exc:  # noqa: BLE001 - a bug here must not lose the annotation
@@ -355,12 +356,7 @@ class RecordedSession:
         self._run = None
 
         def write() -> str:
-            acq = self.run()
-            results = acq.results()
-            header = sessions.results_header(acq.config, acq.track.name)
-            return resultsstate.write_results_with_state(
-                self.path, [r.row for r in results], header, digest, _fitted(acq)
-            )
+            return self.run().write_session_results(self.path, digest)
 
         path = self._saved(write)
         assert path is not None
@@ -402,11 +398,6 @@ class RecordedSession:
             self.track, self.results(), wind_limit_ms=wind_limit_ms, reference=reference,
             **options,
         )  # fmt: skip
-
-
-def _fitted(acq: Acquisition) -> resultsstate.Fitted:
-    """The replay's descents in the order it fitted them (:func:`resultsstate.fitted_of`)."""
-    return resultsstate.fitted_of(acq.day)
 
 
 def _text(value: Any) -> str:
