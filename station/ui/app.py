@@ -553,8 +553,8 @@ class StationApp(App):
             self._show(self._panel_due)
 
     def on_comparison_updated(self, msg: ComparisonUpdated) -> None:
-        self.comparison = msg.day
-        self.comparison_text = comparison_view(msg.day)
+        self.comparison = msg.comparison
+        self.comparison_text = comparison_view(msg.comparison)
         if self._fit_imminent():  # drawn after the fit: the long text's layout waits
             self._comparison_due = True
             return

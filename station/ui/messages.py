@@ -59,9 +59,9 @@ class SourceEnded(Message):
 class ComparisonUpdated(Message):
     """The test-day comparison, recomputed after a descent or an annotation."""
 
-    def __init__(self, day: DayComparison) -> None:
+    def __init__(self, comparison: DayComparison) -> None:
         super().__init__()
-        self.day = day
+        self.comparison = comparison
 
 
 class AcquisitionWarning(Message):
@@ -93,8 +93,8 @@ class PostingListener(Listener):
     def result(self, result: DescentResult) -> None:
         self.app.post_message(DescentFitted(result))
 
-    def comparison(self, day: DayComparison) -> None:
-        self.app.post_message(ComparisonUpdated(day))
+    def comparison(self, comparison: DayComparison) -> None:
+        self.app.post_message(ComparisonUpdated(comparison))
 
     def warning(self, text: str) -> None:
         self.app.post_message(AcquisitionWarning(text))
