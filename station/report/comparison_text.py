@@ -138,14 +138,51 @@ def decision_block(day: DayComparison) -> list[str]:
 
 
 def comparison_view(day: DayComparison) -> str:
-    """The joint fit of the day's valid descents, its warnings and the decisions, as the UI
-    shows it (a line for why there is none yet)."""
+    """The UI's comparison panel: the decisions first, each pair's on a line of its own with
+    its decision below it (no phrase broken at 80 columns), then the joint fit of the day's
+    valid descents and its warnings (a line for why there is none yet)."""
     res = day.result
     if res is None:
         return f"no comparison yet: {day.error}"
     text = format_comparison(res, len(day.compared)) + "".join(f"\n! {w}" for w in res.warnings)
     block = decision_block(day)
-    return text + "".join(f"\n{line}" for line in ["", *block]) if block else text
+    if not block:
+        return text
+    head = block[0].replace(", with a look", ",\nwith a look", 1)
+    pairs = [f"  {d.a} vs {d.b}:\n      {decision_words(d)}" for d in day.decisions]
+    return "\n".join([head, *pairs, "", text])
+
+
+def _leading_pair(day: DayComparison) -> Decision | None:
+    """The decision between the leader and the runner-up (else the first of the leader's)."""
+    res = day.result
+    if res is None or not day.decisions:
+        return None
+    top = set(res.ranking[:2])
+    for d in day.decisions:
+        if {d.a, d.b} == top:
+            return d
+    lead = res.ranking[0]
+    return next((d for d in day.decisions if lead in (d.a, d.b)), day.decisions[0])
+
+
+def headline(day: DayComparison | None) -> str:
+    """One line for the UI's main screen: which item leads, by how much, and decided or not,
+    in the decisions' own words ("A vs B: decided: A faster by Δμ …")."""
+    if day is None:
+        return "comparison: none yet (enter ski or wax with m)"
+    d = _leading_pair(day)
+    if d is None:
+        why = day.error or "one item only: enter ski or wax with m"
+        return f"comparison: none yet ({why})"
+    res = day.result
+    assert res is not None
+    lead = res.ranking[0]
+    other = d.b if lead == d.a else d.a
+    ahead = "" if d.state == "decided" else f"{lead} ahead by Δμ {abs(d.delta_mu):.5f} · "
+    more = len(day.decisions) - 1
+    rest = f" · {more} more pair{'s' * (more != 1)} (c)" if more else ""
+    return f"{ahead}{decision_words(d)} · {lead} vs {other}{rest}"
 
 
 def compare_text(day: DayComparison) -> str:

@@ -24,7 +24,7 @@ from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, RichLog, Static
 
 from station.model.estimate import Estimate
-from station.report.comparison_text import comparison_view
+from station.report.comparison_text import comparison_view, headline
 from station.report.text import count, local_time
 from station.session.acquisition import Acquisition
 from station.session.analysis import DescentResult
@@ -216,6 +216,7 @@ class MainScreen(Screen):
     def compose(self) -> ComposeResult:
         yield Header(show_clock=False)
         yield Static("", id="status", markup=False)
+        yield Static(headline(None), id="answer", markup=False)  # the day's answer, always
         # markup=False: "[0.2238, 0.2249]", "x [m]" and a port name are text, not markup
         with Horizontal(id="top"):
             with Vertical(id="left"):
@@ -346,6 +347,7 @@ class StationApp(App):
                 compare=True,
             )
         self.photocell_ids = tuple(self.acq.track.photocell_ids)
+        self.acq.show_comparison(True)  # the answer line shows it after every descent
         if self.session_dir is not None:
             self.sub_title = f"{self.mode} · {self.session_dir}"
         elif self.source is not None:  # a replay names what it replays: the session's name
@@ -555,6 +557,7 @@ class StationApp(App):
     def on_comparison_updated(self, msg: ComparisonUpdated) -> None:
         self.comparison = msg.comparison
         self.comparison_text = comparison_view(msg.comparison)
+        self.main.query_one("#answer", Static).update(headline(msg.comparison), layout=False)
         if self._fit_imminent():  # drawn after the fit: the long text's layout waits
             self._comparison_due = True
             return
@@ -595,16 +598,9 @@ class StationApp(App):
         self.notify(msg.text, title="the recording goes on", severity="error", timeout=10)
 
     def action_compare(self) -> None:
-        """The comparison is computed only while it is shown (at 2000 descents a joint fit
-        takes seconds of a 2-core laptop): shown, it is brought up to date, and kept so."""
-
-        def closed(_result: None) -> None:
-            if self.acq is not None:
-                self.acq.show_comparison(False)
-
-        self.push_screen(ComparisonScreen(self.comparison_text), closed)
-        if self.acq is not None:
-            self.acq.show_comparison(True)
+        """The whole comparison, kept up to date while shown (it is computed after every
+        descent, in a process of its own, for the answer line)."""
+        self.push_screen(ComparisonScreen(self.comparison_text))
 
     def on_source_ended(self, msg: SourceEnded) -> None:
         self.connection = "replay finished"
