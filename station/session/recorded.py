@@ -30,7 +30,7 @@ from station.files import MAX_OBSERVATIONS, MAX_RAWLOG, check_output, open_regul
 from station.session import resultsstate
 from station.session import store as sessions
 from station.session.config import StationConfig
-from station.session.records import Annotation
+from station.session.records import Annotation, LineCounts, Metadata
 from station.session.results import read_results
 
 # the replay, the fits and the comparison load numpy and scipy (a second): imported where
@@ -40,7 +40,9 @@ if TYPE_CHECKING:
     from station.session.analysis import DescentResult
     from station.session.comparison import DayComparison
     from station.session.fitstore import FitStore
+    from station.session.processor import Processor
     from station.survey.track import Track
+    from station.timing.assembly import TimedDescent
 
 _BLOCK = 1 << 20
 
@@ -403,6 +405,41 @@ class RecordedSession:
             **options,
         )  # fmt: skip
 
+    # ------------------------------------------------------------------ what the commands show
+
+    def results_upto(self, upto: int | None) -> tuple[DescentResult, ...]:
+        """The descents as the day stood after descent ``upto`` (``compare --upto``; every
+        descent: None)."""
+        results = self.results()
+        if upto is None:
+            return results
+        return tuple(r for r in results if r.row.descent <= upto)
+
+    def line_counts(self) -> LineCounts:
+        """The lines the replay read and what became of them (a command's summary line)."""
+        return self.run().line_counts()
+
+    def base_metadata(self) -> Metadata:
+        """The day's metadata before any descent's own: the config's, with the annotations."""
+        return self.run().day.base_metadata()
+
+    def results_header(self) -> dict[str, str]:
+        """The header lines of the results CSV a replay writes (station, config, track)."""
+        acq = self.run()
+        return sessions.results_header(acq.config, acq.track.name)
+
+    def write_results_csv(self) -> int:
+        """The results CSV of the replay into the session (``station import``: no state, so
+        the next annotate replays the day); returns the number of descents written."""
+        return self.run().write_csv(self.file(sessions.RESULTS))
+
+    def joined_by_last_import(self) -> set[int]:
+        """The descents the session's last ``station import`` joined to the recording
+        (:func:`station.session.memory_import.joined_by_last_import`)."""
+        from station.session.memory_import import joined_by_last_import
+
+        return joined_by_last_import(self.run().day.processor)
+
 
 def _fitted(acq: Acquisition) -> resultsstate.Fitted:
     """The replay's descents in the order it fitted them (:func:`resultsstate.fitted_of`)."""
@@ -411,3 +448,62 @@ def _fitted(acq: Acquisition) -> resultsstate.Fitted:
 
 def _text(value: Any) -> str:
     return "" if value is None else str(value)
+
+
+# ----------------------------------------------------------------------------- a bare replay
+
+
+@dataclass(frozen=True)
+class Unfitted:
+    """``replay --no-fit`` of a session folder or a plain capture: its descents as they ended
+    (one an edit changed, as it ended last), by number, nothing fitted, and the processor that
+    made them (its line counts, every impulse's fate)."""
+
+    descents: dict[int, TimedDescent]
+    processor: Processor
+
+    def line_counts(self) -> LineCounts:
+        return self.processor.line_counts()
+
+    def write_events_to(self, fh: IO[str]) -> None:
+        """Every parsed impulse and its fate (:func:`station.session.replay.write_events`)."""
+        from station.session.replay import write_events
+
+        write_events(self.processor, fh)
+
+
+def replay_unfitted(source: str, config: StationConfig, warnings: list[str]) -> Unfitted:
+    """Framing, parsing and the descents of ``source``, nothing fitted: a quick check of a
+    capture, its crossing times for another tool, and the measure of the replay's own
+    throughput (benchmarks/replay_speed.py). ``warnings`` collects what the reader passed
+    over."""
+    import gc
+
+    from station.session.processor import Processor
+    from station.session.replay import bulk_chunks
+    from station.survey.load import load_survey
+    from station.survey.track import build_track
+
+    proc = Processor(config, build_track(load_survey(config.survey_path)))
+    ended: dict[int, TimedDescent] = {}  # a descent an edit changed ends again: the latest kept
+    # a bulk replay makes no garbage cycles (tuples, lists and descents, all kept or freed by
+    # their counts): the collector is out of the way while it runs (it scanned the growing
+    # lists of events again and again: 15 % of the time), and the set-up's objects (modules,
+    # the track) are frozen out of its later scans
+    gc.freeze()
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        for d in proc.feed_chunks(bulk_chunks(source, warnings)):
+            ended[d.number] = d
+        for d in proc.finish():
+            ended[d.number] = d
+    finally:
+        # what the replay made (all kept) joins the frozen set-up before the collector is back:
+        # else its first collection walked every object made while it was off (25 ms of a
+        # 100 800-line capture's 330, benchmarks/replay_speed.py)
+        gc.freeze()
+        if was_enabled:
+            gc.enable()
+        gc.unfreeze()
+    return Unfitted(ended, proc)
