@@ -21,12 +21,19 @@ import hashlib
 import json
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
+from enum import StrEnum
 from typing import IO, TYPE_CHECKING, Any
 
 from station import __version__
 from station.errors import InputError
-from station.files import MAX_OBSERVATIONS, MAX_RAWLOG, check_output, open_regular
+from station.files import (
+    MAX_OBSERVATIONS,
+    MAX_RAWLOG,
+    check_output,
+    check_regular,
+    open_regular,
+)
 from station.session import resultsstate
 from station.session import store as sessions
 from station.session.config import StationConfig
@@ -440,6 +447,53 @@ class RecordedSession:
 
         return joined_by_last_import(self.run().day.processor)
 
+    def summary(self) -> SessionSummary:
+        """The session as ``station sessions`` lists it, from its results CSV and annotations
+        without replaying or fitting anything; one that cannot be read is an
+        :class:`InputError` (or the :class:`OSError` of a file that went meanwhile)."""
+        from station.model.compare import item_name  # here: numpy (see the note above)
+
+        check_regular(self.file(sessions.RAW), MAX_RAWLOG, "raw log")
+        rows = self.rows()
+        items: list[str] = []
+        for r in rows:
+            it = item_name(r.ski, r.wax)
+            if r.descent_status != "aborted" and it not in items:
+                items.append(it)
+        has_results = os.path.lexists(self.file(sessions.RESULTS))
+        head = self.first_record()
+        started, imported = self.started(head), ""
+        if self.made_by_import(head):
+            first = next((m for m in map(_minute, (r.start_time for r in rows)) if m), "")
+            if first:
+                started, imported = first, started
+        return SessionSummary(
+            path=self.path,
+            started=started,
+            imported=imported,
+            descents=sum(r.descent_status != "aborted" for r in rows),
+            fitted=sum(r.status == "ok" and not r.invalid_reason for r in rows),
+            invalid=sum(bool(r.invalid_reason) for r in rows),
+            items=tuple(items),
+            status=self.status(has_results),
+        )
+
+    def status(self, has_results: bool) -> SessionStatus:
+        """``recording`` while a process holds the session's lock, whatever the timer does;
+        ``interrupted`` when its recorder died (killed, crashed) without ending it, so its
+        results CSV may lack the last descent; ``finished`` when it was ended (or is older
+        than the lock)."""
+        state = self.recording_state()
+        if state is sessions.RecordingStatus.NOW:
+            return SessionStatus.RECORDING
+        if not has_results:
+            return SessionStatus.NO_RESULTS
+        if state is sessions.RecordingStatus.INTERRUPTED:
+            return SessionStatus.INTERRUPTED
+        if state is sessions.RecordingStatus.UNKNOWN:
+            return SessionStatus.UNKNOWN
+        return SessionStatus.FINISHED
+
 
 def _fitted(acq: Acquisition) -> resultsstate.Fitted:
     """The replay's descents in the order it fitted them (:func:`resultsstate.fitted_of`)."""
@@ -507,3 +561,55 @@ def replay_unfitted(source: str, config: StationConfig, warnings: list[str]) -> 
             gc.enable()
         gc.unfreeze()
     return Unfitted(ended, proc)
+
+
+# ----------------------------------------------------------------------------- a listing's line
+
+
+class SessionStatus(StrEnum):
+    """What ``station sessions`` says of a session as a whole (its ``status`` column)."""
+
+    RECORDING = "recording"  # a process holds its recording lock
+    FINISHED = "finished"
+    INTERRUPTED = "interrupted"  # its recorder died: the results CSV may lack the last descent
+    NO_RESULTS = "no results (station export SESSION --csv …)"
+    UNKNOWN = "unknown (its recording.lock cannot be tried)"
+    BROKEN = "broken"  # it cannot be read (the reason is in ``problem``)
+
+
+@dataclass(frozen=True)
+class SessionSummary:
+    """One line of ``station sessions`` (:meth:`RecordedSession.summary`)."""
+
+    path: str
+    started: str  # local date and time of the first raw-log record, "" when unknown
+    descents: int
+    fitted: int  # descents with status ok
+    invalid: int  # marked invalid by the engineer
+    items: tuple[str, ...]
+    status: SessionStatus
+    problem: str = ""  # why a broken session cannot be read; "" for the others
+    #: when ``station import`` made it (its raw log's first record), "" for a recorded one:
+    #: ``started`` is then its first descent's start, the test day, not the day of the import
+    imported: str = ""
+
+    @classmethod
+    def broken(cls, path: str, why: str) -> SessionSummary:
+        """The line of a session that cannot be read, saying why."""
+        return cls(path, "", 0, 0, 0, (), SessionStatus.BROKEN, why)
+
+    def to_json(self) -> dict[str, Any]:
+        out = asdict(self) | {"items": list(self.items)}
+        if not self.problem:
+            del out["problem"]  # the listing of a readable session is as it was
+        if not self.imported:
+            del out["imported"]
+        return out
+
+
+def _minute(iso: str) -> str:
+    """'2026-01-12 10:00' of a results CSV's start time (ISO 8601 local), "" if it is none."""
+    try:
+        return dt.datetime.fromisoformat(iso).strftime("%Y-%m-%d %H:%M")
+    except (TypeError, ValueError):
+        return ""
