@@ -90,6 +90,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     if args.from_session is None and args.posture_scatter is None:
         raise InputError("give the posture scatter (--posture-scatter) or a past session (--from)")
     past = _past_day(args) if args.from_session is not None else None
+    # what the options say (NaN: not given, so the past session's is taken)
     stated = DayAssumptions(
         mass_kg=args.mass,
         air_density=rho,

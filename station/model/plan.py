@@ -465,6 +465,8 @@ def prior(stated: DayAssumptions, given: Collection[str], past: PastDay | None) 
     cannot keep, so it takes at least :data:`DEFAULT_POSTURE` (:attr:`Source.DEFAULT`)."""
     drift = Source.GIVEN if "drift_per_hour" in given else Source.DEFAULT
     if past is None:
+        if "posture_sd" not in given:
+            raise ValueError("a plan needs the posture scatter: given, or from a past day")
         return Prior(stated, Source.GIVEN, drift)
     taken: dict[str, float] = {}
     if drift is Source.DEFAULT and past.drift_per_hour is not None:
