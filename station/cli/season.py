@@ -18,7 +18,7 @@ from station.cli.common import _print_json, _warn, open_output, output_path
 from station.errors import InputError
 
 if TYPE_CHECKING:
-    from station.model.season import SeasonComparison, SeasonItem, SeasonResult
+    from station.model.season import SeasonComparison, SeasonResult
 
 
 def _open(args: argparse.Namespace, create: bool = False) -> Any:
@@ -178,7 +178,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
                 "reference": res.reference,
                 "by": args.by,
                 "at": res.at,
-                "items": [it.to_dict() for it in _ranked(res)],
+                "items": [it.to_dict() for it in res.ranked()],
                 "heterogeneity": res.heterogeneity(),
                 "days": res.days,
                 "descents": res.descents,
@@ -192,10 +192,6 @@ def cmd_compare(args: argparse.Namespace) -> int:
     for w in res.warnings:
         _warn(w)
     return 0
-
-
-def _ranked(res: SeasonResult) -> list[SeasonItem]:
-    return sorted(res.items, key=lambda i: (i.delta_mu is None, i.delta_mu or 0.0, i.item))
 
 
 def format_season(res: SeasonResult, by: str) -> str:
@@ -212,7 +208,7 @@ def format_season(res: SeasonResult, by: str) -> str:
     w = min(28, max([6, *(len(i.item) + 2 for i in res.items)]))
     lines.append(f"{'rank':<5}{'item':<{w}}{'days':>5}{'descents':>9}{'Δμ':>10}   "
                  f"{'90 % CI':<22}{'P(faster)':>9}{'P(best)':>9}")  # fmt: skip
-    for k, it in enumerate(_ranked(res), start=1):
+    for k, it in enumerate(res.ranked(), start=1):
         if it.delta_mu is None or it.ci90 is None:
             lines.append(f"{'—':<5}{it.item:<{w}}{it.days:>5}{it.descents:>9}   {it.note}")
             continue

@@ -129,6 +129,11 @@ class SeasonResult:
             f"{text(self.days, self.descents)} compared"
         )
 
+    def ranked(self) -> list[SeasonItem]:
+        """The items from the lowest μ against the reference up (a name breaks a tie), those
+        without a comparison last."""
+        return sorted(self.items, key=lambda i: (i.delta_mu is None, i.delta_mu or 0.0, i.item))
+
     def heterogeneity(self) -> dict[str, Any]:
         return {"tau": self.tau, "q": self.q, "dof": self.dof, "p": self.q_p}
 
