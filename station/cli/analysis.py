@@ -101,9 +101,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     session = RecordedSession(args.session)
     output_path(args.csv, "--csv")
-    results = replayed(session).results()
-    if args.upto is not None:  # the day as it stood after descent K
-        results = tuple(r for r in results if r.row.descent <= args.upto)
+    results = replayed(session).results_upto(args.upto)  # the day as after descent K
     reference = reference_item(args.reference, results, args.wind_limit)
     day = compare_results(
         session.track, results, wind_limit_ms=args.wind_limit, reference=reference,

@@ -23,22 +23,21 @@ def cmd_report(args: argparse.Namespace) -> int:
     session = RecordedSession(args.session, speed_curves=True)  # the report draws them
     out = output_dir(args.out, "--out")  # checked (and made) before the day is replayed
     path = os.path.join(out, f"{session.name}.html")
-    acq = replayed(session).run()  # the session as a replay gives it, annotations included
-    results = acq.results()
-    base = acq.day.base_metadata()
+    results = replayed(session).results()  # as a replay gives them, annotations included
+    base = session.base_metadata()
     day = DayData(
         session=args.session,
-        track=acq.track,
+        track=session.track,
         descents=descent_views(results),
-        header=sessions.results_header(acq.config, acq.track.name),
-        summary=day_summary(acq),
+        header=session.results_header(),
+        summary=day_summary(session.run()),
         config_metadata={k: getattr(base, k, None) for k in ("skier", "ski", "wax", "notes")},
         recorded=session.started(),
         annotations=len(session.annotations()),
     )
     with open(session.file(sessions.CONFIG), encoding="utf-8") as fh:
         day.config_text = fh.read()
-    day.warnings = list(acq.track.warnings)
+    day.warnings = list(session.track.warnings)
     reference = reference_item(args.reference, results, args.wind_limit)
     day.day_comparison = session.compare(
         wind_limit_ms=args.wind_limit, reference=reference, drift=args.drift
