@@ -12,7 +12,7 @@ from station.errors import InputError
 
 
 def cmd_import(args: argparse.Namespace) -> int:
-    from station.cli.console import day_summary, replayed  # here: numpy, see recording.py
+    from station.cli.console import day_summary  # here: numpy, see recording.py's note
     from station.session import memory_import
     from station.session import store as sessions
     from station.session.config import load_config
@@ -34,7 +34,7 @@ def cmd_import(args: argparse.Namespace) -> int:
         config = sessions.load_session_config(args.session_dir)
     if report.repaired:
         print(f"station: warning: {report.repaired}", file=sys.stderr)
-    session = replayed(RecordedSession(report.session, config))
+    session = RecordedSession(report.session, config)
     session.write_results_csv()
     print(
         f"{report.impulses_in_file} impulses in {args.file}: {report.already_there} already in "
