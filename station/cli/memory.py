@@ -12,7 +12,7 @@ from station.errors import InputError
 
 
 def cmd_import(args: argparse.Namespace) -> int:
-    from station.cli.console import day_summary, replayed  # here: numpy, see recording.py
+    from station.cli.console import day_summary  # here: numpy, see recording.py's note
     from station.session import memory_import
     from station.session import store as sessions
     from station.session.config import load_config
@@ -37,7 +37,6 @@ def cmd_import(args: argparse.Namespace) -> int:
     # with the state a recording leaves: the next annotate changes rows in place
     session = RecordedSession(report.session, config)
     session.write_results_csv()
-    replayed(session)  # what its replay passed over, said
     print(
         f"{report.impulses_in_file} impulses in {args.file}: {report.already_there} already in "
         f"the session, {report.added} added; the file is kept as {report.kept_as}",
