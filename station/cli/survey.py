@@ -7,12 +7,7 @@ import argparse
 import math
 from typing import TYPE_CHECKING, Any
 
-from station.cli.common import (
-    _print_json,
-    _warn,
-    open_output,
-    output_path,
-)
+from station.cli.common import _print_json, _warn, open_output, output_path
 from station.errors import InputError
 
 if TYPE_CHECKING:  # the survey modules import numpy and scipy: loaded when a command runs

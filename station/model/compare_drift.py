@@ -7,7 +7,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from scipy.special import stdtr  # χ² survival, Student t (no scipy.stats)
+from scipy.special import stdtr  # Student t (no scipy.stats)
 
 from station.model.compare_types import (
     DescentData,

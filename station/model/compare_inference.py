@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 from scipy.optimize import brentq
-from scipy.special import stdtr, stdtrit  # χ² survival, Student t (no scipy.stats)
+from scipy.special import stdtr, stdtrit  # Student t (no scipy.stats)
 
 from station.model.compare_reml import LOG_GAMMA, Pieces, Solution, Step, linear_step
 

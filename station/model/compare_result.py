@@ -8,7 +8,7 @@ from dataclasses import replace
 from itertools import combinations
 
 import numpy as np
-from scipy.special import chdtrc  # χ² survival, Student t (no scipy.stats)
+from scipy.special import chdtrc  # χ² survival (no scipy.stats)
 
 from station.model.compare_inference import Inference
 from station.model.compare_layout import DayModel, Layout
