@@ -96,19 +96,18 @@ def cmd_annotate(args: argparse.Namespace) -> int:
 def cmd_compare(args: argparse.Namespace) -> int:
     from station.cli.console import replayed  # here: see cmd_annotate
     from station.report.comparison_text import compare_text, comparison_json, write_ranking_csv
-    from station.session.comparison import compare_results
     from station.session.recorded import RecordedSession
 
     session = RecordedSession(args.session)
     output_path(args.csv, "--csv")
     results = replayed(session).results_upto(args.upto)  # the day as after descent K
     reference = reference_item(args.reference, results, args.wind_limit)
-    day = compare_results(
-        session.track, results, wind_limit_ms=args.wind_limit, reference=reference,
-        cda_fixed=args.cda, model=args.model, drift=args.drift,
+    day = session.analysis(
+        upto=args.upto, wind_limit_ms=args.wind_limit, reference=reference, cda_fixed=args.cda,
+        model=args.model, drift=args.drift,
         timer_sd_s=None if args.timer_ms is None else args.timer_ms / 1000.0,
         horizon=args.horizon, margin=args.margin,
-    )  # fmt: skip
+    ).comparison  # fmt: skip
     if day.result is None:
         raise InputError(day.error, path=args.session)
     if args.csv:

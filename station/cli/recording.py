@@ -97,7 +97,7 @@ def _replay_no_fit(args: argparse.Namespace, cfg: Any) -> int:
     crossing times for another tool (``--times``), its impulses' fates (``--events``); and the
     measure of the replay's own throughput (benchmarks/replay_speed.py)."""
     from station.report.text import count, impulses_text
-    from station.session.recorded import replay_unfitted
+    from station.session.replay import replay_unfitted
     from station.timing.impulses import format_tod
 
     if args.csv or args.ui:

@@ -13,36 +13,20 @@ from station.cli.common import _positive, open_output, output_dir, reference_ite
 
 def cmd_report(args: argparse.Namespace) -> int:
     # here, not at the top: numpy, scipy and matplotlib (see recording.py's note)
-    from station.cli.console import day_summary, replayed
-    from station.report.day_data import DayData, descent_views
+    from station.cli.console import replayed
+    from station.report.day_data import day_data
     from station.report.day_report import build_day_report
     from station.report.text import count
-    from station.session import store as sessions
     from station.session.recorded import RecordedSession
 
     session = RecordedSession(args.session, speed_curves=True)  # the report draws them
     out = output_dir(args.out, "--out")  # checked (and made) before the day is replayed
     path = os.path.join(out, f"{session.name}.html")
     results = replayed(session).results()  # as a replay gives them, annotations included
-    base = session.base_metadata()
-    day = DayData(
-        session=args.session,
-        track=session.track,
-        descents=descent_views(results),
-        header=session.results_header(),
-        summary=day_summary(session.run()),
-        config_metadata={k: getattr(base, k, None) for k in ("skier", "ski", "wax", "notes")},
-        recorded=session.started(),
-        annotations=len(session.annotations()),
-    )
-    with open(session.file(sessions.CONFIG), encoding="utf-8") as fh:
-        day.config_text = fh.read()
-    day.warnings = list(session.track.warnings)
     reference = reference_item(args.reference, results, args.wind_limit)
-    day.day_comparison = session.compare(
-        wind_limit_ms=args.wind_limit, reference=reference, drift=args.drift
-    )
-    page = build_day_report(day)
+    analysis = session.analysis(wind_limit_ms=args.wind_limit, reference=reference,
+                                drift=args.drift)  # fmt: skip
+    page = build_day_report(day_data(analysis))
     with open_output(path, "--out") as fh:
         fh.write(page)
     print(path)

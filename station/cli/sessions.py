@@ -43,7 +43,8 @@ def find_sessions(folder: str) -> list[str]:
 
 
 def cmd_sessions(args: argparse.Namespace) -> int:
-    from station.session.recorded import RecordedSession, SessionSummary
+    from station.session.listing import SessionSummary
+    from station.session.recorded import RecordedSession
 
     found: list[SessionSummary] = []
     for path in find_sessions(args.folder):

@@ -14,6 +14,7 @@ from station.model.estimate import MISSING, Estimate
 if TYPE_CHECKING:
     from station.model.compare_types import JointResult
     from station.session.comparison import DayComparison
+    from station.session.day_analysis import DayAnalysis
 
 
 @dataclass(frozen=True)
@@ -113,3 +114,19 @@ def descent_views(results: Sequence[Any]) -> list[DescentView]:
             )
         )
     return out
+
+
+def day_data(analysis: DayAnalysis) -> DayData:
+    """What the report draws, from the day's analysis."""
+    from station.report.text import summary
+
+    base = analysis.base_metadata
+    return DayData(
+        session=analysis.session, track=analysis.track,
+        descents=descent_views(analysis.results), header=dict(analysis.header),
+        summary=summary(analysis.line_counts, analysis.results),
+        config_metadata={k: getattr(base, k, None) for k in ("skier", "ski", "wax", "notes")},
+        day_comparison=analysis.comparison, config_text=analysis.config_text,
+        recorded=analysis.started, annotations=analysis.annotations,
+        warnings=list(analysis.warnings),
+    )  # fmt: skip

@@ -21,8 +21,7 @@ import hashlib
 import json
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass
-from enum import StrEnum
+from dataclasses import dataclass
 from typing import IO, TYPE_CHECKING, Any
 
 from station import __version__
@@ -37,6 +36,7 @@ from station.files import (
 from station.session import resultsstate
 from station.session import store as sessions
 from station.session.config import StationConfig
+from station.session.listing import SessionStatus, SessionSummary, minute_of
 from station.session.marks import Marks
 from station.session.records import Annotation, LineCounts, Metadata
 from station.session.results import read_results
@@ -48,10 +48,9 @@ if TYPE_CHECKING:
     from station.session.acquisition import Acquisition, Listener
     from station.session.analysis import DescentResult
     from station.session.comparison import DayComparison
+    from station.session.day_analysis import DayAnalysis
     from station.session.fitstore import FitStore
-    from station.session.processor import Processor
     from station.survey.track import Track
-    from station.timing.assembly import TimedDescent
 
 _BLOCK = 1 << 20
 
@@ -408,6 +407,34 @@ class RecordedSession:
             **options,
         )  # fmt: skip
 
+    def analysis(
+        self,
+        *,
+        upto: int | None = None,
+        wind_limit_ms: float | None = None,
+        reference: str | None = None,
+        **options: Any,
+    ) -> DayAnalysis:
+        """The day's analysis (:class:`DayAnalysis`) as it stood after descent ``upto`` (every
+        descent: None), its comparison made with ``options`` (:func:`compare_results`)."""
+        from station.session.comparison import WIND_LIMIT_MS, compare_results
+        from station.session.day_analysis import DayAnalysis
+
+        results = self.results_upto(upto)
+        comparison = compare_results(
+            self.track, results, reference=reference,
+            wind_limit_ms=WIND_LIMIT_MS if wind_limit_ms is None else wind_limit_ms, **options,
+        )  # fmt: skip
+        with open(self.file(sessions.CONFIG), encoding="utf-8") as fh:
+            config_text = fh.read()
+        return DayAnalysis(
+            session=self.path, track=self.track, results=results, comparison=comparison,
+            header=self.results_header(), line_counts=self.line_counts(),
+            base_metadata=self.base_metadata(), started=self.started(),
+            annotations=len(self.annotations()), config_text=config_text,
+            warnings=tuple(self.track.warnings),
+        )  # fmt: skip
+
     # ------------------------------------------------------------------ what the commands show
 
     def results_upto(self, upto: int | None) -> tuple[DescentResult, ...]:
@@ -461,7 +488,7 @@ class RecordedSession:
         head = self.first_record()
         started, imported = self.started(head), ""
         if self.made_by_import(head):
-            first = next((m for m in map(_minute, (r.start_time for r in rows)) if m), "")
+            first = next((m for m in map(minute_of, (r.start_time for r in rows)) if m), "")
             if first:
                 started, imported = first, started
         return SessionSummary(
@@ -494,114 +521,3 @@ class RecordedSession:
 
 def _text(value: Any) -> str:
     return "" if value is None else str(value)
-
-
-# ----------------------------------------------------------------------------- a bare replay
-
-
-@dataclass(frozen=True)
-class Unfitted:
-    """``replay --no-fit`` of a session folder or a plain capture: its descents as they ended
-    (one an edit changed, as it ended last), by number, nothing fitted, and the processor that
-    made them (its line counts, every impulse's fate)."""
-
-    descents: dict[int, TimedDescent]
-    processor: Processor
-
-    def line_counts(self) -> LineCounts:
-        return self.processor.line_counts()
-
-    def write_events_to(self, fh: IO[str]) -> None:
-        """Every parsed impulse and its fate (:func:`station.session.replay.write_events`)."""
-        from station.session.replay import write_events
-
-        write_events(self.processor, fh)
-
-
-def replay_unfitted(source: str, config: StationConfig, warnings: list[str]) -> Unfitted:
-    """Framing, parsing and the descents of ``source``, nothing fitted: a quick check of a
-    capture, its crossing times for another tool, and the measure of the replay's own
-    throughput (benchmarks/replay_speed.py). ``warnings`` collects what the reader passed
-    over."""
-    import gc
-
-    from station.session.processor import Processor
-    from station.session.replay import bulk_chunks
-    from station.survey.load import load_survey
-    from station.survey.track import build_track
-
-    proc = Processor(config, build_track(load_survey(config.survey_path)))
-    ended: dict[int, TimedDescent] = {}  # a descent an edit changed ends again: the latest kept
-    # a bulk replay makes no garbage cycles (tuples, lists and descents, all kept or freed by
-    # their counts): the collector is out of the way while it runs (it scanned the growing
-    # lists of events again and again: 15 % of the time), and the set-up's objects (modules,
-    # the track) are frozen out of its later scans
-    gc.freeze()
-    was_enabled = gc.isenabled()
-    gc.disable()
-    try:
-        for d in proc.feed_chunks(bulk_chunks(source, warnings)):
-            ended[d.number] = d
-        for d in proc.finish():
-            ended[d.number] = d
-    finally:
-        # what the replay made (all kept) joins the frozen set-up before the collector is back:
-        # else its first collection walked every object made while it was off (25 ms of a
-        # 100 800-line capture's 330, benchmarks/replay_speed.py)
-        gc.freeze()
-        if was_enabled:
-            gc.enable()
-        gc.unfreeze()
-    return Unfitted(ended, proc)
-
-
-# ----------------------------------------------------------------------------- a listing's line
-
-
-class SessionStatus(StrEnum):
-    """What ``station sessions`` says of a session as a whole (its ``status`` column)."""
-
-    RECORDING = "recording"  # a process holds its recording lock
-    FINISHED = "finished"
-    INTERRUPTED = "interrupted"  # its recorder died: the results CSV may lack the last descent
-    NO_RESULTS = "no results (station export SESSION --csv …)"
-    UNKNOWN = "unknown (its recording.lock cannot be tried)"
-    BROKEN = "broken"  # it cannot be read (the reason is in ``problem``)
-
-
-@dataclass(frozen=True)
-class SessionSummary:
-    """One line of ``station sessions`` (:meth:`RecordedSession.summary`)."""
-
-    path: str
-    started: str  # local date and time of the first raw-log record, "" when unknown
-    descents: int
-    fitted: int  # descents with status ok
-    invalid: int  # marked invalid by the engineer
-    items: tuple[str, ...]
-    status: SessionStatus
-    problem: str = ""  # why a broken session cannot be read; "" for the others
-    #: when ``station import`` made it (its raw log's first record), "" for a recorded one:
-    #: ``started`` is then its first descent's start, the test day, not the day of the import
-    imported: str = ""
-
-    @classmethod
-    def broken(cls, path: str, why: str) -> SessionSummary:
-        """The line of a session that cannot be read, saying why."""
-        return cls(path, "", 0, 0, 0, (), SessionStatus.BROKEN, why)
-
-    def to_json(self) -> dict[str, Any]:
-        out = asdict(self) | {"items": list(self.items)}
-        if not self.problem:
-            del out["problem"]  # the listing of a readable session is as it was
-        if not self.imported:
-            del out["imported"]
-        return out
-
-
-def _minute(iso: str) -> str:
-    """'2026-01-12 10:00' of a results CSV's start time (ISO 8601 local), "" if it is none."""
-    try:
-        return dt.datetime.fromisoformat(iso).strftime("%Y-%m-%d %H:%M")
-    except (TypeError, ValueError):
-        return ""

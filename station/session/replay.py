@@ -12,13 +12,17 @@ import os
 import threading
 import time
 from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import IO
 
 from station import csvfiles
 from station.files import MAX_CAPTURE, open_regular
 from station.session import store as sessions
+from station.session.config import StationConfig
 from station.session.processor import Processor
 from station.session.rawlog import Chunk, Lines, read_rawlog, read_rawlog_bulk
+from station.session.records import LineCounts
+from station.timing.assembly import TimedDescent
 from station.timing.impulses import format_tod
 
 CAPTURE_CHUNK = 4096
@@ -94,3 +98,57 @@ def write_events(processor: Processor, fh: IO[str]) -> None:
         )  # fmt: skip
     for line, reason, text in processor.unparsed:
         w.writerow([line, "", "", "", "", "no", f"unparsed: {reason}: {text!r}", ""])
+
+
+@dataclass(frozen=True)
+class Unfitted:
+    """``replay --no-fit`` of a session folder or a plain capture: its descents as they ended
+    (one an edit changed, as it ended last), by number, nothing fitted, and the processor that
+    made them (its line counts, every impulse's fate)."""
+
+    descents: dict[int, TimedDescent]
+    processor: Processor
+
+    def line_counts(self) -> LineCounts:
+        return self.processor.line_counts()
+
+    def write_events_to(self, fh: IO[str]) -> None:
+        """Every parsed impulse and its fate (:func:`write_events`)."""
+        write_events(self.processor, fh)
+
+
+def replay_unfitted(source: str, config: StationConfig, warnings: list[str]) -> Unfitted:
+    """Framing, parsing and the descents of ``source``, nothing fitted: a quick check of a
+    capture, its crossing times for another tool, and the measure of the replay's own
+    throughput (benchmarks/replay_speed.py). ``warnings`` collects what the reader passed
+    over."""
+    import gc
+
+    from station.session.processor import Processor
+    from station.session.replay import bulk_chunks
+    from station.survey.load import load_survey
+    from station.survey.track import build_track
+
+    proc = Processor(config, build_track(load_survey(config.survey_path)))
+    ended: dict[int, TimedDescent] = {}  # a descent an edit changed ends again: the latest kept
+    # a bulk replay makes no garbage cycles (tuples, lists and descents, all kept or freed by
+    # their counts): the collector is out of the way while it runs (it scanned the growing
+    # lists of events again and again: 15 % of the time), and the set-up's objects (modules,
+    # the track) are frozen out of its later scans
+    gc.freeze()
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        for d in proc.feed_chunks(bulk_chunks(source, warnings)):
+            ended[d.number] = d
+        for d in proc.finish():
+            ended[d.number] = d
+    finally:
+        # what the replay made (all kept) joins the frozen set-up before the collector is back:
+        # else its first collection walked every object made while it was off (25 ms of a
+        # 100 800-line capture's 330, benchmarks/replay_speed.py)
+        gc.freeze()
+        if was_enabled:
+            gc.enable()
+        gc.unfreeze()
+    return Unfitted(ended, proc)
