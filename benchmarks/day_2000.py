@@ -42,8 +42,10 @@ from replay_speed import demo_station  # noqa: E402  # the replay benchmark's st
 
 from station.model.physics import Conditions, Params, StraightRun  # noqa: E402
 from station.session import store as sessions  # noqa: E402
-from station.session.acquisition import Acquisition, Listener, replay  # noqa: E402
+from station.session.acquisition import Acquisition  # noqa: E402
+from station.session.listener import Listener  # noqa: E402
 from station.session.rawlog import Chunk  # noqa: E402
+from station.session.runs import replay  # noqa: E402
 from station.timing.wireformats import format_alge  # noqa: E402
 
 

@@ -90,8 +90,8 @@ def day_records(n: int, t0: float) -> list[str]:
 
 def replay_session(tmp: str, mb: int) -> None:
     from station.session import store
-    from station.session.acquisition import replay
     from station.session.config import load_config
+    from station.session.runs import replay
 
     session = os.path.join(tmp, "session")
     cfg = load_config(str(ROOT / "surveys" / "demo_station.yaml"))

@@ -41,8 +41,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from station.model.physics import Conditions, Params, StraightRun  # noqa: E402
-from station.session.acquisition import replay  # noqa: E402
 from station.session.config import load_config  # noqa: E402
+from station.session.runs import replay  # noqa: E402
 from station.survey.load import load_survey  # noqa: E402
 from station.survey.track import build_track  # noqa: E402
 from station.timing.impulses import format_tod  # noqa: E402

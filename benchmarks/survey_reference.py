@@ -32,8 +32,8 @@ from station.model.fit import fit_descent  # noqa: E402
 from station.model.physics import Conditions  # noqa: E402
 from station.model.track_error import survey_error  # noqa: E402
 from station.session import store  # noqa: E402
-from station.session.acquisition import replay  # noqa: E402
 from station.session.records import FitModel, Metadata, MetadataAnnotation, ModelChange  # noqa: E402
+from station.session.runs import replay  # noqa: E402
 from tests.session_helpers import make_session  # noqa: E402
 
 CASES = [(60.0, FitModel.CONSTANT), (110.0, FitModel.CONSTANT), (88.0, FitModel.VELOCITY)]

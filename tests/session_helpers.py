@@ -34,10 +34,10 @@ def make_session(
     by ``drift_per_hour`` from the first descent on."""
     from station.model.physics import Conditions, Params, StraightRun
     from station.session import store
-    from station.session.acquisition import replay
     from station.session.config import load_config
     from station.session.rawlog import RawLogWriter
     from station.session.records import Metadata, MetadataAnnotation
+    from station.session.runs import replay
     from station.survey.load import load_survey
     from station.survey.track import build_track
     from station.timing.wireformats import format_alge

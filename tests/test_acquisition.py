@@ -20,8 +20,9 @@ from station.cli.console import PrintListener
 from station.errors import InputError
 from station.model.physics import Conditions, Params, StraightRun
 from station.session import store as sessions
-from station.session.acquisition import Acquisition, Listener, record, replay
+from station.session.acquisition import Acquisition
 from station.session.config import load_config
+from station.session.listener import Listener
 from station.session.rawlog import Chunk, read_rawlog
 from station.session.records import (
     METADATA_FIELDS,
@@ -36,6 +37,7 @@ from station.session.records import (
     annotation_to_json,
     csv_record,
 )
+from station.session.runs import record, replay
 from station.timing.wireformats import format_alge
 from tests.timing_helpers import start_sim, write_config
 

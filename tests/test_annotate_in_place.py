@@ -16,7 +16,6 @@ from pathlib import Path
 import pytest
 
 from station.session import store
-from station.session.acquisition import replay
 from station.session.recorded import RecordedSession
 from station.session.records import (
     Annotation,
@@ -28,6 +27,7 @@ from station.session.records import (
     ValidMark,
 )
 from station.session.resultsstate import STATE
+from station.session.runs import replay
 from tests.session_helpers import make_session
 
 ROOT = Path(__file__).resolve().parents[1]

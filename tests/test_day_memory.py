@@ -12,9 +12,10 @@ import time
 import numpy as np
 import pytest
 
-from station.session.acquisition import Acquisition, Listener
+from station.session.acquisition import Acquisition
 from station.session.comparing import Comparer
 from station.session.config import load_config
+from station.session.listener import Listener
 from tests.test_acquisition import descent_lines, feed_like_a_reader
 from tests.timing_helpers import write_config
 

@@ -273,9 +273,9 @@ def test_the_cp540s_download_joins_the_descent_whose_start_was_recorded_live(
     import datetime as dt
 
     from station.session import store
-    from station.session.acquisition import replay
     from station.session.config import load_config
     from station.session.rawlog import RawLogWriter
+    from station.session.runs import replay
     from station.timing.impulses import DAY_US
 
     cfg = write_config(tmp_path, "/dev/ttyUSB0", "tag", {"M1": "PC1", "M4": "PC2"})
@@ -381,7 +381,7 @@ def test_a_descent_split_by_an_unplugged_cable_is_whole_after_the_memory_import(
     import json
 
     from station.session import store
-    from station.session.acquisition import replay
+    from station.session.runs import replay
     from station.timing.impulses import DAY_US
     from tests.timing_helpers import start_sim
 

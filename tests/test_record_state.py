@@ -16,7 +16,8 @@ from pathlib import Path
 import pytest
 
 from station.session import store
-from station.session.acquisition import Acquisition, QuietListener
+from station.session.acquisition import Acquisition
+from station.session.listener import QuietListener
 from station.session.recorded import RecordedSession
 from station.session.records import (
     Annotation,

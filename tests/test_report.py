@@ -125,7 +125,7 @@ def test_aborted_and_unfitted_descents_have_their_panel(tmp_path, demo_track):
     from station.report.day_data import DayData, descent_views
     from station.report.day_report import build_day_report
     from station.session import store
-    from station.session.acquisition import replay
+    from station.session.runs import replay
 
     session = make_session(tmp_path, order="AB")
     run = replay(str(session), store.load_session_config(str(session)))
@@ -223,7 +223,7 @@ def test_the_time_axis_labels_every_tick_on_a_whole_minute(tmp_path):
     from station.report.day_data import descent_views
     from station.report.day_figures import item_colours, time_of_day_axes
     from station.session import store
-    from station.session.acquisition import replay
+    from station.session.runs import replay
 
     session = make_session(tmp_path, order="ABBA", interval_s=437.0)
     run = replay(str(session), store.load_session_config(str(session)))

@@ -11,10 +11,12 @@ import pandas as pd
 
 import station.session.results as results
 from station.session import store as sessions
-from station.session.acquisition import Acquisition, Listener, replay
+from station.session.acquisition import Acquisition
 from station.session.config import load_config
+from station.session.listener import Listener
 from station.session.rawlog import Chunk
 from station.session.records import FitModel, InvalidMark, ModelChange, csv_record
+from station.session.runs import replay
 from tests.test_acquisition import T0, descent_lines
 from tests.timing_helpers import write_config
 

@@ -256,7 +256,7 @@ def test_the_items_named_left_out_follow_the_day_fits_own_rule(run_station, tmp_
     names follow."""
     from station.model import compare
     from station.session import store as sessions
-    from station.session.acquisition import replay
+    from station.session.runs import replay
 
     base = tmp_path / "s"
     mus = {"A": 0.020, "B": 0.021, "E": 0.020}

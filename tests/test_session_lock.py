@@ -248,8 +248,9 @@ def test_a_file_system_without_flock_costs_a_warning_not_the_recording(
     import errno
     import fcntl
 
-    from station.session.acquisition import Acquisition, Listener
+    from station.session.acquisition import Acquisition
     from station.session.config import load_config
+    from station.session.listener import Listener
     from tests.timing_helpers import write_config
 
     def no_flock(fd, op):

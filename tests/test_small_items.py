@@ -95,9 +95,9 @@ def test_a_timer_reset_to_midnight_is_flagged(tmp_path):
 
     from station.model.physics import Conditions, Params, StraightRun
     from station.session import store
-    from station.session.acquisition import replay
     from station.session.config import load_config
     from station.session.rawlog import RawLogWriter
+    from station.session.runs import replay
     from station.survey.load import load_survey
     from station.survey.track import build_track
     from station.timing.wireformats import format_alge

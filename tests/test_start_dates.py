@@ -236,9 +236,9 @@ def test_a_memory_download_merged_into_a_session_is_dated_and_not_taken_for_a_re
     another start, one at the end), and the first merged start is not taken for a reset of
     the timer's clock (it was, as going 56 min backwards)."""
     from station.session import store
-    from station.session.acquisition import replay
     from station.session.memory_import import import_into
     from station.session.rawlog import RawLogWriter
+    from station.session.runs import replay
 
     cap = real / "alge" / CAPTURE
     cfg = write_config(tmp_path, "/dev/null", channels={"C0": "PC1", "C1": "PC9"})

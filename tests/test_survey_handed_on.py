@@ -16,7 +16,6 @@ import numpy as np
 import pytest
 
 from station.session import store
-from station.session.acquisition import replay
 from station.session.records import (
     Annotation,
     FitModel,
@@ -24,6 +23,7 @@ from station.session.records import (
     MetadataAnnotation,
     ModelChange,
 )
+from station.session.runs import replay
 from tests.session_helpers import make_session
 from tests.test_annotate_in_place import poor_first_descent
 

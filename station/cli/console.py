@@ -18,9 +18,10 @@ from station.cli.common import _warn
 from station.errors import InputError
 from station.report.text import describe, summary
 from station.session import store as sessions
-from station.session.acquisition import Acquisition, Listener
+from station.session.acquisition import Acquisition
 from station.session.analysis import DescentResult
 from station.session.config import StationConfig, load_config
+from station.session.listener import Listener
 from station.session.recorded import RecordedSession
 from station.session.records import Annotation
 

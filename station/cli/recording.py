@@ -24,9 +24,9 @@ if TYPE_CHECKING:
 def cmd_record(args: argparse.Namespace) -> int:
     from station.cli.console import PrintListener, day_summary
     from station.session import store as sessions
-    from station.session.acquisition import record
     from station.session.configcheck import checked_config
     from station.session.ports import check_port
+    from station.session.runs import record
 
     cfg = checked_config(args.config)  # config, survey and photocells, as station check does
     check_port(cfg.serial.port, args.config)  # then a wrong port: say so and list them
@@ -63,8 +63,8 @@ def cmd_record(args: argparse.Namespace) -> int:
 def cmd_replay(args: argparse.Namespace) -> int:
     from station.cli.console import PrintListener, day_summary, replay_config
     from station.cli.tui import replay_ui
-    from station.session.acquisition import replay
     from station.session.replay import write_events
+    from station.session.runs import replay
 
     output_path(args.csv, "--csv")
     output_path(args.events, "--events")

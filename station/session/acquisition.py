@@ -31,121 +31,46 @@ import contextlib
 import datetime as dt
 import os
 import queue
-import signal
-import sys
 import threading
 import time
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import replace
 from typing import IO, Any
 
 from station.session import store as sessions
-from station.session.analysis import DescentResult, FitCache
+from station.session.analysis import DescentResult
 from station.session.comparing import Comparer
-from station.session.comparison import DayComparison
 from station.session.config import SerialConfig, StationConfig
 from station.session.day import Day, Effect
 from station.session.fitstore import FitStore
+from station.session.intake import AnnotationIntake
+from station.session.jobs import STOP, End, Fit, Job, WriteResults
+from station.session.listener import Listener
 from station.session.rawlog import Chunk, RawLogWriter
 from station.session.records import (
     Annotation,
     DescentStatus,
     DescentTimes,
     LineCounts,
-    Metadata,
     MetadataAnnotation,
     ModelChange,
-    Progress,
     ResultRow,
 )
-from station.session.replay import replay_chunks, source_date
+from station.session.replay import replay_chunks
 from station.session.resultsfile import ResultsFile
 from station.session.resultsstate import Fitted, fitted_of
 from station.survey.load import load_survey
 from station.survey.track import Track, build_track
-from station.timing.assembly import ImpulseEvent, TimedDescent
-
-
-class Listener:
-    """What an acquisition tells the outside world. Called from the reader and the fit worker
-    threads, always with immutable records; the defaults do nothing, but for warnings, which
-    go to stderr: a failure is never passed over in silence."""
-
-    #: wants every impulse and the open descent's progress (the UI); a headless run does not
-    live_view = False
-
-    def connection(self, state: str, detail: str) -> None:
-        """The timer connected, disconnected, cannot be opened; a replay started; an error."""
-
-    def impulses(self, events: tuple[ImpulseEvent, ...], counts: LineCounts) -> None:
-        """Impulses parsed from the latest chunk, with what became of each."""
-
-    def progress(self, progress: Progress) -> None:
-        """The open descent, and the number and metadata the next one will get."""
-
-    def result(self, result: DescentResult) -> None:
-        """A descent was fitted, fitted again, or marked."""
-
-    def comparison(self, day: DayComparison) -> None:
-        """The day's comparison of items, recomputed (while shown, and when the source
-        ended)."""
-
-    def warning(self, text: str) -> None:
-        """Something failed and the acquisition went on."""
-        print(f"warning: {text}", file=sys.stderr, flush=True)
-
-    def ended(self, counts: LineCounts, results: tuple[DescentResult, ...]) -> None:
-        """A replay reached its end and every descent is fitted: the lines read and the
-        descents as the results show them (the summary is the listener's to word)."""
-
-
-class QuietListener(Listener):
-    """Says nothing, warnings neither: a replay whose caller reports only its results (export,
-    annotate, compare, report), where a line per descent or a repeated site warning would
-    bury the one answer asked for."""
-
-    def warning(self, text: str) -> None:
-        pass
-
-
-@dataclass(frozen=True)
-class _Fit:
-    descent: DescentTimes
-
-
-@dataclass(frozen=True)
-class _Annotate:
-    annotation: Annotation
-    #: already applied to the day (a session's annotations are, in the order of its file):
-    #: the job only fits again and shows what it concerns
-    applied: bool = False
-
-
-@dataclass(frozen=True)
-class _End:
-    """The source ended: tell the listener once every descent before it is fitted."""
-
-
-@dataclass(frozen=True)
-class _WriteResults:
-    """Write the session's results CSV (the empty one at the start: on the worker, so the
-    reader opens the port without waiting for the CSV writer to load)."""
-
-
-_STOP = object()
+from station.timing.assembly import TimedDescent
 
 #: how often an idle fit worker looks for annotations another process (``station annotate``)
 #: appended to the session being recorded
 ANNOTATIONS_POLL_S = 0.5
-#: how long the recorder waits for another writer of the annotations file (it appends one
-#: record) before it appends its own without the lock
-ANNOTATIONS_WAIT_S = 2.0
 #: how long the end of ``station record`` waits to print the whole day's decisions
 FINAL_COMPARISON_S = 30.0
-_Job = _Fit | _Annotate | _End | _WriteResults
 
 
-class Acquisition:
+class Acquisition(AnnotationIntake):
     """One test day being acquired from a source (serial port or replay)."""
 
     def __init__(
@@ -268,7 +193,7 @@ class Acquisition:
             if problem:
                 acq._tell(acq.listener.warning, problem)
         if session_dir is not None:
-            acq._submit(_WriteResults())
+            acq._submit(WriteResults())
         if ski_rotation:
             acq.add_metadata({"ski": ski_rotation[0]}, from_descent=1)
         return acq
@@ -335,7 +260,7 @@ class Acquisition:
         if self._stop.is_set():
             return
         self.end_of_input()
-        self._submit(_End())
+        self._submit(End())
 
     def _start_source(self, target: Callable[[], None], name: str) -> None:
         if self._closed:  # quit before the source was ready (the demo's simulator starting)
@@ -384,11 +309,11 @@ class Acquisition:
             jobs = self._after(n, self.day.processor.finish())
         self._submit_all(jobs)
 
-    def _after(self, first_event: int, done: list[TimedDescent]) -> list[_Job]:
+    def _after(self, first_event: int, done: list[TimedDescent]) -> list[Job]:
         """With the lock held: what the chunk did, for the listener; the finished descents."""
         proc = self.day.processor
         cur = proc.assembler.current
-        jobs: list[_Job] = []
+        jobs: list[Job] = []
         if cur is not None and cur.number != self._announced:
             self._announced = cur.number
             jobs += self._descent_started(cur.number)
@@ -407,7 +332,7 @@ class Acquisition:
             d.settle(times)  # the assembler keeps the day's one copy of its times, not two
             if times.status != DescentStatus.ABORTED and self._first_end(times.number):
                 self.finished_descents += 1
-            jobs.append(_Fit(times))
+            jobs.append(Fit(times))
         return jobs
 
     def _first_end(self, number: int) -> bool:
@@ -423,131 +348,22 @@ class Acquisition:
         counted[number - 1] = 1
         return True
 
-    def _descent_started(self, number: int) -> list[_Job]:
+    def _descent_started(self, number: int) -> list[Job]:
         """The demo's skis: when a descent starts, the next pair is already waiting."""
         if not self.ski_rotation:
             return []
         ski = self.ski_rotation[number % len(self.ski_rotation)]
         return self._add_metadata_locked({"ski": ski}, number + 1)[1]
 
-    # ------------------------------------------------------------------ annotations
-
-    def add_metadata(self, values: Mapping[str, Any], from_descent: int | None = None) -> int:
-        """Metadata for the next descent on (or from ``from_descent``), stored and applied at
-        once, so the descent it is for sees it; returns the number it applies from."""
-        with self.lock:
-            start, jobs = self._add_metadata_locked(values, from_descent)
-            progress = self.day.progress()
-        self._submit_all(jobs)
-        if self.listener.live_view:
-            self._tell(self.listener.progress, progress)
-        return start
-
-    def _add_metadata_locked(
-        self, values: Mapping[str, Any], from_descent: int | None
-    ) -> tuple[int, list[_Job]]:
-        start = from_descent if from_descent is not None else self.day.next_number()
-        a = MetadataAnnotation(Metadata.from_values(values), from_descent=start, t=time.time())
-        if self.session_dir is None:
-            self.day.annotate(a)
-            return start, []
-        return start, self._record_locked(a)
-
-    def annotate(self, a: Annotation) -> None:
-        """An invalid mark, a valid mark or a refit: stored now, fitted again by the fit worker
-        after the descents already queued."""
-        if self.session_dir is None:
-            self._submit(_Annotate(a))  # applied by the worker, in its turn
-            return
-        with self.lock:
-            jobs = self._record_locked(a)
-        self._submit_all(jobs)
-
-    # -- annotations another process appends (``station annotate`` while this records)
-    #
-    # Every writer appends to annotations.jsonl only under its flock
-    # (:func:`station.session.store.annotations_locked`). The recorder applies every record,
-    # its own and the others', to the day at once and in the order of the file, as a replay
-    # applies them; the fits they call for go to the worker, which sees by then every fit
-    # already under way. The worker looks for others' records when idle; :meth:`close` takes
-    # up the last of them and lets the recording lock go inside the flock, so an annotate
-    # finds the session either recorded (its record is taken up here) or ended (it rewrites
-    # the results CSV itself).
-
-    def _record_locked(self, own: Annotation) -> list[_Job]:
-        """With the lock held: store ``own`` after what others appended before it, and apply
-        both in the file's order. A writer holding the file longer than ANNOTATIONS_WAIT_S
-        does not stop the day: the record is appended without the file lock then."""
-        assert self.session_dir is not None
-        with sessions.annotations_locked(self.session_dir, ANNOTATIONS_WAIT_S):
-            return self._take_up_locked(own)
-
-    def _take_up_locked(self, own: Annotation | None = None) -> list[_Job]:
-        """With the lock and the annotations file held: the records others appended since the
-        last look, then ``own``, applied to the day; the jobs that fit again and show them."""
-        assert self.session_dir is not None
-        records, self._ann_offset = sessions.read_annotations_after(
-            self.session_dir, self._ann_offset
-        )
-        taken: list[Annotation] = []
-        for rec in records:
-            if rec.line in self._own_lines:  # ours, applied when it was written
-                self._own_lines.remove(rec.line)
-            elif rec.problem:
-                self._not_as_replayed("a record of the annotations file was passed over")
-                self._tell(self.listener.warning, f"{sessions.ANNOTATIONS}: {rec.problem}; "
-                           "passed over")  # fmt: skip
-            elif rec.annotation is not None:
-                taken.append(rec.annotation)
-        if own is not None:
-            self._own_lines.append(sessions.append_annotation(self.session_dir, own))
-            taken.append(own)
-        jobs: list[_Job] = []
-        for a in taken:
-            if (
-                isinstance(a, MetadataAnnotation)
-                and a.descents is None
-                and self._fit_from >= (a.from_descent or 0)
-            ):
-                # a replay applies it to those fitted already (or being fitted); the
-                # recording does not
-                self._not_as_replayed("metadata from a descent already fitted on")
-            self.day.annotate(a)
-            if not (isinstance(a, MetadataAnnotation) and a.descents is None):
-                jobs.append(_Annotate(a, applied=True))  # a change from N on: nothing to refit
-        return jobs
-
-    def _poll_annotations(self) -> None:
-        """The worker, idle: take up what another process appended (without waiting for the
-        file: a writer holding it is asked again at the next look)."""
-        self._last_poll = time.monotonic()
-        if self.session_dir is None or self._closing:
-            return
-        try:
-            grown = os.path.getsize(os.path.join(self.session_dir, sessions.ANNOTATIONS))
-        except OSError:
-            return
-        if grown <= self._ann_offset:
-            return
-        jobs: list[_Job] = []
-        with self.lock, sessions.annotations_locked(self.session_dir, 0.0) as held:
-            if held is not False:
-                jobs = self._take_up_locked()
-            progress = self.day.progress()
-        for job in jobs:
-            self._jobs.put(job)  # this worker runs them next, in order
-        if jobs and self.listener.live_view:
-            self._tell(self.listener.progress, progress)
-
     # ------------------------------------------------------------------ consumers
 
-    def _submit(self, job: _Job) -> None:
+    def _submit(self, job: Job) -> None:
         if self._worker is None:
             self._run(job)
         else:
             self._jobs.put(job)
 
-    def _submit_all(self, jobs: Iterable[_Job]) -> None:
+    def _submit_all(self, jobs: Iterable[Job]) -> None:
         for job in jobs:
             self._submit(job)
 
@@ -558,7 +374,7 @@ class Acquisition:
             except queue.Empty:
                 self._run_poll()
                 continue
-            if job is _STOP:
+            if job is STOP:
                 return
             self._run(job)  # type: ignore[arg-type]
             if time.monotonic() - self._last_poll > 2 * ANNOTATIONS_POLL_S:
@@ -571,7 +387,7 @@ class Acquisition:
             self._tell(self.listener.warning, f"reading {sessions.ANNOTATIONS} failed: "
                        f"{type(exc).__name__}: {exc}")  # fmt: skip
 
-    def _run(self, job: _Job) -> None:
+    def _run(self, job: Job) -> None:
         """One job; whatever it raises is reported, never passed to the reader."""
         try:
             self._handle(job)
@@ -580,14 +396,14 @@ class Acquisition:
             self._tell(self.listener.warning, f"{type(job).__name__.strip('_').lower()} "
                        f"failed: {type(exc).__name__}: {exc}")  # fmt: skip
 
-    def _handle(self, job: _Job) -> None:
+    def _handle(self, job: Job) -> None:
         day = self.day
-        if isinstance(job, _WriteResults):
+        if isinstance(job, WriteResults):
             with self.lock:
                 current = day.snapshot()
             self._write_session_csv(current)
             return
-        if isinstance(job, _End):
+        if isinstance(job, End):
             with self.lock:
                 counts, snapshot = day.processor.line_counts(), day.snapshot()
             self._tell(self.listener.ended, counts, snapshot)
@@ -595,7 +411,7 @@ class Acquisition:
                 self.comparer.source_ended()
             return
         with self.lock:
-            if isinstance(job, _Fit):
+            if isinstance(job, Fit):
                 effect = Effect(refit=(job.descent.number,))
                 fit_jobs = [day.fit_job(job.descent)]
                 self._fit_from = max(self._fit_from, job.descent.number)
@@ -694,10 +510,10 @@ class Acquisition:
             self.end_of_input()
             self._closing = True
             if self._worker is not None:
-                self._jobs.put(_STOP)
+                self._jobs.put(STOP)
                 self._worker.join()
             with contextlib.ExitStack() as held:
-                jobs: list[_Job] = []
+                jobs: list[Job] = []
                 if self.session_dir is not None:  # the last records others appended
                     try:
                         with self.lock:
@@ -777,81 +593,3 @@ def _effect_now(day: Day, a: Annotation) -> Effect:
     if isinstance(a, ModelChange):
         return Effect(refit=(a.descent,))
     return Effect(changed=(a.descent,))
-
-
-# ----------------------------------------------------------------------------- commands
-
-
-def record(
-    config: StationConfig,
-    session_dir: str,
-    listener: Listener,
-    max_descents: int | None = None,
-    duration_s: float | None = None,
-    started: Callable[[], None] | None = None,
-) -> Acquisition:
-    """Record headless until SIGINT/SIGTERM, ``max_descents`` or ``duration_s``; any of them
-    ends the open descent the same way (:meth:`Acquisition.close`). ``started`` is called once
-    the session folder is made and the raw log open (not for a folder refused)."""
-    from station.session.serialport import ensure_port_free
-
-    ensure_port_free(config.serial)  # a second recorder on the port: one line, no session made
-    # compare, shown all along: the console says after every descent whether the day is
-    # decided
-    acq = Acquisition.open(config, listener, session_dir=session_dir, compare=True)
-    acq.show_comparison(True)
-    if started is not None:
-        started()
-    stop = threading.Event()
-    previous = {}
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        previous[sig] = signal.signal(sig, lambda *_: stop.set())
-    t_end = None if duration_s is None else time.monotonic() + duration_s
-    try:
-        acq.start_serial()
-        while not stop.is_set() and acq.reading:
-            if t_end is not None and time.monotonic() >= t_end:
-                break
-            if max_descents is not None and acq.finished_descents >= max_descents:
-                break
-            stop.wait(0.1)
-    finally:
-        acq.close(comparison_wait_s=FINAL_COMPARISON_S)
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-    if acq.source_error is not None:
-        raise acq.source_error
-    return acq
-
-
-def replay(
-    source: str,
-    config: StationConfig,
-    listener: Listener | None = None,
-    speed: float | None = None,
-    date: dt.date | None = None,
-    warnings: list[str] | None = None,
-    fits: FitCache | None = None,
-    speed_curves: bool = True,
-) -> Acquisition:
-    """Feed a session (with its annotations) or a plain capture through the loop, in line.
-    Without a listener the replay says nothing as it goes: the caller reports its results
-    (and ``warnings`` collects what the raw log's reader passed over). ``fits``: the fits
-    stored with the session, used where they fit and added to; ``speed_curves``: the fitted
-    speed along the run of each descent (for the views that draw it)."""
-    import gc
-
-    acq = Acquisition.open(
-        config, listener or QuietListener(), date=source_date(source, date), threaded=False
-    )
-    acq.day.analyser.fits = fits
-    acq.day.analyser.speed_curves = speed_curves
-    # a replay makes objects by the hundred thousand and keeps most: the garbage collector
-    # need not scan the set-up's (modules, the track, the grids) at every full collection
-    gc.freeze()
-    try:
-        acq.replay(source, speed, warnings)
-        acq.close()
-    finally:
-        gc.unfreeze()
-    return acq

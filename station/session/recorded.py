@@ -45,11 +45,12 @@ from station.session.resultsfile import ResultsFile
 # the replay, the fits and the comparison load numpy and scipy (a second): imported where
 # they are used, so ``station annotate`` that needs no fit, and ``station sessions``, do not
 if TYPE_CHECKING:
-    from station.session.acquisition import Acquisition, Listener
+    from station.session.acquisition import Acquisition
     from station.session.analysis import DescentResult
     from station.session.comparison import DayComparison
     from station.session.day_analysis import DayAnalysis
     from station.session.fitstore import FitStore
+    from station.session.listener import Listener
     from station.survey.track import Track
 
 _BLOCK = 1 << 20
@@ -192,7 +193,7 @@ class RecordedSession:
         """Replay the session (its annotations applied) through the acquisition loop, in
         line; a new replay each call, told to ``listener`` as it goes. The fits stored with
         the session are used where their key matches, and the new ones stored."""
-        from station.session.acquisition import replay
+        from station.session.runs import replay
 
         fits = self.fits()
         acq = replay(

@@ -7,9 +7,9 @@ from textual.app import App
 from textual.message import Message
 
 from station.report.text import summary
-from station.session.acquisition import Listener
 from station.session.analysis import DescentResult
 from station.session.comparison import DayComparison
+from station.session.listener import Listener
 from station.session.records import LineCounts, Progress
 from station.timing.assembly import ImpulseEvent
 
