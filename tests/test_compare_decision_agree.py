@@ -115,7 +115,7 @@ def test_every_status_has_a_short_code_in_the_narrow_table_and_the_readme():
     import pathlib
 
     from station.session.records import ResultStatus
-    from station.ui.app import SHORT_STATUS
+    from station.ui.cells import SHORT_STATUS
 
     assert {s.value for s in ResultStatus} <= set(SHORT_STATUS)
     assert SHORT_STATUS["poor-fit"] == "poor"

@@ -542,7 +542,8 @@ async def test_the_table_scrolls_to_new_descents_at_80x24(tmp_path, demo_track):
 
 
 def test_no_number_is_ever_cut_in_the_table():
-    from station.ui.app import _num, table_columns
+    from station.ui.cells import fixed_width as _num
+    from station.ui.cells import table_columns
 
     for width in (80, 100, 120, 129, 130, 200):
         cols = table_columns(width)

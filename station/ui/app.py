@@ -11,21 +11,17 @@ from __future__ import annotations
 
 import datetime as dt
 import gc
-import math
 import os
 import time
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
-from textual.app import App, ComposeResult
+from textual.app import App
 from textual.binding import Binding
-from textual.containers import Horizontal, Vertical
-from textual.screen import Screen
-from textual.widgets import DataTable, Footer, Header, RichLog, Static
+from textual.widgets import DataTable, RichLog, Static
 
-from station.model.estimate import Estimate
 from station.report.comparison_text import comparison_view, headline
-from station.report.text import count, local_time
+from station.report.text import count
 from station.session.acquisition import Acquisition
 from station.session.analysis import DescentResult
 from station.session.comparison import DayComparison
@@ -40,11 +36,11 @@ from station.session.records import (
     MetadataAnnotation,
     ModelChange,
     Progress,
-    ResultRow,
     ValidMark,
 )
 from station.session.store import RESULTS, is_session
 from station.timing.impulses import format_tod
+from station.ui.cells import Column, cell, justify, panel_text, table_columns
 from station.ui.collector import IdleCollector
 from station.ui.messages import (
     AcquisitionWarning,
@@ -57,29 +53,18 @@ from station.ui.messages import (
     SourceEnded,
 )
 from station.ui.plots import residual_plot, speed_plot
-from station.ui.screens import ComparisonScreen, HelpScreen, MetadataScreen, ReasonScreen
+from station.ui.screens import (
+    ComparisonScreen,
+    HelpScreen,
+    MainScreen,
+    MetadataScreen,
+    ReasonScreen,
+)
 from station.ui.simulator import SimulatedTimer, SimulatorError
-from station.ui.table import ResultsTable
-
-
-@dataclass(frozen=True)
-class Column:
-    """A column of the descents table: its heading, key, width in cells, and whether its
-    values are numbers (right-aligned)."""
-
-    label: str
-    key: str
-    width: int
-    number: bool = False
-
 
 #: below this width the log of impulses is hidden: the result panel beside its 46 columns
 #: needs 84 for μ and CdA with their intervals on one line (at 110 it cut CdA's interval)
 NARROW = 130
-#: below this width the table takes its narrow set of columns
-NARROW_TABLE = 130
-#: the vertical scrollbar of the table, kept free so the last column is never under it
-SCROLLBAR = 2
 #: a full garbage collection is looked for COLLECT_AFTER_S after each fit (on the screen by
 #: then: with a dialog open it takes two refreshes, and a callback after the first ran before
 #: the fit's frame; the next descent's end is furthest away then) and, every COLLECT_EVERY_S,
@@ -91,150 +76,6 @@ COLLECT_AFTER_S = 0.2
 HOLD_S = 0.3
 COLLECT_EVERY_S = 5.0
 QUIET_S = 30.0
-
-
-def table_columns(width: int) -> list[Column]:
-    """The columns for a terminal ``width`` cells wide. Every number column is wide enough for
-    its values (a number is never cut: ``_num`` drops decimals first, then says ``#``); what
-    does not fit at 80 columns is abbreviated (status, start without seconds) or left to the
-    result panel, which shows the selected descent in full. Notes take what is left."""
-    if width < NARROW_TABLE:
-        cols = [
-            Column("#", "n", 3, True), Column("start", "start", 5), Column("ski", "ski", 12),
-            Column("wax", "wax", 8), Column("μ", "mu", 7, True), Column("±90%", "mu_pm", 7, True),
-            Column("CdA", "cda", 6, True), Column("v0", "v0", 5, True),
-            Column("rms", "rms", 4, True), Column("st", "status", 6),
-        ]  # fmt: skip
-        used = sum(c.width + 1 for c in cols) + SCROLLBAR + 1
-        if width - used < 12:  # the interval is in the result panel: notes keep some room
-            cols = [c for c in cols if c.key != "mu_pm"]
-            used = sum(c.width + 1 for c in cols) + SCROLLBAR + 1
-        return [*cols, Column("notes", "notes", max(8, width - used))]
-    cols = [
-        Column("#", "n", 3, True), Column("start", "start", 8), Column("ski", "ski", 12),
-        Column("wax", "wax", 12), Column("μ", "mu", 7, True),
-        Column("μ 90 %", "mu_ci", 15, True), Column("CdA", "cda", 6, True),
-        Column("v0", "v0", 5, True), Column("rms ms", "rms", 6, True),
-        Column("status", "status", 20),
-    ]  # fmt: skip
-    rest = max(16, width - sum(c.width + 1 for c in cols) - SCROLLBAR - 2)
-    return [*cols, Column("flags", "flags", rest // 2), Column("notes", "notes", rest - rest // 2)]
-
-
-#: statuses in the narrow table (the help explains them; the result panel says them in full)
-SHORT_STATUS = {
-    "ok": "ok", "ill-conditioned": "ill", "lift-off": "lift", "stopped": "stop",
-    "too-few-photocells": "few", "not-converged": "nc", "poor-fit": "poor", "aborted": "abort",
-    "error": "ERR", "invalid": "INV",
-}  # fmt: skip
-
-
-def _num(v: float | None, decimals: int, width: int) -> str:
-    """A number in at most ``width`` characters, never cut: fewer decimals first, then the
-    exponent form, and a column of ``#`` (as spreadsheets do) if even that does not fit."""
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
-        return "—"
-    for d in range(decimals, -1, -1):
-        text = f"{v:.{d}f}"
-        if len(text) <= width:
-            return text
-    text = f"{v:.0e}"
-    return text if len(text) <= width else "#" * width
-
-
-def _middle(text: str, width: int) -> str:
-    """Text in ``width`` cells, cut in the middle where it must be ("demo…ir A")."""
-    if len(text) <= width:
-        return text
-    tail = (width - 1) // 2
-    return text[: width - 1 - tail] + "…" + text[len(text) - tail :]
-
-
-def _f(v: Any, spec: str) -> str:
-    return "—" if v is None or (isinstance(v, float) and v != v) else format(v, spec)
-
-
-def cell(res: DescentResult, col: Column) -> str:
-    """The text of one cell of the table for a descent."""
-    row, w = res.row, col.width
-    key = col.key
-    if key == "n":
-        return str(res.number)
-    if key == "start":
-        clock = res.start_time[11:19] if "T" in res.start_time else res.start_time[:8]
-        return clock[:w]
-    if key in ("ski", "wax"):  # an item's name often differs at its end: "pair A", "pair B"
-        return _middle(getattr(row, key), w)
-    if key == "notes":
-        return row.notes
-    if key == "mu":
-        return _num(row.mu, 5, w)
-    if key == "mu_ci":
-        if row.mu_lo is None or row.mu_hi is None:
-            return "—"
-        return f"{_num(row.mu_lo, 5, 7)}–{_num(row.mu_hi, 5, 7)}"
-    if key == "mu_pm":
-        if row.mu_lo is None or row.mu_hi is None:
-            return "—"
-        return _num((row.mu_hi - row.mu_lo) / 2, 5, w)
-    if key == "cda":
-        return _num(row.cda, 4, w)
-    if key == "v0":
-        return _num(row.v0, 2, w)
-    if key == "rms":
-        return _num(row.rms_residual_ms, 2, w)
-    velocity = row.model == FitModel.VELOCITY
-    if key == "status":
-        if w < 10:  # narrow: short status, v for the velocity model, ! when there are flags
-            short = "INV" if row.invalid else SHORT_STATUS.get(row.status.value, "?")
-            marks = ("v" if velocity else "") + ("!" if row.flags else "")
-            return f"{short} {marks}".strip()
-        status = "INVALID" if row.invalid else row.status.value
-        return status + (" (v)" if velocity else "")
-    if key == "flags":
-        invalid = [f"invalid: {row.invalid_reason}"] if row.invalid else []
-        return "; ".join([*invalid, *row.flags])
-    raise KeyError(key)
-
-
-def conditions(row: ResultRow) -> str:
-    """What the fit took as known: a wrong mass (72,5 read as 725) shows here at once."""
-    wind = f" · wind {row.wind_ms:g} m/s" if row.wind_ms else ""
-    air = f"air {row.air_density:.3f} kg/m³"
-    return f"mass {row.mass_kg:g} kg · {air} · g {row.gravity:.5f} m/s²{wind}"
-
-
-def _justify(text: str, col: Column) -> str:
-    """One space before every column, numbers right-aligned (the table has no padding of its
-    own: at 80 columns every cell counts)."""
-    return " " + (text.rjust(col.width) if col.number else text)
-
-
-class MainScreen(Screen):
-    """The one screen of the station; modal screens go on top of it."""
-
-    def compose(self) -> ComposeResult:
-        yield Header(show_clock=False)
-        yield Static("", id="status", markup=False)
-        yield Static(headline(None), id="answer", markup=False)  # the day's answer, always
-        # markup=False: "[0.2238, 0.2249]", "x [m]" and a port name are text, not markup
-        with Horizontal(id="top"):
-            with Vertical(id="left"):
-                yield Static("waiting for the first descent", id="progress", markup=False)
-                yield Static("no result yet", id="result", markup=False)
-                with Horizontal(id="plots"):
-                    yield Static("", id="residuals", markup=False)
-                    yield Static("", id="speed", markup=False)
-            yield RichLog(id="log", max_lines=500, markup=False, wrap=False)
-        yield ResultsTable(id="table", cursor_type="row", zebra_stripes=True, cell_padding=0)
-        # compact, without the command palette's key: at 80 columns "q Quit" stays in sight
-        yield Footer(compact=True, show_command_palette=False)
-
-    def on_resize(self, _event: object) -> None:
-        self.app.on_resize()  # type: ignore[attr-defined]
-
-    def on_screen_resume(self, _event: object) -> None:
-        self.app.on_main_uncovered()  # type: ignore[attr-defined]
 
 
 class StationApp(App):
@@ -402,7 +243,7 @@ class StationApp(App):
             table.move_cursor(row=table.get_row_index(str(selected)))
 
     def _cells(self, res: DescentResult) -> list[str]:
-        return [_justify(cell(res, col), col) for col in self.columns]
+        return [justify(cell(res, col), col) for col in self.columns]
 
     def _cursor_number(self) -> int | None:
         """The descent of the selected row (None: no rows yet)."""
@@ -617,54 +458,14 @@ class StationApp(App):
             self._panel_due = res
             return
         self._panel_due = None
-        f, row, d = res.fit, res.row, res.descent
-        head = f"descent {d.number} · {local_time(res.start_time)} · "
-        if f is None:
-            status = f"INVALID: {row.invalid_reason} ({row.status})" if row.invalid else row.status
-            self.main.query_one("#result", Static).update(
-                head + f"{status}: {'; '.join(row.flags)}\n" + conditions(row)
-            )
+        text = panel_text(res)
+        if res.fit is None:
+            self.main.query_one("#result", Static).update(text)
             self.main.query_one("#residuals", Static).update("")
             self._resid_width = 40  # its min-width
             self.main.query_one("#speed", Static).update("")
             self._plotted = None
             return
-
-        def line(label: str, est: Estimate, spec: str, unit: str) -> str:
-            c = est.ci90
-            if c:
-                rng = f"[{format(c[0], spec)}, {format(c[1], spec)}]"
-            elif est.not_identifiable:
-                rng = "not identifiable"
-            else:
-                rng = "no interval"
-            return f"{label:<4}{_f(est.value, spec):>9} {unit:<4} {rng}"
-
-        status = row.status.value
-        if row.invalid:
-            status = f"INVALID: {row.invalid_reason} (fit {status})"
-        notes = "; ".join(x for x in (*row.flags, f.message, row.notes) if x)
-        text = (
-            head
-            + f"{len(d.photocells)} photocells · {status}\n"
-            + line("μ", f.mu, ".5f", "")
-            + "   "
-            + line("CdA", f.cda, ".4f", "m²")
-            + "\n"
-            + line("v0", f.v0, ".3f", "m/s")
-            + f"   rms {_f(row.rms_residual_ms, '.2f')} ms · {row.model} model"
-            + (  # the velocity model's μ1: always with its interval, flagged when ∋ 0
-                "\n"
-                + line("μ1", f.mu1, ".2e", "s/m")
-                + ("  (not distinguishable from 0)" if f.mu1.consistent_with_zero else "")
-                if f.mu1 is not None
-                else ""
-            )
-            + "\n"
-            + conditions(row)
-            + (f"\n{notes}" if notes else "")
-            + (f"\n{f.message}" if f.message else "")
-        )
         self.main.query_one("#result", Static).update(text, layout=False)  # a fixed box
         self._plotted = res
         self._draw_plots()

@@ -19,12 +19,14 @@ from textual.strip import Strip
 from textual.style import Style
 from textual.validation import ValidationResult, Validator
 from textual.visual import RenderOptions, Visual
-from textual.widgets import Button, Input, Label, Static
+from textual.widgets import Button, Footer, Header, Input, Label, RichLog, Static
 
 from station.errors import InputError
 from station.limits import PLAUSIBLE
 from station.numbers import parse_number
+from station.report.comparison_text import headline
 from station.session.records import METADATA_FIELDS, choice
+from station.ui.table import ResultsTable
 
 #: fits 80×24 without scrolling (tests/test_ui.py checks it)
 HELP = """\
@@ -330,3 +332,30 @@ class ComparisonScreen(ModalScreen[None]):
 
     def on_button_pressed(self, _event: Button.Pressed) -> None:
         self.dismiss(None)
+
+
+class MainScreen(Screen):
+    """The one screen of the station; modal screens go on top of it."""
+
+    def compose(self) -> ComposeResult:
+        yield Header(show_clock=False)
+        yield Static("", id="status", markup=False)
+        yield Static(headline(None), id="answer", markup=False)  # the day's answer, always
+        # markup=False: "[0.2238, 0.2249]", "x [m]" and a port name are text, not markup
+        with Horizontal(id="top"):
+            with Vertical(id="left"):
+                yield Static("waiting for the first descent", id="progress", markup=False)
+                yield Static("no result yet", id="result", markup=False)
+                with Horizontal(id="plots"):
+                    yield Static("", id="residuals", markup=False)
+                    yield Static("", id="speed", markup=False)
+            yield RichLog(id="log", max_lines=500, markup=False, wrap=False)
+        yield ResultsTable(id="table", cursor_type="row", zebra_stripes=True, cell_padding=0)
+        # compact, without the command palette's key: at 80 columns "q Quit" stays in sight
+        yield Footer(compact=True, show_command_palette=False)
+
+    def on_resize(self, _event: object) -> None:
+        self.app.on_resize()  # type: ignore[attr-defined]
+
+    def on_screen_resume(self, _event: object) -> None:
+        self.app.on_main_uncovered()  # type: ignore[attr-defined]
