@@ -4,7 +4,6 @@ and which ski or wax glides better, by how much, and how sure."""
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from typing import Any
@@ -36,6 +35,7 @@ from station.session.records import (
     ModelChange,
     ValidMark,
 )
+from station.store import configured
 
 
 def cmd_annotate(args: argparse.Namespace) -> int:
@@ -86,7 +86,7 @@ def cmd_annotate(args: argparse.Namespace) -> int:
         store = session.config.store
     except InputError:
         store = None
-    if os.environ.get("STATION_STORE") or store:  # console.add_after's test, without its imports
+    if configured(store):  # console.add_after's test, without its imports
         from station.cli.console import add_after
 
         add_after(session.path, store)  # the season store's rows follow the annotation

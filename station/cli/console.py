@@ -119,10 +119,11 @@ def add_after(session: str, config_store: str | None) -> None:
     command that called it (the day is recorded, the annotation saved): one line either way."""
     import sqlalchemy as sa
 
+    from station.store import configured
     from station.store.db import database_error, open_store, safe_url
     from station.store.writer import add_session
 
-    target = os.environ.get("STATION_STORE") or config_store
+    target = configured(config_store)
     if not target:
         return
     if sessions.recording_state(session) is sessions.Recording.NOW:

@@ -63,7 +63,6 @@ def cmd_record(args: argparse.Namespace) -> int:
 def cmd_replay(args: argparse.Namespace) -> int:
     from station.cli.console import PrintListener, day_summary, replay_config
     from station.cli.tui import replay_ui
-    from station.session.replay import write_events
     from station.session.runs import replay
 
     output_path(args.csv, "--csv")
@@ -86,7 +85,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
             acq.write_csv_to(fh)
     if args.events:
         with open_output(args.events, "--events") as fh:
-            write_events(acq.day.processor, fh)
+            acq.write_events_to(fh)
     _write_times(acq.results(), args.times)
     return 0
 

@@ -56,7 +56,7 @@ from station.session.records import (
     ModelChange,
     ResultRow,
 )
-from station.session.replay import replay_chunks
+from station.session.replay import replay_chunks, write_events
 from station.session.resultsfile import ResultsFile
 from station.session.resultsstate import Fitted, fitted_of
 from station.survey.load import load_survey
@@ -568,6 +568,10 @@ class Acquisition(AnnotationIntake):
         results = self.results()
         self.results_file.export([r.row for r in results], path)
         return len(results)
+
+    def write_events_to(self, fh: IO[str]) -> None:
+        """Every parsed impulse and its fate (``replay --events``: a replay keeps them)."""
+        write_events(self.day.processor, fh)
 
     def write_csv_to(self, fh: IO[str]) -> None:
         """The results CSV into an open text file: ``--csv -`` writes to standard output."""
