@@ -96,8 +96,7 @@ def _replay_no_fit(args: argparse.Namespace, cfg: Any) -> int:
     a capture (a line per descent: its photocells and times, its status and flags), its
     crossing times for another tool (``--times``), its impulses' fates (``--events``); and the
     measure of the replay's own throughput (benchmarks/replay_speed.py)."""
-    import gc
-
+    from station import runtime
     from station.report.text import count, impulses_text
     from station.session.processor import Processor
     from station.session.replay import bulk_chunks, write_events
@@ -111,26 +110,11 @@ def _replay_no_fit(args: argparse.Namespace, cfg: Any) -> int:
     proc = Processor(cfg, build_track(load_survey(cfg.survey_path)))
     warnings: list[str] = []
     ended: dict[int, Any] = {}  # a descent an edit changed ends again: the latest is kept
-    # a bulk replay makes no garbage cycles (tuples, lists and descents, all kept or freed by
-    # their counts): the collector is out of the way while it runs (it scanned the growing
-    # lists of events again and again: 15 % of the time), and the set-up's objects (modules,
-    # the track) are frozen out of its later scans
-    gc.freeze()
-    was_enabled = gc.isenabled()
-    gc.disable()
-    try:
+    with runtime.bulk_without_collector():  # a bulk replay makes no garbage cycles
         for d in proc.feed_chunks(bulk_chunks(args.source, warnings)):
             ended[d.number] = d
         for d in proc.finish():
             ended[d.number] = d
-    finally:
-        # what the replay made (all kept) joins the frozen set-up before the collector is back:
-        # else its first collection walked every object made while it was off (25 ms of a
-        # 100 800-line capture's 330, benchmarks/replay_speed.py)
-        gc.freeze()
-        if was_enabled:
-            gc.enable()
-        gc.unfreeze()
     for w in warnings:
         _warn(w)
     lines = []

@@ -72,8 +72,8 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 from scipy.special import chdtrc, stdtr, stdtrit  # χ² survival, Student t (no scipy.stats)
-from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
 
+from station import runtime
 from station.model.batch import Rows, solve_rows
 from station.model.estimate import Estimate
 from station.model.physics import G_STANDARD, Conditions, Params, StraightRun
@@ -374,7 +374,7 @@ def joint_fit(
         timer_sd_s = day_timer_sd(data)
     bent = drift_bend(data) if drift != "off" else None
     follow = bent is not None and bent.p < BEND_P
-    with threadpool_limits(limits=1, user_api="blas"):
+    with runtime.blas_on_one_thread():
         try:
             res = _joint_fit(track, data, cda_fixed, model, drift, reference, timer_sd_s, follow)
         except CompareError:  # too few times for the quadratic: the straight drift, warned
