@@ -31,13 +31,13 @@ COMMANDS = {
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The parser of every command, or of ``command``'s group only (what its run needs)."""
-    ap = common._Parser(
+    ap = common.Parser(
         prog="station",
         description="Measurement station for ski-friction test days "
         "(Kaps, Nachbauer & Mössner 1996).",
     )
     ap.add_argument("--version", action="version", version=f"station {__version__}")
-    sub = ap.add_subparsers(dest="command", required=True, parser_class=common._Parser)
+    sub = ap.add_subparsers(dest="command", required=True, parser_class=common.Parser)
     groups = [COMMANDS[command]] if command in COMMANDS else list(dict.fromkeys(COMMANDS.values()))
     for name in groups:
         importlib.import_module(f"station.cli.{name}").add_parsers(sub)
