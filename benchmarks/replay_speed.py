@@ -13,7 +13,7 @@
 2. A 50-descent capture with timing noise, double triggers and running-time lines, replayed
    end to end: parse, assemble, fit every descent, write the results CSV.
 
-BLAS is capped at one thread while the replays run (threadpoolctl), as ``station``'s command
+BLAS is capped at one thread while the replays run (station.runtime), as ``station``'s command
 line caps it before numpy loads (``station.runtime.one_blas_thread``): the command's set-up
 fits the survey's smoothing spline (one 68 × 68 eigh), which a pool of BLAS threads on the
 shared 2-core machine made 50-90 ms of CPU instead of 0.5 ms. This process (and

@@ -30,7 +30,7 @@ criterion of that linearisation, and takes the Gauss-Newton step at that γ.
 Scale. Each descent's own parameters (u_k, v0_k, offset_k) touch only its own rows, so the
 normal equations are block-arrow shaped: 3×3 blocks per descent are eliminated (Schur
 complement) and only the few global parameters are solved densely. Time and memory grow
-linearly in the number of descents; BLAS threads are capped at one (threadpoolctl) since the
+linearly in the number of descents; BLAS threads are capped at one (station.runtime) since the
 dense parts are tiny and a pool of threads on a shared 2-core machine costs far more than it
 saves (50 descents took 3.7 s instead of 0.19 s with the default pool).
 
