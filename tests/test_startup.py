@@ -233,3 +233,19 @@ def test_the_fit_runs_without_the_garbage_collector_and_gives_it_back():
     finally:
         survey_cli.cmd_fit = real
     assert seen == [False, False] and gc.isenabled()
+
+
+def test_listing_a_season_store_at_its_newest_schema_loads_no_alembic_or_numpy(tmp_path):
+    """Opening a store that needs no migration reads its revision without Alembic, and a list
+    of sessions without conditions needs no numpy."""
+    from station.store.db import open_store
+
+    store = str(tmp_path / "season.db")
+    open_store(store, create=True).close()  # made (and migrated) here, listed below
+    found = subprocess.run(
+        [sys.executable, "-c", SCRIPT, json.dumps(["season", "list", "--store", store]),
+         json.dumps(["alembic", "numpy", "sqlalchemy"])],
+        cwd=ROOT, capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    loaded = json.loads(found.stdout)
+    assert loaded == {"status": 0, "alembic": False, "numpy": False, "sqlalchemy": True}
