@@ -1,5 +1,5 @@
 """``station annotate`` without a replay (issue 19): an annotation that changes no fit changes
-the rows of results.csv it concerns in place (station/session/resultsstate.py), and the file
+the rows of results.csv it concerns in place (station/session/resultsfile.py), and the file
 is byte for byte what a replay of the session from scratch writes; one that changes a fit, or
 a results CSV that is not the one its state describes, is replayed as before."""
 
@@ -354,12 +354,12 @@ def test_a_state_that_is_a_fifo_or_a_folder_costs_a_replay_not_a_hang(session, r
 
 
 def test_a_failure_in_place_replays_and_says_so(session, replays, monkeypatch):
-    from station.session import resultsstate
+    from station.session.resultsfile import ResultsFile
 
     def broken(*args, **kwargs):
         raise RuntimeError("a bug")
 
-    monkeypatch.setattr(resultsstate, "in_place", broken)
+    monkeypatch.setattr(ResultsFile, "edit", broken)
     s = RecordedSession(str(session))
     s.annotate([InvalidMark(2, "fell", 9.0)])
     assert replays and any("a bug" in w for w in s.warnings)

@@ -70,6 +70,30 @@ def test_a_download_becomes_a_session_and_merges_without_doubling(
     assert out.read_bytes() == (session / "results.csv").read_bytes()
 
 
+def test_an_imported_session_is_annotated_in_place_as_after_a_recording(
+    tmp_path, demo_track, run_station, replays
+):
+    """``station import`` leaves the results state a recording leaves, so the next annotate
+    changes rows in place (no replay of the day) and writes what a replay writes."""
+    from station.session.recorded import RecordedSession
+    from station.session.records import FitModel, InvalidMark, ModelChange
+    from tests.test_annotate_in_place import csv_of, from_scratch
+
+    cfg = write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)
+    memory = tmp_path / "download.txt"
+    memory.write_text(_download(demo_track, 4), newline="")
+    session = tmp_path / "s"
+    r = run_station("import", memory, "--config", cfg, "--session-dir", session)
+    assert r.returncode == 0, r.stderr
+    assert csv_of(session) == from_scratch(session)
+    replays.clear()  # the import's own and from_scratch's: the annotate's are what counts
+    RecordedSession(str(session)).annotate(
+        [InvalidMark(2, "fell", 2.0), ModelChange(3, FitModel.VELOCITY, 2.0)]
+    )
+    assert replays == []
+    assert csv_of(session) == from_scratch(session)
+
+
 def test_import_bad_paths_are_one_line(tmp_path, run_station):
     cfg = write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)
     r = run_station("import", tmp_path, "--config", cfg, "--session-dir", tmp_path / "n")

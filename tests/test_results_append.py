@@ -14,7 +14,7 @@ from station.session import store as sessions
 from station.session.acquisition import Acquisition, Listener, replay
 from station.session.config import load_config
 from station.session.rawlog import Chunk
-from station.session.records import FitModel, InvalidMark, ModelChange
+from station.session.records import FitModel, InvalidMark, ModelChange, csv_record
 from tests.test_acquisition import T0, descent_lines
 from tests.timing_helpers import write_config
 
@@ -144,19 +144,19 @@ def test_appending_rows_gives_the_bytes_of_writing_them_all(tmp_path, demo_track
     acq = Acquisition.open(cfg, Warnings(), threaded=False)
     feed(acq, descent_lines(demo_track, [36000, 36060, 36120]))
     acq.close()
-    rows = [r.row for r in acq.results()]
+    rows = [csv_record(r.row) for r in acq.results()]
     header = {"survey": "x, y; z", "config": "c"}
     whole, parts = tmp_path / "whole.csv", tmp_path / "parts.csv"
-    results.write_result_rows(rows, str(whole), header)
-    results.write_result_rows(rows[:1], str(parts), header)
+    results.write_results(rows, str(whole), header)
+    results.write_results(rows[:1], str(parts), header)
     size = os.path.getsize(parts)
-    size = results.append_result_rows(str(parts), rows[1:], size)
+    size = results.append_results(str(parts), rows[1:], size)
     assert parts.read_bytes() == whole.read_bytes() and size == os.path.getsize(whole)
     # a file that changed since (another writer) is not appended to: the caller rewrites it
     with open(parts, "a") as fh:
         fh.write("\n")
     try:
-        results.append_result_rows(str(parts), rows[1:], size)
+        results.append_results(str(parts), rows[1:], size)
     except ValueError:
         pass
     else:

@@ -39,11 +39,10 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import IO, Any
 
-from station.model.compare import collect, format_comparison
-from station.model.sequential import decision_block
 from station.session import store as sessions
 from station.session.analysis import DescentResult, FitCache
-from station.session.comparison import compare_results
+from station.session.comparing import Comparer
+from station.session.comparison import DayComparison
 from station.session.config import SerialConfig, StationConfig
 from station.session.day import Day, Effect
 from station.session.fitstore import FitStore
@@ -60,6 +59,8 @@ from station.session.records import (
     ResultRow,
 )
 from station.session.replay import replay_chunks, source_date
+from station.session.resultsfile import ResultsFile
+from station.session.resultsstate import Fitted, fitted_of
 from station.survey.load import load_survey
 from station.survey.track import Track, build_track
 from station.timing.assembly import ImpulseEvent, TimedDescent
@@ -85,8 +86,9 @@ class Listener:
     def result(self, result: DescentResult) -> None:
         """A descent was fitted, fitted again, or marked."""
 
-    def comparison(self, text: str) -> None:
-        """The day's comparison of items, recomputed (when asked for)."""
+    def comparison(self, day: DayComparison) -> None:
+        """The day's comparison of items, recomputed (while shown, and when the source
+        ended)."""
 
     def warning(self, text: str) -> None:
         """Something failed and the acquisition went on."""
@@ -135,12 +137,11 @@ _STOP = object()
 #: how often an idle fit worker looks for annotations another process (``station annotate``)
 #: appended to the session being recorded
 ANNOTATIONS_POLL_S = 0.5
-#: the comparison waits until the results have not changed for this long (a refit of many
-#: descents, a replay: one comparison at the end, not one per descent)
-COMPARE_QUIET_S = 0.3
 #: how long the recorder waits for another writer of the annotations file (it appends one
 #: record) before it appends its own without the lock
 ANNOTATIONS_WAIT_S = 2.0
+#: how long the end of ``station record`` waits to print the whole day's decisions
+FINAL_COMPARISON_S = 30.0
 _Job = _Fit | _Annotate | _End | _WriteResults
 
 
@@ -181,14 +182,11 @@ class Acquisition:
         self._reader: Any = None
         self._announced: int | None = None
         self._closed = False
-        self._csv_problem: str | None = None  # said once, not after every descent
-        # what the session's results CSV holds (rows by descent, its size): a new descent is
-        # appended to it; None: unknown (not written yet, or a write failed): rewritten in full
-        # (a list: descent n's row at n - 1, None where the file has none; 8 bytes a descent)
-        self._csv_rows: list[ResultRow | None] | None = None
-        self._csv_size = 0
-        self._csv_inode = 0
-        self._header: dict[str, str] | None = None  # the CSV's header, made once
+        #: the results CSV (its header: the session's config and survey do not change during
+        #: the day, so their digests are read once)
+        self.results_file = ResultsFile(
+            session_dir, lambda: sessions.results_header(self.config, self.track.name)
+        )
         #: why the day's results may not be what a replay of its raw log gives (a chunk or a
         #: job that failed, an annotation that changed descents fitted before it): then the
         #: recording leaves no results state and the first annotate replays; None: they are
@@ -202,22 +200,18 @@ class Acquisition:
         self._own_lines: list[str] = []  # own records appended, not yet read back
         self._last_poll = 0.0
         self._worker: threading.Thread | None = None
-        # the comparison (the UI's): a thread of its own, never the fit worker's (at 2000
+        # the day's comparison, in a process of its own (never the fit worker's: at 2000
         # descents a joint fit takes seconds, and the next descent's fit would wait for it)
-        self._cmp = threading.Condition()
-        self._cmp_dirty = False  # results changed since the comparison last shown
-        self._cmp_changed_at = 0.0  # when (monotonic): the comparison waits for quiet
-        self._cmp_shown = False  # the UI shows it: only then is it computed
-        self._cmp_ended = False  # the source ended: computed once more, shown or not
-        self._comparer: threading.Thread | None = None
+        self.comparer: Comparer | None = None
         if threaded:
             self._worker = threading.Thread(target=self._work, name="fit-worker", daemon=True)
             self._worker.start()
             if compare:
-                self._comparer = threading.Thread(
-                    target=self._compare_loop, name="comparison", daemon=True
+                self.comparer = Comparer(
+                    day.track,
+                    post=lambda cmp: self._tell(self.listener.comparison, cmp),
+                    warn=lambda text: self._tell(self.listener.warning, text),
                 )
-                self._comparer.start()
 
     @classmethod
     def open(
@@ -597,11 +591,8 @@ class Acquisition:
             with self.lock:
                 counts, snapshot = day.processor.line_counts(), day.snapshot()
             self._tell(self.listener.ended, counts, snapshot)
-            with self._cmp:  # the whole day's comparison, once, shown or not
-                self._cmp_ended = True
-                self._cmp.notify_all()
-            if self.compare and self._comparer is None:
-                self._compare()
+            if self.comparer is not None:  # the whole day's comparison, once, shown or not
+                self.comparer.source_ended()
             return
         with self.lock:
             if isinstance(job, _Fit):
@@ -625,123 +616,26 @@ class Acquisition:
                 f = fitted[i]
                 v = replace(v, kept_fit=f.kept_fit, speed_x=f.speed_x, speed_v=f.speed_v)
             self._tell(self.listener.result, v)
-        if views and self.compare:
-            with self._cmp:
-                self._cmp_dirty = True
-                self._cmp_changed_at = time.monotonic()
-                self._cmp.notify_all()
-
-    # -- the comparison of the day's items (the UI's): off the fit path
-    #
-    # Computed by a thread of its own, only while the UI shows it (and once when the source
-    # ended), after the results have been quiet for COMPARE_QUIET_S, and not while fits wait:
-    # the fit worker never runs it, so a descent's fit never waits for the day's joint fit.
+        if self.comparer is not None:
+            for v in views:
+                self.comparer.update(v)
 
     def show_comparison(self, shown: bool) -> None:
-        """The UI opened (True) or closed (False) the comparison: computed only while shown."""
-        with self._cmp:
-            self._cmp_shown = shown
-            self._cmp.notify_all()
-
-    def _compare_loop(self) -> None:
-        while True:
-            with self._cmp:
-                while not (
-                    self._closed or (self._cmp_dirty and (self._cmp_shown or self._cmp_ended))
-                ):
-                    self._cmp.wait()
-                if self._closed:
-                    return
-                quiet = self._cmp_changed_at + COMPARE_QUIET_S - time.monotonic()
-                if quiet > 0 or not self._jobs.empty():  # debounced; fits first
-                    self._cmp.wait(max(quiet, COMPARE_QUIET_S / 4))
-                    continue
-                self._cmp_dirty = False
-            try:
-                self._compare()
-            except Exception as exc:  # noqa: BLE001 - the comparison is a view: the day goes on
-                self._tell(self.listener.warning, f"comparison failed: {type(exc).__name__}: "
-                           f"{exc}")  # fmt: skip
-
-    def _compare(self) -> None:
-        with self.lock:
-            snapshot = self.day.snapshot()
-        self._tell(self.listener.comparison, comparison_text(self.day.track, snapshot))
+        """A view opened (True) or closed (False) the comparison: computed only while shown."""
+        if self.comparer is not None:
+            self.comparer.show(shown)
 
     def _save_csv(self, results: Sequence[DescentResult]) -> None:
-        """Bring the session's results CSV up to date with ``results`` (those just fitted or
-        marked; at the end, all). A descent after every one the file holds is appended to it,
-        so a 2000-descent day costs per descent what its first did; an earlier row that changed
-        (an annotation, a refit, descents ending out of order) rewrites the file in full. The
-        bytes are the same either way: those of a replay's CSV."""
-        if self.session_dir is None:
-            return
-        rows = self._csv_rows
-        new: dict[int, ResultRow] = {}
-        if rows is not None:
-            last = len(rows)  # the last descent the file has (the list ends with its row)
-            for r in sorted(results, key=lambda r: r.number):
-                n = r.number
-                old = rows[n - 1] if n <= last else None
-                if old is r.row or old == r.row:
-                    new.pop(n, None)  # unchanged (a later view may change it again)
-                elif old is not None or n < last:
-                    rows = None  # an earlier row changed: the file is rewritten
-                    break
-                else:
-                    new[n] = r.row
-        if rows is not None and not new:
-            return  # the file holds them already
-        if rows is not None:
-            from station.session.results import append_result_rows
-
-            path = os.path.join(self.session_dir, sessions.RESULTS)
-            try:
-                self._csv_size = append_result_rows(
-                    path, list(new.values()), self._csv_size, self._csv_inode
-                )
-            except Exception:  # noqa: BLE001 - written in full below, which says what failed
-                self._csv_rows = None
-            else:
-                for n, row in new.items():
-                    if n > len(rows):
-                        rows.extend([None] * (n - len(rows)))
-                    rows[n - 1] = row
-                return
-        with self.lock:
-            snapshot = self.day.snapshot()
-        self._write_session_csv(snapshot)
+        """The session's results CSV up to date with ``results`` (:meth:`ResultsFile.save`)."""
+        self._say(self.results_file.save(results, self.results))
 
     def _write_session_csv(self, snapshot: Sequence[DescentResult]) -> None:
-        """The session's results CSV in full; one that cannot be written is said once, and
-        written again after the next descent (the raw log, written first, is not affected)."""
-        if self.session_dir is None:
-            return
-        path = os.path.join(self.session_dir, sessions.RESULTS)
-        self._csv_rows = None
-        problem = sessions.save_results(path, lambda p: self._write(snapshot, p))
-        if problem is None:
-            with contextlib.suppress(OSError):  # unknown size: the next write is in full
-                st = os.stat(path)
-                self._csv_size, self._csv_inode = st.st_size, st.st_ino
-                self._csv_rows = _rows_by_number(snapshot)
-        if problem is not None and problem != self._csv_problem:
-            self._tell(self.listener.warning, problem)
-        elif problem is None and self._csv_problem is not None:
-            self._tell(self.listener.warning, f"{path} written again: it is complete")
-        self._csv_problem = problem
+        """The session's results CSV in full (:meth:`ResultsFile.write_all`)."""
+        self._say(self.results_file.write_all(snapshot))
 
-    def _results_header(self) -> dict[str, str]:
-        """What the results were computed from: the session's config and survey do not change
-        during the day, so their digests are read once."""
-        if self._header is None:
-            self._header = sessions.results_header(self.config, self.day.track.name)
-        return self._header
-
-    def _write(self, snapshot: Sequence[DescentResult], path: str) -> None:
-        from station.session.results import write_result_rows
-
-        write_result_rows([r.row for r in snapshot], path, self._results_header())
+    def _say(self, line: str | None) -> None:
+        if line is not None:
+            self._tell(self.listener.warning, line)
 
     def _not_as_replayed(self, why: str) -> None:
         if self.not_as_replayed is None:
@@ -749,39 +643,21 @@ class Acquisition:
 
     def _write_results_state(self) -> None:
         """At the end of a recording, with the annotations file held: the results state a
-        replay would write with the CSV (:func:`resultsstate.write_state_of_recording`), so
-        that the first ``station annotate`` changes rows in place instead of replaying the
-        day; only when nothing says the results differ from a replay's. Otherwise (and when
-        it cannot be written) there is none: the annotate replays, as before."""
-        from station.session import resultsstate
-
-        assert self.session_dir is not None
-        session = self.session_dir
-        if self.not_as_replayed is None:
-            if self._csv_problem is not None:
-                self._not_as_replayed("the results CSV was not written")
+        replay would write with the CSV (:meth:`ResultsFile.end_recording`), when nothing
+        says the results differ from a replay's."""
+        why = self.not_as_replayed
+        if why is None:
+            if self.results_file.problem is not None:
+                why = "the results CSV was not written"
             elif self.rawlog is None or self.rawlog.lost_records:
-                self._not_as_replayed("records of the raw log were lost")
+                why = "records of the raw log were lost"
             elif self.source_error is not None:
-                self._not_as_replayed("the timer could not be read")
-        written = False
-        if self.not_as_replayed is None:
-            try:
-                with self.lock:
-                    snapshot = self.day.snapshot()
-                    fitted = resultsstate.fitted_of(self.day)
-                written = resultsstate.write_state_of_recording(
-                    session, [r.row for r in snapshot], self._results_header(),
-                    resultsstate.annotations_digest(session), fitted,
-                )  # fmt: skip
-            except Exception:  # noqa: BLE001 - no state: the next annotate replays
-                written = False
-            if not written:
-                self._not_as_replayed("the results state could not be written")
-        if not written:  # one left from before would not match the CSV; gone all the same
-            for name in (resultsstate.STATE, resultsstate.DESCENTS):
-                with contextlib.suppress(OSError):
-                    os.unlink(os.path.join(session, name))
+                why = "the timer could not be read"
+        self.not_as_replayed = self.results_file.end_recording(why, self._as_fitted)
+
+    def _as_fitted(self) -> tuple[list[ResultRow], Fitted]:
+        with self.lock:
+            return [r.row for r in self.day.snapshot()], fitted_of(self.day)
 
     def _tell(self, fn: Callable[..., None], *args: Any) -> None:
         """Call the listener; what it raises stays with it."""
@@ -799,14 +675,20 @@ class Acquisition:
         if src is not None and src is not threading.current_thread():
             src.join(timeout=10)
 
-    def close(self) -> None:
+    def close(self, comparison_wait_s: float = 0.0) -> None:
         """End the day as the end of a capture would: stop the source, end the open descent,
-        fit what is left, write the results CSV, close the raw log. Idempotent."""
+        fit what is left, write the results CSV, close the raw log. Idempotent. Then the
+        comparison ends, after ``comparison_wait_s`` at most for the whole day's."""
         if self._closed:
             return
         self._closed = True
-        with self._cmp:  # the comparison thread ends (one under way is not waited for)
-            self._cmp.notify_all()
+        try:
+            self._end_day()
+        finally:
+            if self.comparer is not None:
+                self.comparer.close(comparison_wait_s)
+
+    def _end_day(self) -> None:
         try:
             self.stop()
             self.end_of_input()
@@ -847,7 +729,7 @@ class Acquisition:
     @property
     def csv_problem(self) -> str | None:
         """Why the session's results CSV is not written now (None: it is)."""
-        return self._csv_problem
+        return self.results_file.problem
 
     def speed_curve(self, res: DescentResult) -> tuple[Any, Any] | None:
         """The fitted speed along the run of a result kept without it (one model solve, no
@@ -868,14 +750,20 @@ class Acquisition:
         """The results CSV at ``path`` (export, ``replay --csv``, the UI's ``e``); returns the
         number of descents written."""
         results = self.results()
-        self._write(results, path)
+        self.results_file.export([r.row for r in results], path)
         return len(results)
 
     def write_csv_to(self, fh: IO[str]) -> None:
         """The results CSV into an open text file: ``--csv -`` writes to standard output."""
-        from station.session.results import write_result_rows_to
+        self.results_file.export_to(fh, [r.row for r in self.results()])
 
-        write_result_rows_to(fh, [r.row for r in self.results()], self._results_header())
+    def write_session_results(self, session: str, annotations_sha256: str | None) -> str:
+        """The results CSV of this replay into the session folder ``session``, with the state
+        that lets the next annotate change rows in place (``annotations_sha256``: of the
+        annotations file the replay applied, taken before it read them); returns its path."""
+        rows, fitted = self._as_fitted()
+        out = ResultsFile(session, self.results_file.header)
+        return out.write_replay(rows, annotations_sha256, fitted)
 
 
 def _effect_now(day: Day, a: Annotation) -> Effect:
@@ -889,29 +777,6 @@ def _effect_now(day: Day, a: Annotation) -> Effect:
     if isinstance(a, ModelChange):
         return Effect(refit=(a.descent,))
     return Effect(changed=(a.descent,))
-
-
-def _rows_by_number(results: Sequence[DescentResult]) -> list[ResultRow | None]:
-    """The rows of ``results``, descent n's at n - 1 (None for a number without one)."""
-    rows: list[ResultRow | None] = [None] * max((r.number for r in results), default=0)
-    for r in results:
-        rows[r.number - 1] = r.row
-    return rows
-
-
-def comparison_text(track: Track, results: Sequence[DescentResult]) -> str:
-    """The joint fit of the day's valid descents, as the UI shows it."""
-    if len(collect(results)[0]) < 2:
-        return "no comparison yet: it needs at least two fitted descents"
-    day = compare_results(track, results)
-    if day.result is None:
-        return f"no comparison yet: {day.error}"
-    res = day.result
-    text = format_comparison(res, len(day.compared)) + "".join(f"\n! {w}" for w in res.warnings)
-    block = decision_block(
-        res.comparisons, [d.item for d in day.compared], day.compared[-1].number
-    )  # decided or not, after every descent (station/model/sequential.py)
-    return text + "".join(f"\n{line}" for line in ["", *block]) if block else text
 
 
 # ----------------------------------------------------------------------------- commands
@@ -931,8 +796,10 @@ def record(
     from station.session.serialport import ensure_port_free
 
     ensure_port_free(config.serial)  # a second recorder on the port: one line, no session made
-    # compare: the console says after every descent whether the day is decided
+    # compare, shown all along: the console says after every descent whether the day is
+    # decided
     acq = Acquisition.open(config, listener, session_dir=session_dir, compare=True)
+    acq.show_comparison(True)
     if started is not None:
         started()
     stop = threading.Event()
@@ -949,7 +816,7 @@ def record(
                 break
             stop.wait(0.1)
     finally:
-        acq.close()
+        acq.close(comparison_wait_s=FINAL_COMPARISON_S)
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     if acq.source_error is not None:

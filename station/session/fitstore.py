@@ -5,8 +5,8 @@ A fit depends on the crossing times, the photocells, the model, the skier's mass
 wind, g, the survey covariance it was given (computed once per set of photocells, at a
 reference fit: :class:`station.session.analysis.Analyser`), the session's config and survey
 files and the code that fits. The key of a stored fit is the SHA-256 of all of these (the code
-by the SHA-256 of the source files of the fit's path, so a changed station never reads an older
-one's fit as its own); an annotation that changes a fit (mass, air, wind, a model) changes its
+by :func:`station.session.codeversion.code_version`, so a changed station never reads an
+older one's fit as its own); an annotation that changes a fit (mass, air, wind, a model) changes its
 key, and that fit alone is computed again.
 
 One JSON record a line, appended: ``{"key": …, "fit": {…}}``. The file is a cache, never the
@@ -29,35 +29,19 @@ import types
 import typing
 from collections.abc import Hashable
 from functools import cache
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from station import __version__
 from station.errors import InputError
-from station.files import MAX_OBSERVATIONS, read_bytes
+from station.files import MAX_OBSERVATIONS, read_bytes, replaced
 from station.model.fit import FitResult
+from station.session.codeversion import code_version
 from station.session.config import StationConfig
 from station.session.store import FITS
 
 #: a stored fit is 2-4 kB: 64 MB holds a season of days
 MAX_FITS = 64 * 1024 * 1024
-#: the source files whose code decides a fit's numbers (the key changes when one changes)
-_FIT_CODE = ("model", "survey", "session/analysis.py", "session/config.py", "session/records.py")
-
-
-@cache
-def code_digest() -> str:
-    """The SHA-256 of the source of the fit's path, and the version: read once a process."""
-    root = Path(__file__).resolve().parents[1]
-    h = hashlib.sha256(__version__.encode())
-    for part in _FIT_CODE:
-        p = root / part
-        for f in sorted(p.rglob("*.py")) if p.is_dir() else [p]:
-            h.update(f.relative_to(root).as_posix().encode())
-            h.update(f.read_bytes())
-    return h.hexdigest()
 
 
 def fit_key(context: str, parts: dict[str, Any], survey_cov: np.ndarray | None) -> str:
@@ -236,7 +220,7 @@ def session_context(config: StationConfig) -> str:
         hashlib.sha256(read_bytes(p, MAX_OBSERVATIONS, what)).hexdigest()
         for p, what in ((config.path, "config"), (config.survey_path, "survey file"))
     ]
-    return "|".join([*digests, code_digest()])
+    return "|".join([*digests, code_version()])
 
 
 #: a key as the store holds it in memory (:func:`_held`)
@@ -424,9 +408,8 @@ class FitStore:
         used = self.used
         if not self._writable or self._records <= 2 * len(used) + 100:
             return
-        tmp = f"{self.path}.{os.getpid()}.tmp"
         try:
-            with open(tmp, "wb") as fh:
+            with replaced(self.path) as tmp, open(tmp, "wb") as fh:
                 where: dict[Held, int] = {}
                 for key in sorted(used):
                     form = self._fits.get(key)
@@ -436,11 +419,9 @@ class FitStore:
                         where[_held(key)] = fh.tell()
                         line = json.dumps({"key": key, "fit": form}, separators=(",", ":"))
                         fh.write(line.encode() + b"\n")
-            os.replace(tmp, self.path)
             self._records = len(used)
             self._where = where
             for held in where:
                 self._fits.pop(_key(held), None)
         except OSError:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+            pass  # the old file stays: a cache

@@ -18,15 +18,13 @@ import io
 import math
 import operator
 import os
-import tempfile
 from collections.abc import Sequence
 from typing import IO, Any
 
 from station import __version__, csvfiles
 from station.csvfiles import header_line, header_text, safe_text  # noqa: F401 - one policy
 from station.errors import InputError
-from station.files import decode_text, read_bytes
-from station.session.records import ResultRow, csv_record
+from station.files import decode_text, read_bytes, replaced
 
 COLUMNS = [
     "descent", "start_time", "photocells_used", "missing", "v0", "cda", "cda_lo", "cda_hi",
@@ -180,33 +178,10 @@ def append_results(
 
 
 def write_results(rows: list[dict[str, Any]], path: str, header: dict[str, str]) -> None:
-    """Write atomically (temp file + rename), so a reader never sees half a file."""
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".results-", suffix=".csv", dir=folder)
-    try:
-        os.fchmod(fd, 0o666 & ~_umask())  # as open() would make it; mkstemp makes it 0600
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            write_results_to(fh, rows, header)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
-def _umask() -> int:
-    """The process's umask, read without changing it (``os.umask`` would, for a moment, for
-    every thread) where Linux tells it."""
-    try:
-        with open("/proc/self/status", encoding="ascii") as fh:
-            for line in fh:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    except (OSError, ValueError, IndexError):
-        pass
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
+    """Write atomically (:func:`station.files.replaced`), so a reader never sees half a
+    file."""
+    with replaced(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as fh:
+        write_results_to(fh, rows, header)
 
 
 #: a day's results CSV: a few hundred bytes a descent
@@ -253,20 +228,3 @@ def _cell(cell: str, col: str, path: str, line: int) -> Any:
     except ValueError:
         kind = "a whole number" if col in INT_COLUMNS else "a number"
         raise InputError(f"{cell[:20]!r} is not {kind}", path=path, line=line, field=col) from None
-
-
-def write_result_rows(rows: Sequence[ResultRow], path: str, header: dict[str, str]) -> None:
-    """The results CSV of typed rows: each row's one CSV view (:func:`csv_record`)."""
-    write_results([csv_record(r) for r in rows], path, header)
-
-
-def append_result_rows(
-    path: str, rows: Sequence[ResultRow], size: int, inode: int | None = None
-) -> int:
-    """:func:`append_results` of typed rows; returns the file's new size."""
-    return append_results(path, [csv_record(r) for r in rows], size, inode)
-
-
-def write_result_rows_to(fh: IO[str], rows: Sequence[ResultRow], header: dict[str, str]) -> None:
-    """:func:`write_result_rows` into an open text file, e.g. standard output."""
-    write_results_to(fh, [csv_record(r) for r in rows], header)

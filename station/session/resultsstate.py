@@ -44,43 +44,27 @@ from __future__ import annotations
 import array
 import base64
 import binascii
-import contextlib
 import functools
 import hashlib
 import json
 import os
 import sys
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from functools import cache
-from pathlib import Path
 from typing import Any
 
-from station import __version__
 from station.errors import InputError
 from station.files import MAX_OBSERVATIONS, MAX_RAWLOG, read_bytes
 from station.session import store as sessions
+from station.session.codeversion import code_version
 from station.session.config import StationConfig
-from station.session.marks import Marks
 from station.session.records import (
-    METADATA_FIELDS,
-    Annotation,
-    InvalidMark,
-    MetadataAnnotation,
-    ResultRow,
-    ResultStatus,
-    ValidMark,
     csv_record,
 )
 from station.session.results import (
-    COLUMNS,
     MAX_RESULTS,
     RowWriter,
-    cell_value,
-    parse_row,
     results_frame,
-    results_lines,
 )
 
 STATE = sessions.RESULTS_STATE
@@ -91,36 +75,8 @@ FORMAT = 1
 FIT_KEYS = frozenset(
     {"mass_kg", "air_temperature_c", "pressure_hpa", "humidity_pct", "wind_ms", "wind_from_deg"}
 )
-#: the parts of the station whose code decides the results (not the commands, UI, reports)
-_NOT_RESULTS = ("cli", "ui", "store", "report")
 #: a state file is small (a few numbers a descent)
 MAX_STATE = 16 * 1024 * 1024
-_META_COLUMNS = tuple(f for f in METADATA_FIELDS if f.column)
-_STATUS = COLUMNS.index("status")
-_INVALID = COLUMNS.index("invalid_reason")
-
-
-@cache
-def _umask() -> int:
-    """The process's umask (read once: ``os.umask`` sets it to read it)."""
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-@cache
-def code_stamp() -> str:
-    """The code that computes results, by its files' paths, sizes and modification times and
-    the version (read once a process: ~75 stat calls, not a read of every file)."""
-    root = Path(__file__).resolve().parents[1]
-    h = hashlib.sha256(__version__.encode())
-    for f in sorted(root.rglob("*.py")):
-        rel = f.relative_to(root)
-        if rel.parts[0] in _NOT_RESULTS:
-            continue
-        st = f.stat()
-        h.update(f"{rel.as_posix()}\0{st.st_size}\0{st.st_mtime_ns}\0".encode())
-    return h.hexdigest()
 
 
 def _sha256(data: bytes) -> str:
@@ -142,7 +98,10 @@ def _setup_names(session: str) -> list[str]:
     return sorted(out)
 
 
-def _setup_files(session: str, names: Sequence[str]) -> dict[str, str]:
+def setup_files(session: str, names: Sequence[str] | None = None) -> dict[str, str]:
+    """The SHA-256 of each of the session's setup files (:func:`_setup_names`)."""
+    if names is None:
+        names = _setup_names(session)
     return {
         rel: _sha256(read_bytes(os.path.join(session, rel), MAX_OBSERVATIONS, "session file"))
         for rel in names
@@ -161,7 +120,7 @@ def annotations_digest(session: str) -> str | None:
         return None
 
 
-def _raw_stamp(session: str, known: dict[str, Any] | None = None) -> dict[str, Any]:
+def raw_stamp(session: str, known: dict[str, Any] | None = None) -> dict[str, Any]:
     """The raw log's size, modification time and SHA-256. A raw log of the size and time
     ``known`` gives is taken to have its SHA-256 too, as make and git judge a file by its
     size and time: a recorder never writes to a session again once it ended, and reading a
@@ -307,70 +266,7 @@ def _typed(value: Any, kind: type) -> Any:
     return value
 
 
-# ----------------------------------------------------------------------------- writing
-
-
-def write_results_with_state(
-    session: str,
-    rows: Sequence[ResultRow],
-    header: dict[str, str],
-    annotations_sha256: str | None,
-    fitted: Fitted | None = None,
-) -> str:
-    """Write the results CSV of a replay (``rows`` as its results show them, the invalid
-    marks on them) and its state; ``annotations_sha256``: of the annotations file the replay
-    applied, taken before it read them; ``fitted``: the replay's descents as it fitted them,
-    for a later refit of one. Returns the CSV's path. The CSV is written first: a state that
-    cannot be written leaves the old one, which no longer matches the CSV."""
-    head, lines = results_lines([csv_record(r) for r in rows], header)
-    statuses = {r.descent: r.status.value for r in rows if r.invalid_reason}
-    encoded = [head.encode("utf-8")] + [x.encode("utf-8") for x in lines]
-    lengths = array.array("I", [len(row) for row in encoded[1:]])
-    fits = None
-    if fitted is not None:
-        try:
-            fits = _write_descents(session, fitted)
-        except (OSError, ValueError, TypeError):
-            fits = None  # refits replay the day
-    return _write(
-        session, encoded, len(encoded[0]), lengths, runs_of([r.descent for r in rows]),
-        annotations_sha256, statuses, None, fits,
-    )  # fmt: skip
-
-
-def write_state_of_recording(
-    session: str,
-    rows: Sequence[ResultRow],
-    header: dict[str, str],
-    annotations_sha256: str | None,
-    fitted: Fitted,
-) -> bool:
-    """The state of the results CSV a recording wrote (``station record``, the UI's ``live``),
-    at its end, so that the first annotate after it need not replay the day: written only
-    when the CSV on disk is byte for byte the one a replay writes of ``rows`` (the day's
-    results as the recorder has them, which the caller vouches a replay gives too) and the
-    descents file is written; returns whether it was. The CSV is read, never written here."""
-    if annotations_sha256 is None:
-        return False
-    head, lines = results_lines([csv_record(r) for r in rows], header)
-    encoded = [head.encode("utf-8")] + [x.encode("utf-8") for x in lines]
-    try:
-        data = read_bytes(os.path.join(session, sessions.RESULTS), MAX_RESULTS, "results CSV")
-        runs = runs_of([r.descent for r in rows])
-    except (OSError, InputError, ValueError):
-        return False
-    if data != b"".join(encoded):
-        return False  # a write failed, or was cut short: the CSV is not a replay's
-    try:
-        fits = _write_descents(session, fitted)
-    except (OSError, ValueError, TypeError):
-        return False
-    statuses = {r.descent: r.status.value for r in rows if r.invalid_reason}
-    lengths = array.array("I", [len(row) for row in encoded[1:]])
-    return _write_state(
-        session, _sha256(data), len(encoded[0]), lengths, runs, annotations_sha256, statuses,
-        None, fits,
-    )  # fmt: skip
+# ------------------------------------------------------------------------ the replay's descents
 
 
 def fitted_of(day: Any) -> Fitted:
@@ -395,96 +291,6 @@ class Fitted:
     sources: list[tuple[tuple[str, ...], int, Any]]  # photocells, descent, covariance
     timer_precision_s: float
     own: list[int] = field(default_factory=list)  # descents whose fit computed its own
-
-
-def _write_descents(session: str, fitted: Fitted) -> dict[str, Any]:
-    from station.session.fitstore import to_json
-
-    rec = {
-        "order": [to_json(d) for d in fitted.order],
-        "sources": [[list(ids), n, to_json(cov)] for ids, n, cov in fitted.sources],
-        "own": fitted.own,
-    }
-    data = json.dumps(rec, separators=(",", ":")).encode()
-    digest = _replace(os.path.join(session, DESCENTS), [data])
-    return {"sha256": digest, "timer_precision_s": fitted.timer_precision_s}
-
-
-def _write(
-    session: str,
-    data: Sequence[bytes | memoryview],
-    head: int,
-    lengths: array.array[int],
-    runs: list[tuple[int, int]],
-    annotations_sha256: str | None,
-    statuses: dict[int, str],
-    known: tuple[dict[str, str], dict[str, Any]] | None,
-    fits: dict[str, Any] | None,
-) -> str:
-    """Write the CSV ``data`` (its pieces: ``head`` bytes, then rows of ``lengths``, one for
-    each descent of ``runs``), then its state (when the annotations it shows are known)."""
-    path = os.path.join(session, sessions.RESULTS)
-    # the CSV first: a state that is not written then is the old one, which does not hold
-    # for the new CSV (its SHA-256), so the next annotate replays
-    digest = _replace(path, data)
-    if annotations_sha256 is not None:
-        _write_state(
-            session, digest, head, lengths, runs, annotations_sha256, statuses, known, fits
-        )
-    return path
-
-
-def _write_state(
-    session: str,
-    digest: str,
-    head: int,
-    lengths: array.array[int],
-    runs: list[tuple[int, int]],
-    annotations_sha256: str,
-    statuses: dict[int, str],
-    known: tuple[dict[str, str], dict[str, Any]] | None,
-    fits: dict[str, Any] | None,
-) -> bool:
-    """The state of the results CSV whose SHA-256 is ``digest``; False when it could not be
-    written (then the next annotate replays)."""
-    try:
-        files, raw = known if known is not None else (
-            _setup_files(session, _setup_names(session)), _raw_stamp(session)
-        )  # fmt: skip
-        state = ResultsState(
-            code_stamp(), files, raw, annotations_sha256, digest, runs, head, lengths,
-            statuses, fits,
-        )  # fmt: skip
-        text = json.dumps(state.to_json(), separators=(",", ":")).encode()
-        # written over the old one, not renamed: a state cut short is no JSON, and the old
-        # one does not hold for the new CSV; either way the next annotate replays
-        flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NONBLOCK  # a FIFO: no wait
-        fd = os.open(os.path.join(session, STATE), flags, 0o666)
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(text)
-    except (OSError, InputError):
-        return False  # no state: the next annotate replays
-    return True
-
-
-def _replace(path: str, data: Sequence[bytes | memoryview]) -> str:
-    """Write a file of the pieces ``data`` atomically (a temporary file beside it, renamed
-    over it), without joining them (a 2000-descent CSV is 0.6 MB); returns its SHA-256."""
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(path)}-", dir=folder)
-    digest = hashlib.sha256()
-    try:
-        os.fchmod(fd, 0o666 & ~_umask())  # as open() would have made it, not mkstemp's 0600
-        with os.fdopen(fd, "wb") as fh:
-            for piece in data:
-                fh.write(piece)
-                digest.update(piece)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-    return digest.hexdigest()
 
 
 # ----------------------------------------------------------------------------- reading
@@ -522,7 +328,7 @@ def current(session: str, annotations_sha256: str | None) -> Current | None:
         return None
     if annotations_sha256 is None or state.annotations_sha256 != annotations_sha256:
         return None
-    if state.code != code_stamp():
+    if state.code != code_version():
         return None
     try:
         names = _setup_names(session)
@@ -531,10 +337,10 @@ def current(session: str, annotations_sha256: str | None) -> Current | None:
         data = read_bytes(os.path.join(session, sessions.RESULTS), MAX_RESULTS, "results CSV")
         if len(data) != state.size or _sha256(data) != state.results_sha256:
             return None
-        files = _setup_files(session, names)
+        files = setup_files(session, names)
         if files != state.files:
             return None
-        raw = _raw_stamp(session, state.raw)
+        raw = raw_stamp(session, state.raw)
         if raw["sha256"] != state.raw.get("sha256") or raw["size"] != state.raw.get("size"):
             return None
     except (OSError, InputError):
@@ -553,127 +359,10 @@ def descent_numbers(session: str) -> list[int] | None:
     return state.descents if state is not None and size == state.size else None
 
 
-# ----------------------------------------------------------------------------- annotating
+# ----------------------------------------------------------------------- a refit of one descent
 
 
-def in_place(
-    session: str,
-    config: StationConfig,
-    cur: Current,
-    new: Sequence[Annotation],
-    annotations_sha256: str | None,
-) -> str | None:
-    """Bring the CSV ``cur`` up to date with the annotations ``new`` appended after those it
-    shows, without a replay, when none of them changes a fit; write it and its state. Returns
-    the CSV's path, or None when a replay is needed (nothing written then)."""
-    touched: set[int] = set()
-    state = cur.state
-    #: the invalid marks the new records leave (a row's earlier reason is in its cell)
-    reasons: dict[int, str] = {}
-    metadata = False
-    refit: set[int] = set()  # descents whose fit changes: fitted again
-    for a in new:
-        if isinstance(a, InvalidMark | ValidMark):
-            touched.add(a.descent)
-            reasons[a.descent] = (a.reason or "marked invalid") if isinstance(a, InvalidMark) \
-                else ""  # fmt: skip
-        elif isinstance(a, MetadataAnnotation):
-            metadata = True
-            if FIT_KEYS & a.values.values().keys():
-                if a.descents is None:
-                    return None  # from N on: most of the day fitted again, by a replay
-                refit.update(a.descents)
-                continue
-            if not any(f.column for f in METADATA_FIELDS if f.key in a.values.values()):
-                continue  # a key results.csv has no column for (grind, snow type …)
-            if a.descents is not None:
-                touched.update(a.descents)
-            else:
-                start = a.from_descent or 0
-                touched.update(n for n in state.descents if n >= start)
-        else:  # a model change
-            refit.add(a.descent)
-    if (metadata or refit) and config.items:
-        # the bib of a descent names an item (ski, wax …) over what the annotations say: not
-        # known here; such a day is replayed
-        return None
-    data = cur.data
-    rows = {n: k for n in touched | refit if (k := state.row_of(n)) >= 0}
-    span = state.spans(list(rows.values()))
-    refit &= rows.keys()
-    refitted: dict[int, tuple[bytes, str]] = {}
-    if refit:
-        starts: dict[int, str] = {}
-        for n in refit:
-            a, b = span[rows[n]]
-            try:
-                starts[n] = parse_row(data[a:b].decode("utf-8"))[1]
-            except ValueError:
-                return None
-        got = _refit(session, config, state, starts)
-        if got is None:
-            return None
-        refitted = got
-    marks = None
-    if metadata:  # what is in force for a descent follows from every annotation of the day
-        try:
-            marks = Marks.of(config, sessions.read_annotations(session))
-        except Exception:  # noqa: BLE001 - the replay says what is wrong
-            return None
-    statuses = dict(state.statuses)
-    writer = RowWriter()
-    changed: list[tuple[int, bytes]] = []  # (row, its new bytes), in the file's order
-    for n in sorted(rows):  # a descent the CSV has no row for is still to come: nothing to show
-        k = rows[n]
-        if n in refitted:
-            row, status = refitted[n]
-            statuses.pop(n, None)
-            if parse_row(row.decode("utf-8"))[_INVALID]:
-                statuses[n] = status
-            changed.append((k, row))
-            continue
-        try:
-            text = data[span[k][0] : span[k][1]].decode("utf-8")
-            cells = parse_row(text)
-            if writer.text(cells) != text or cells[0] != n:
-                return None  # not written by this writer: replayed
-        except ValueError:
-            return None
-        if marks is not None:
-            meta = marks.metadata_for(n)
-            for f in _META_COLUMNS:
-                v = getattr(meta, f.key)
-                cells[COLUMNS.index(f.key)] = cell_value(f.key, ("" if v is None else v)
-                                                        if f.kind is str else v)  # fmt: skip
-        status = statuses.pop(n, None) or cells[_STATUS]
-        if status == ResultStatus.INVALID.value:
-            return None  # the fit's status is not known: replayed
-        if marks is not None:
-            cells[_INVALID] = cell_value("invalid_reason", marks.invalid.get(n, ""))
-        elif n in reasons:
-            cells[_INVALID] = cell_value("invalid_reason", reasons[n])
-        reason = cells[_INVALID]
-        cells[_STATUS] = ResultStatus.INVALID.value if reason else status
-        if reason:
-            statuses[n] = status
-        changed.append((k, writer.text(cells).encode("utf-8")))
-    # the file in pieces: the unchanged stretches as they are, the changed rows new
-    whole = memoryview(data)
-    pieces: list[bytes | memoryview] = []
-    lengths = array.array("I", state.lengths)
-    at = 0
-    for k, row in changed:
-        pieces += [whole[at : span[k][0]], row]
-        at = span[k][1]
-        lengths[k] = len(row)
-    pieces.append(whole[at:])
-    return _write(
-        session, pieces, state.head, lengths, state.runs, annotations_sha256,
-        statuses, (cur.files, cur.raw), state.fits,
-    )  # fmt: skip
-
-
-def _refit(
+def refit(
     session: str, config: StationConfig, state: ResultsState, start_times: dict[int, str]
 ) -> dict[int, tuple[bytes, str]] | None:
     """The rows of the descents ``start_times`` names (with their start times as the CSV has
@@ -742,7 +431,7 @@ def _refit(
                 return None
             analyser.hand_on(d.photocells, source[0], cov)
         # the day's own job, with the start time of the CSV and the day's timer precision
-        # (the replay's processor knows both; here there is none; no items: see in_place)
+        # (the replay's processor knows both; here there is none; no items: see ResultsFile.edit)
         job = day.job(d, started, precision)
         res = analyser.run(job)
         row = replace(res.row, invalid_reason=day.invalid.get(n, ""))
