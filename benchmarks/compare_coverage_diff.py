@@ -3,8 +3,8 @@ benchmarks/plan_sequential.py (2 % scatter, 10 descents a ski) than on those of
 benchmarks/compare_calibration.py (2 % scatter, 4 a ski)? A diagnosis (issue 21): the two
 benchmarks' days differ in several ways at once; here each is swapped on its own.
 
-Both benchmarks simulate the same way (simulators/days.py draws the posture, v0 and the timer's
-noise in the same order as compare_calibration.py), so both are reproduced exactly by
+Both benchmarks simulate the same way (station/simulators/days.py draws the posture, v0 and
+the timer's noise in the same order as compare_calibration.py), so both are reproduced exactly by
 ``simulate_day`` with these knobs: descents per ski (ABBA…), the drift per hour, the level of μ
 (compare_calibration counts its drift from the first descent: the same as a drift about mid-day
 with μ raised by drift × half the day), Δμ, the posture scatter, the timer. Every day is fitted
@@ -45,9 +45,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.plan_power import track  # noqa: E402
-from simulators.days import DaySetup, simulate_day  # noqa: E402
 from station.model.compare import joint_fit  # noqa: E402
 from station.model.sequential import standard_error  # noqa: E402
+from station.simulators.days import DaySetup, simulate_day  # noqa: E402
 
 #: name: (descents per ski, drift per hour, μ_A at mid-day, Δμ = μ_A − μ_B, scatter, seed0)
 #: "seq" is plan_sequential's equal-ski 2 % row read at its last look (seeds 27000…);

@@ -2,7 +2,7 @@
 does the joint fit's standard error carry it? (issue 21: the sequential rule's z = Δμ̂/se is
 wider than its t before the horizon, benchmarks/plan_sequential.py --per-look.)
 
-Equal-ski days of ABBA… (simulators/days.py, the demo run: nine photocells, 0.5 ms timer,
+Equal-ski days of ABBA… (station/simulators/days.py, the demo run: nine photocells, 0.5 ms timer,
 drift 0.005 per hour) are fitted after ``--descents`` descents twice by the real ``joint_fit``:
 as it is, and with the posture scatter held at its true value (γ = s²/σ² of the simulation;
 the REML search of γ replaced by that value, everything else as it is). Printed: E Δμ̂² over
@@ -41,8 +41,8 @@ sys.path.insert(0, str(ROOT))
 import station.model.compare as compare  # noqa: E402
 import station.model.compare_reml as reml  # noqa: E402
 from benchmarks.plan_power import track  # noqa: E402
-from simulators.days import DaySetup, simulate_day  # noqa: E402
 from station.model.sequential import standard_error  # noqa: E402
+from station.simulators.days import DaySetup, simulate_day  # noqa: E402
 
 TIMER_S = 5e-4  # the demo run's timer (--timer-ms)
 

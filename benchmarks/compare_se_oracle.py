@@ -2,7 +2,7 @@
 against itself with known variances, and the parts of the standard error against the parts of
 the estimate's spread.
 
-Equal-ski days of ABBA… (simulators/days.py, the demo run: nine photocells, 0.5 ms timer,
+Equal-ski days of ABBA… (station/simulators/days.py, the demo run: nine photocells, 0.5 ms timer,
 drift 0.005 per hour) fitted by the real joint fit after ``--descents`` descents. Per day:
 
 - *known variances*: Δμ̂ of the fit with γ = s²/σ² held at the truth over σ·√(c'S⁻¹(γ)c)
@@ -50,9 +50,9 @@ sys.path.insert(0, str(ROOT))
 
 import station.model.compare_reml as reml  # noqa: E402
 from benchmarks.plan_power import track  # noqa: E402
-from simulators.days import DaySetup, simulate_day  # noqa: E402
 from station.model.compare_inference import Inference  # noqa: E402
 from station.model.compare_layout import DayModel, Layout  # noqa: E402
+from station.simulators.days import DaySetup, simulate_day  # noqa: E402
 
 
 class _Held:

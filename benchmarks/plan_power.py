@@ -3,12 +3,12 @@ real joint fit of `station compare`.
 
 For each cell (Δμ 0.0005 / 0.001 / 0.002 × posture scatter 0.5 / 1 / 2 %) the plan is made
 (`station.model.plan.plan_day`, 90 % power, 2 items, drift 0.005 per hour, 3 minutes between
-descents: the simulated day's own values, simulators/days.DaySetup), then days are simulated in
-the plan's order (simulators/days.py: v0 uniform in 2.5–4.5 m/s, the timer's noise on every
-photocell, times rounded to 0.1 ms, μ drifting about its mid-day value), every descent fitted
-on its own and the day by `joint_fit`. "Resolved": the 90 % interval of Δμ excludes 0 on
-the right side. Printed per cell: the plan (descents per item, its stated power), the
-simulated power at the plan and at one descent per item fewer, and the smallest number of
+descents: the simulated day's own values, station/simulators/days.DaySetup), then days are
+simulated in the plan's order (station/simulators/days.py: v0 uniform in 2.5–4.5 m/s, the
+timer's noise on every photocell, times rounded to 0.1 ms, μ drifting about its mid-day value),
+every descent fitted on its own and the day by `joint_fit`. "Resolved": the 90 % interval of Δμ
+excludes 0 on the right side. Printed per cell: the plan (descents per item, its stated power),
+the simulated power at the plan and at one descent per item fewer, and the smallest number of
 descents per item whose simulated days reach the target (the plan is at most one descent per
 item larger than needed when that is n or n − 1; "ok" also needs the simulated power within
 ± 5 % of the stated).
@@ -35,9 +35,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from simulators.days import DaySetup, simulate_day  # noqa: E402
 from station.model.compare import joint_fit  # noqa: E402
 from station.model.plan import DayAssumptions, plan_day, run_order  # noqa: E402
+from station.simulators.days import DaySetup, simulate_day  # noqa: E402
 from station.survey.load import load_survey  # noqa: E402
 from station.survey.track import build_track  # noqa: E402
 

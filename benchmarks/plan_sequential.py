@@ -1,10 +1,10 @@
 """Decided or not after every descent: does looking after every descent inflate wrong answers?
 
 Days of two items in ABBA order up to the horizon (10 descents per item, 20 descents, 3 minutes
-apart, drift 0.005 per hour), simulated as in benchmarks/plan_power.py (simulators/days.py) and
-fitted by the real joint fit of `station compare` after every descent from the fourth on (each
-look a fit of the descents so far); the group-sequential rule of station/model/sequential.py
-decides at each look. Per posture scatter (0.5 / 1 / 2 %):
+apart, drift 0.005 per hour), simulated as in benchmarks/plan_power.py
+(station/simulators/days.py) and fitted by the real joint fit of `station compare` after every
+descent from the fourth on (each look a fit of the descents so far); the group-sequential
+rule of station/model/sequential.py decides at each look. Per posture scatter (0.5 / 1 / 2 %):
 
 - equal skis: the share of days on which a winner is declared at any look (target ≤ 10 %),
   with its binomial 95 % upper bound, and, for contrast, how often the plain 90 % interval
@@ -53,7 +53,6 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.plan_power import SETUPS, track  # noqa: E402
-from simulators.days import DaySetup, simulate_day  # noqa: E402
 from station.model.compare import joint_fit  # noqa: E402
 from station.model.plan import run_order  # noqa: E402
 from station.model.sequential import (  # noqa: E402
@@ -65,6 +64,7 @@ from station.model.sequential import (  # noqa: E402
     spent,
     standard_error,
 )
+from station.simulators.days import DaySetup, simulate_day  # noqa: E402
 
 HORIZON = 10
 SCATTERS = (0.005, 0.01, 0.02)

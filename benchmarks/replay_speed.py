@@ -13,8 +13,8 @@
 2. A 50-descent capture with timing noise, double triggers and running-time lines, replayed
    end to end: parse, assemble, fit every descent, write the results CSV.
 
-BLAS is capped at one thread while the replays run (threadpoolctl), as ``station``'s command
-line caps it before numpy loads (``station.cli.main.one_blas_thread``): the command's set-up
+BLAS is capped at one thread while the replays run (station.runtime), as ``station``'s command
+line caps it before numpy loads (``station.runtime.one_blas_thread``): the command's set-up
 fits the survey's smoothing spline (one 68 × 68 eigh), which a pool of BLAS threads on the
 shared 2-core machine made 50-90 ms of CPU instead of 0.5 ms. This process (and
 speed_table.py) has numpy loaded before it calls the command, so without the cap it measured
@@ -35,11 +35,11 @@ import time
 from pathlib import Path
 
 import numpy as np
-from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from station import runtime  # noqa: E402
 from station.model.physics import Conditions, Params, StraightRun  # noqa: E402
 from station.session.config import load_config  # noqa: E402
 from station.session.runs import replay  # noqa: E402
@@ -153,7 +153,7 @@ def measure_replay(runs: int = 5) -> dict[str, float]:
         "replay --no-fit": [], "session --no-fit": [], "session, 2 reads a line": [],
         "parser alone": [], "bare loop": []
     }  # fmt: skip
-    with threadpool_limits(limits=1, user_api="blas"):  # as the command runs (see above)
+    with runtime.blas_on_one_thread():  # as the command runs (see above)
         for _ in range(runs):
             rates["bare loop"].append(len(lines) / cpu(lambda: bare_loop(big)))
             rates["replay --no-fit"].append(len(lines) / cpu(lambda: no_fit(big, cfg.path)))

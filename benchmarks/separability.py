@@ -3,7 +3,7 @@ the pair's items overlap in time and its Δμ correlates with the drift at most 
 orders whose A–B interval is honest, and "not separable" those where it is not, or where it is
 so wide that it decides nothing?
 
-Days with known truth (simulators/days.py ``simulate_day`` on the demo run, nine photocells,
+Days with known truth (station/simulators/days.py ``simulate_day`` on the demo run, nine photocells,
 timer 0.5 ms, 1 % posture scatter, μ_A 0.0085 at mid-day, 3 min between descents), drift 0.005
 and 0.02 per hour, A and B equal (Δμ = μ_A − μ_B = 0) or Δμ = 0.001, over several run orders.
 Each day is fitted once with all its descents by the real ``joint_fit`` (drift ``auto``) and
@@ -84,9 +84,9 @@ sys.path.insert(0, str(ROOT))
 
 import station.model.compare_result as compare_mod  # noqa: E402
 from benchmarks.plan_power import MU_A, track  # noqa: E402
-from simulators.days import DaySetup, simulate_day  # noqa: E402
 from station.model.compare import joint_fit  # noqa: E402
 from station.model.sequential import day_decisions  # noqa: E402
+from station.simulators.days import DaySetup, simulate_day  # noqa: E402
 
 ORDERS = {
     "ABBAx2": "ABBAABBA",

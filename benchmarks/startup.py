@@ -11,12 +11,20 @@ Both commands run alternately (so a change in the machine's load hits both alike
 times each; it prints the median and the minimum wall time of each, the ratio of the medians,
 and which heavy optional modules (scipy.stats, pandas, textual, serial) the fit loaded.
 
-``station`` runs OpenBLAS on one thread (station/cli/main.py, ``one_blas_thread``), which also
+``station`` runs OpenBLAS on one thread (``station.runtime.one_blas_thread``), which also
 makes its import of numpy and scipy cheaper than the bare import with the default pool. So that
 the ratio cannot hide station's own overhead behind that, the bare import also runs with
 ``OPENBLAS_NUM_THREADS=1`` (alternating with the others) and the ratio to it is printed too.
 
-Run: python benchmarks/startup.py [--repeats N]
+``--only season-list`` and ``--only compare`` measure two more commands against the bare
+``python -c 'import numpy, scipy'`` (target ≤ 1.5×) and against the bare import of what their
+work needs (SQLAlchemy for the store; numpy, scipy.optimize and scipy.interpolate for the joint
+fit and the track): ``station season list`` on a store of two days, and ``station compare`` on a
+session of eight descents (ABBAABBA), both made once in a temporary folder by the tests'
+helpers. Wall and CPU time, the CPU time less moved by the machine's load. ``--only all`` runs
+the three.
+
+Run: python benchmarks/startup.py [--repeats N] [--only fit|season-list|compare|all]
 """
 
 from __future__ import annotations
@@ -27,6 +35,7 @@ import shutil
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -104,6 +113,72 @@ def measure(repeats: int = 15) -> dict[str, list[float]]:
     return times
 
 
+#: the floor of the other commands: the two libraries every numeric command loads
+BARE_TOP = [sys.executable, "-c", "import numpy, scipy"]
+
+
+def make_fixtures(base: Path) -> dict[str, list[str]]:
+    """A season store of two days and a session of eight descents under ``base``; the command
+    line of ``station season list`` and of ``station compare`` on them."""
+    import datetime as dt
+
+    sys.path.insert(0, str(ROOT))
+    from tests.season_helpers import make_day
+    from tests.session_helpers import make_session
+
+    (base / "day").mkdir()
+    session = make_session(base / "day")
+    days = [
+        make_day(
+            base / "season", f"d{k}", dt.date(2026, 1, 4 + k), "ABBA", {"A": 0.008, "B": 0.009}
+        )
+        for k in (1, 2)
+    ]
+    store = str(base / "season.db")
+    script = station_script()
+    wall([*script, "season", "add", "--store", store, *map(str, days)])
+    return {
+        "season-list": [*script, "season", "list", "--store", store],
+        "compare": [*script, "compare", str(session)],
+    }
+
+
+#: what each command cannot do without: the libraries its work imports
+NEEDS = {
+    "season-list": [sys.executable, "-c", "import sqlalchemy"],
+    "compare": BARE,
+}
+
+
+def measure_against(cmd: list[str], floors: list[list[str]], repeats: int) -> list[list[float]]:
+    """Wall and CPU times (s) of ``cmd`` and of each bare import in ``floors``, alternating:
+    ``[cmd wall, cmd cpu, floor wall, floor cpu, ...]``."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    runs = [cmd, *floors]
+    for run in runs:  # caches warm (and the compare's fits); not counted
+        wall(run, env)
+    times: list[list[float]] = [[] for _ in range(2 * len(runs))]
+    for _ in range(repeats):
+        for k, run in enumerate(runs):
+            c0 = _children_cpu()
+            times[2 * k].append(wall(run, env))
+            times[2 * k + 1].append(_children_cpu() - c0)
+    return times
+
+
+def report_against_top(name: str, cmd: list[str], repeats: int) -> None:
+    """``cmd`` against the bare import of numpy and scipy (target 1.5x) and against the bare
+    import of the libraries its work needs (``NEEDS``)."""
+    floors = [BARE_TOP, NEEDS[name]]
+    times = measure_against(cmd, floors, repeats)
+    m = [statistics.median(t) for t in times]
+    print(f"station {name}  median {m[0] * 1e3:5.0f} ms, CPU {m[1] * 1e3:5.0f} ms")
+    for k, floor in enumerate(floors, start=1):
+        bare = f"python -c {floor[2]!r}"
+        print(f"  {bare}  median {m[2 * k] * 1e3:5.0f} ms, CPU {m[2 * k + 1] * 1e3:5.0f} ms")
+        print(f"    ratio of medians: wall {m[0] / m[2 * k]:.2f}x, CPU {m[1] / m[2 * k + 1]:.2f}x")
+
+
 def _children_cpu() -> float:
     import resource
 
@@ -114,13 +189,25 @@ def _children_cpu() -> float:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeats", type=int, default=15, help="runs of each command (≥ 10)")
+    ap.add_argument("--only", choices=("fit", "season-list", "compare", "all"), default="fit")
     args = ap.parse_args()
-    script = station_script()
-    times = measure(args.repeats)
-    t_fit, t_bare, t_one, t_sci = times["fit"], times["bare"], times["one"], times["bare_fit"]
-    m_fit, m_bare, m_one, m_sci = (statistics.median(t) for t in (t_fit, t_bare, t_one, t_sci))
     print(f"python {sys.version.split()[0]}, {os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}")
     print(f"runs of each, alternating: {args.repeats}")
+    if args.only in ("fit", "all"):
+        report_fit(args.repeats)
+    if args.only != "fit":
+        with tempfile.TemporaryDirectory() as tmp:
+            commands = make_fixtures(Path(tmp))
+            for name, cmd in commands.items():
+                if args.only in (name, "all"):
+                    report_against_top(name, cmd, args.repeats)
+
+
+def report_fit(repeats: int) -> None:
+    script = station_script()
+    times = measure(repeats)
+    t_fit, t_bare, t_one, t_sci = times["fit"], times["bare"], times["one"], times["bare_fit"]
+    m_fit, m_bare, m_one, m_sci = (statistics.median(t) for t in (t_fit, t_bare, t_one, t_sci))
     print(f"station {' '.join(FIT_ARGS)}")
     print(f"  median {m_fit * 1e3:7.0f} ms   min {min(t_fit) * 1e3:7.0f} ms")
     print(f"python -c {BARE[2]!r}")

@@ -1,6 +1,6 @@
 """Do the 90 % intervals that carry the survey hold the truth 90 % of the time?
 
-Each draw re-surveys the simulated run (simulators/survey_sim.py: a 1.5" total station from
+Each draw re-surveys the simulated run (station/simulators/survey_sim.py: a 1.5" total station from
 three setups, centre-line points every ``--spacing`` m with ``--roughness`` of snow, both posts
 of every photocell 5 mm off along the run, i.e. as precise as the survey YAML declares), builds
 the track, simulates one descent on the *true* profile at the *true* photocells with
@@ -28,10 +28,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from simulators.survey_sim import TrueRun, write_demo  # noqa: E402
 from station.model.fit import fit_descent  # noqa: E402
 from station.model.physics import Conditions, Params, StraightRun  # noqa: E402
 from station.model.track_error import survey_error  # noqa: E402
+from station.simulators.survey_sim import TrueRun, write_demo  # noqa: E402
 from station.survey.load import load_survey  # noqa: E402
 from station.survey.track import build_track  # noqa: E402
 

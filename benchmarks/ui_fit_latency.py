@@ -42,7 +42,7 @@ gc callbacks timed), near descent 800 a full collection took 100–300 ms and th
 descents waited for one; each fit's frame composed and tinted the whole screen behind the
 comparison (~6 ms at 120×40), and the last impulse's frame came first, as the fit was being
 computed; DataTable measured each new row's cells and listed its 2000 rows again after every
-row. Now the full collections run between descents (station/ui/collector.py), the dimmed
+row. Now the full collections run between descents (station/runtime.py, IdleCollector), the dimmed
 screen behind the dialog is tinted line by line and kept (screens.DimmedScreen), the table
 neither measures nor lists its rows again (table.ResultsTable), and a descent's last impulse
 is drawn in its fit's frame. Paired runs, main before (f3a2830) and after, load 4–4.6 unless

@@ -1,6 +1,6 @@
 """Unplugging the timer: impulses sent while it was plugged in versus impulses recorded.
 
-The simulated timer's pseudo-terminal (``simulators.timer.PtyPort``: a pty behind a stable
+The simulated timer's pseudo-terminal (``station.simulators.timer.PtyPort``: a pty behind a stable
 symlink, closed and reopened the way a USB-serial adapter disappears and comes back) sends an
 ALGE impulse line every ``--period`` seconds to a real ``station record``. Ten times it is
 unplugged for ``--off`` seconds and plugged in again; it starts sending again at once, before
@@ -35,7 +35,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from simulators.timer import PtyPort  # noqa: E402
+from station.simulators.timer import PtyPort  # noqa: E402
 from station.timing.wireformats import format_alge  # noqa: E402
 
 

@@ -11,7 +11,7 @@ import time
 import numpy as np
 
 from station.session import store
-from station.session.store import Recording, recording_state
+from station.session.store import RecordingStatus, recording_state
 from tests.timing_helpers import ALGE_CHANNELS, write_config
 
 T0 = dt.datetime(2026, 2, 2, 10, 0).timestamp()
@@ -120,9 +120,9 @@ def test_an_annotate_while_the_recording_ends_is_taken_up_or_finds_it_ended(tmp_
         time.sleep(0.3)
         assert closer.is_alive()  # the close waits for it
         store.append_annotation(str(session), InvalidMark(1, "last word", T0))
-        assert recording_state(str(session)) is Recording.NOW
+        assert recording_state(str(session)) is RecordingStatus.NOW
     closer.join(timeout=30)
     assert not closer.is_alive()
-    assert recording_state(str(session)) is Recording.ENDED
+    assert recording_state(str(session)) is RecordingStatus.ENDED
     assert _rows(session)[0]["invalid_reason"] == "last word"
     assert _replayed_csv(session, tmp_path, run_station) == (session / store.RESULTS).read_bytes()

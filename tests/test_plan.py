@@ -9,7 +9,6 @@ import json
 import numpy as np
 import pytest
 
-from simulators.days import DaySetup, simulate_day
 from station.model.compare import joint_fit
 from station.model.plan import (
     DayAssumptions,
@@ -18,6 +17,7 @@ from station.model.plan import (
     plan_day,
     run_order,
 )
+from station.simulators.days import DaySetup, simulate_day
 
 SPARSE = ("PC1", "PC3", "PC6", "PC9")
 

@@ -197,9 +197,9 @@ def test_watched_days_declare_equal_skis_rarely_and_never_the_wrong_one(
     seed in 23, binomial P(X ≥ 22) = 0.044; a rule at 20 % passes one in 27, 0.037), while the
     naive rule, the 90 % interval at every look, exceeds 25 %; benchmarks/plan_sequential.py
     prints the table over 200 days a row. Δμ = 0.001: never the wrong ski, and decided."""
-    from simulators.days import DaySetup, simulate_day
     from station.model.compare import joint_fit
     from station.model.sequential import standard_error
+    from station.simulators.days import DaySetup, simulate_day
 
     rng = np.random.default_rng(seed)
     order = "ABBA" * 3

@@ -13,9 +13,9 @@ import tty
 import pytest
 import serial
 
-from simulators.timer import PtyPort
 from station.session.config import SerialConfig
 from station.session.serialport import PortBusy, SerialReader, open_port
+from station.simulators.timer import PtyPort
 from tests.conftest import station_cmd
 from tests.timing_helpers import start_sim, write_config
 

@@ -13,7 +13,7 @@ import time
 import pytest
 
 from station.session import store
-from station.session.store import Recording, RecordingLock, recording_state
+from station.session.store import RecordingLock, RecordingStatus, recording_state
 from tests.session_helpers import make_session
 
 
@@ -47,20 +47,21 @@ def _status(run_station, session) -> str:
 
 def test_the_lock_says_recording_until_released_and_a_dead_holder_reads_interrupted(tmp_path):
     folder = str(tmp_path)
-    assert recording_state(folder) is Recording.ENDED  # no lock file: a session from before it
+    # no lock file: a session from before it
+    assert recording_state(folder) is RecordingStatus.ENDED
     lock = RecordingLock.take(folder)
     assert lock.problem == ""
-    assert recording_state(folder) is Recording.NOW
-    assert recording_state(folder) is Recording.NOW  # trying it did not take it
+    assert recording_state(folder) is RecordingStatus.NOW
+    assert recording_state(folder) is RecordingStatus.NOW  # trying it did not take it
     info = json.loads((tmp_path / store.LOCK).read_text())
     assert info["pid"] == os.getpid()
     lock.release()
     assert not (tmp_path / store.LOCK).exists()
-    assert recording_state(folder) is Recording.ENDED
+    assert recording_state(folder) is RecordingStatus.ENDED
     lock.release()  # idempotent
     # a recorder that died leaves its file, and the OS has dropped its lock
     (tmp_path / store.LOCK).write_text('{"pid": 1}\n')
-    assert recording_state(folder) is Recording.INTERRUPTED
+    assert recording_state(folder) is RecordingStatus.INTERRUPTED
 
 
 def test_a_second_lock_on_the_same_session_is_refused(tmp_path):
@@ -68,7 +69,7 @@ def test_a_second_lock_on_the_same_session_is_refused(tmp_path):
     try:
         with pytest.raises(store.InputError, match="recording lock"):
             RecordingLock.take(str(tmp_path))
-        assert recording_state(str(tmp_path)) is Recording.NOW
+        assert recording_state(str(tmp_path)) is RecordingStatus.NOW
     finally:
         lock.release()
 
@@ -82,11 +83,11 @@ def test_an_acquisition_holds_the_lock_from_creation_to_close(tmp_path):
     session = tmp_path / "s"
     acq = Acquisition.open(cfg, session_dir=str(session), threaded=False)
     try:
-        assert recording_state(str(session)) is Recording.NOW
+        assert recording_state(str(session)) is RecordingStatus.NOW
         assert (session / store.LOCK).exists() and store.is_session(str(session))
     finally:
         acq.close()
-    assert recording_state(str(session)) is Recording.ENDED
+    assert recording_state(str(session)) is RecordingStatus.ENDED
     # the finished session holds what it held before there was a lock: no lock file
     assert store.LOCK not in os.listdir(session) and (session / store.RESULTS).exists()
     acq.close()  # idempotent, and does not touch a lock it no longer has
@@ -271,8 +272,8 @@ def test_a_file_system_without_flock_costs_a_warning_not_the_recording(
     try:
         assert len(heard.warnings) == 1 and "cannot tell whether" in heard.warnings[0]
         assert store.is_session(str(session))
-        assert recording_state(str(session)) is Recording.UNKNOWN
+        assert recording_state(str(session)) is RecordingStatus.UNKNOWN
         assert _status(run_station, session).startswith("unknown")
     finally:
         acq.close()
-    assert recording_state(str(session)) is Recording.ENDED
+    assert recording_state(str(session)) is RecordingStatus.ENDED

@@ -15,7 +15,8 @@ from tests.conftest import ROOT
 FIT = ["fit", "--survey", "surveys/demo_run.yaml", "--times", "surveys/demo_descent.csv",
        "--mass", "88", "--pressure-hpa", "835", "--temperature-c", "-4",
        "--humidity-pct", "70"]  # fmt: skip
-HEAVY = ["pandas", "scipy.stats", "textual", "serial", "simulators", "station.session.records"]
+HEAVY = ["pandas", "scipy.stats", "textual", "serial", "station.simulators",
+         "station.session.records"]  # fmt: skip
 
 #: run in a fresh interpreter: main(argv), then which modules it imported, as JSON
 SCRIPT = """
@@ -92,7 +93,7 @@ def test_the_fit_runs_on_one_blas_thread_unless_the_user_chose_another_number():
 #: session records, the points-CSV reader, the comparison) is start-up time for every fit
 FIT_MODULES = {
     "station", "station.errors", "station.files", "station.limits", "station.numbers",
-    "station.yamlfile",
+    "station.yamlfile", "station.runtime",
     "station.cli", "station.cli.main", "station.cli.common", "station.cli.fit",
     "station.model", "station.model.air", "station.model.estimate", "station.model.fit",
     "station.model.fit_result", "station.model.fit_search",
@@ -175,11 +176,12 @@ def test_the_parser_of_one_command_is_the_parser_of_that_command():
     the full parser, so a command missing from the table would not run at all."""
     import argparse
 
+    from station.cli.common import Parser
     from station.cli.main import COMMANDS, build_parser
 
     def commands(ap: argparse.ArgumentParser) -> list[str]:
-        sub = next(a for a in ap._actions if isinstance(a, argparse._SubParsersAction))
-        return list(sub.choices)
+        assert isinstance(ap, Parser)
+        return list(ap.commands.choices)
 
     assert commands(build_parser()) == list(COMMANDS)
     for name, group in COMMANDS.items():
@@ -232,3 +234,19 @@ def test_the_fit_runs_without_the_garbage_collector_and_gives_it_back():
     finally:
         fit_cli.cmd_fit = real
     assert seen == [False, False] and gc.isenabled()
+
+
+def test_listing_a_season_store_at_its_newest_schema_loads_no_alembic_or_numpy(tmp_path):
+    """Opening a store that needs no migration reads its revision without Alembic, and a list
+    of sessions without conditions needs no numpy."""
+    from station.store.db import open_store
+
+    store = str(tmp_path / "season.db")
+    open_store(store, create=True).close()  # made (and migrated) here, listed below
+    found = subprocess.run(
+        [sys.executable, "-c", SCRIPT, json.dumps(["season", "list", "--store", store]),
+         json.dumps(["alembic", "numpy", "sqlalchemy"])],
+        cwd=ROOT, capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    loaded = json.loads(found.stdout)
+    assert loaded == {"status": 0, "alembic": False, "numpy": False, "sqlalchemy": True}

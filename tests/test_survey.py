@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from simulators.survey_sim import TrueRun
 from station.errors import InputError
+from station.simulators.survey_sim import TrueRun
 from station.survey.load import load_survey
 from station.survey.track import build_track
 
@@ -249,7 +249,7 @@ def test_an_area_survey_is_not_taken_for_a_run_profile(real, tmp_path):
 
 
 def _simulated_track(tmp_path, seed=3, **survey):
-    from simulators.survey_sim import write_demo
+    from station.simulators.survey_sim import write_demo
 
     _, yaml_path = write_demo(str(tmp_path), seed=seed, stem="sim", **survey)
     return build_track(load_survey(yaml_path))

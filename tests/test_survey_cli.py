@@ -75,8 +75,8 @@ def test_survey_plot(run_station, tmp_path, ext):
 
 
 def test_plot_shows_left_out_points(tmp_path):
-    from simulators.survey_sim import write_demo
     from station.report.track_plot import plot_track
+    from station.simulators.survey_sim import write_demo
     from station.survey.load import load_survey
     from station.survey.track import build_track
 

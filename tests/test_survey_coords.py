@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simulators.survey_sim import TrueRun
 from station.errors import InputError
+from station.simulators.survey_sim import TrueRun
 from station.survey.load import load_survey
 from station.survey.track import build_track
 

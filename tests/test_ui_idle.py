@@ -1,6 +1,6 @@
 """What keeps the UI's work off a fit's way to the screen: full garbage collections only
-between descents (station/ui/collector.py), and a table that keeps nothing per row it does
-not draw (station/ui/table.py). The latency itself is measured by
+between descents (IdleCollector, station/runtime.py), and a table that keeps nothing per row
+it does not draw (station/ui/table.py). The latency itself is measured by
 benchmarks/ui_fit_latency.py, not here."""
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ import os
 import pytest
 from textual.app import App, ComposeResult
 
-from station.ui import collector as collector_module
-from station.ui.collector import NEVER, IdleCollector
+from station import runtime
+from station.runtime import NEVER, IdleCollector
 from station.ui.table import ResultsTable
 from tests.test_ui import replay_app, wait_for, wait_for_replay
 
@@ -62,14 +62,14 @@ def test_a_full_collection_waits_ten_times_its_length(monkeypatch, full_collecti
     col = IdleCollector()
     col.start()
     clock = [100.0]
-    monkeypatch.setattr(collector_module.time, "monotonic", lambda: clock[0])
+    monkeypatch.setattr(runtime.time, "monotonic", lambda: clock[0])
     real_collect = gc.collect
 
     def collect(generation: int = 2) -> int:
         clock[0] += 0.2  # a full collection of 0.2 s
         return real_collect(generation)
 
-    monkeypatch.setattr(collector_module.gc, "collect", collect)
+    monkeypatch.setattr(runtime.gc, "collect", collect)
     try:
         kept = grow(200_000)
         assert col.collect_if_due()

@@ -14,7 +14,7 @@ ALGE_CHANNELS = {f"C{i}": f"PC{i + 1}" for i in range(9)}
 
 def sim_cmd() -> list[str]:
     exe = shutil.which("station-sim")
-    return [exe] if exe else [sys.executable, "-m", "simulators.timer"]
+    return [exe] if exe else [sys.executable, "-m", "station.simulators.timer"]
 
 
 def start_sim(tmp_path: Path, *args: str) -> tuple[subprocess.Popen, str, Path]:

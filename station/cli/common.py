@@ -32,7 +32,7 @@ if TYPE_CHECKING:  # the day's results: numpy and scipy, loaded when a command r
 EXIT_BAD_INPUT = 2
 
 
-class _Parser(argparse.ArgumentParser):
+class Parser(argparse.ArgumentParser):
     """argparse, but a usage error is one line and exit status 2, and an option must be spelt
     out: with abbreviations ``--masss 88`` would not be "unrecognized", and ``--mas`` would
     silently mean ``--mass`` today and something else once another ``--mas…`` option exists."""
@@ -41,10 +41,22 @@ class _Parser(argparse.ArgumentParser):
         kwargs.setdefault("allow_abbrev", False)
         super().__init__(*args, **kwargs)
         # a negative number with a decimal comma (``--temperature-c -4,5``, the cold
-        # trackside's usual value) is a value, not an option, as ``-4.5`` is to argparse
+        # trackside's usual value) is a value, not an option, as ``-4.5`` is to argparse;
+        # private: argparse has no public setting for what a negative number looks like
         self._negative_number_matcher = re.compile(r"^-(\d+([.,]\d*)?|[.,]\d+)$")
 
     _argv: list[str] | None = None
+    #: the subcommands' action (its ``choices``: name → parser), when this parser has them
+    commands: Any = None
+
+    def add_subparsers(self, **kwargs: Any) -> Any:
+        self.commands = super().add_subparsers(**kwargs)
+        return self.commands
+
+    def option_names(self) -> list[str]:
+        """The ``--long`` options this parser knows."""
+        # private: argparse lists a parser's option strings nowhere public
+        return [o for o in self._option_string_actions if o.startswith("--")]
 
     def parse_known_args(self, args: Any = None, namespace: Any = None) -> Any:
         self._argv = list(sys.argv[1:] if args is None else args)
@@ -61,37 +73,36 @@ class _Parser(argparse.ArgumentParser):
         typo = re.match(r"argument command: invalid choice: '([^']*)'", message)
         if typo:  # ``station raport``: the command it was meant to be, not all sixteen
             message = f"unknown command {typo.group(1)!r}" + self._command_suggestion(typo.group(1))
-        if message == "the following arguments are required: command":  # bare ``station``
-            for action in self._actions:
-                if isinstance(action, argparse._SubParsersAction):
-                    message = f"give a command: {', '.join(action.choices)}"
+        bare = message == "the following arguments are required: command"  # ``station``
+        if bare and self.commands is not None:
+            message = f"give a command: {', '.join(self.commands.choices)}"
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see --help)\n")
 
     def _command_suggestion(self, word: str) -> str:
         import difflib
 
-        for action in self._actions:
-            if isinstance(action, argparse._SubParsersAction):
-                close = difflib.get_close_matches(word, list(action.choices), n=1, cutoff=0.6)
-                if close:
-                    return f" (did you mean {close[0]}?)"
-                return f"; the commands: {', '.join(action.choices)}"
-        return ""
+        if self.commands is None:
+            return ""
+        choices = list(self.commands.choices)
+        close = difflib.get_close_matches(word, choices, n=1, cutoff=0.6)
+        if close:
+            return f" (did you mean {close[0]}?)"
+        return f"; the commands: {', '.join(choices)}"
 
     def _unknown_options(self) -> list[str]:
         names = [a.split("=", 1)[0] for a in self._argv or [] if a.startswith("--") and a != "--"]
-        return [n for n in names if n not in self._option_string_actions]
+        known = self.option_names()
+        return [n for n in names if n not in known]
 
     def _suggestion(self, message: str) -> str:
         import difflib  # only for a mistyped option: not on every command's start-up
 
-        options = [o for o in self._option_string_actions if o.startswith("--")]
-        for action in self._actions:  # the command's own options, when its typo is seen here
-            if isinstance(action, argparse._SubParsersAction) and self._argv:
-                command = next((a for a in self._argv if not a.startswith("-")), None)
-                chosen = action.choices.get(command) if command else None
-                if chosen is not None:
-                    options += [o for o in chosen._option_string_actions if o.startswith("--")]
+        options = self.option_names()
+        if self.commands is not None and self._argv:  # the command's own, its typo seen here
+            command = next((a for a in self._argv if not a.startswith("-")), None)
+            chosen = self.commands.choices.get(command) if command else None
+            if isinstance(chosen, Parser):
+                options += chosen.option_names()
         for word in message.split(":", 1)[1].split():
             if word.startswith("--"):
                 close = difflib.get_close_matches(word.split("=", 1)[0], options, n=1)

@@ -126,7 +126,7 @@ def add_after(session: str, config_store: str | None) -> None:
     target = configured(config_store)
     if not target:
         return
-    if sessions.recording_state(session) is sessions.Recording.NOW:
+    if sessions.recording_state(session) is sessions.RecordingStatus.NOW:
         return  # the recorder adds it when the recording ends
     where = safe_url(target)
     try:

@@ -40,7 +40,7 @@ DEMO_SKIS = [("demo pair A", 0.0080), ("demo pair B", 0.0095), ("demo pair C", 0
 
 def demo_config_path() -> str:
     """The bundled demo station config (package data, so it works without a checkout)."""
-    return str(files("surveys") / "demo_station.yaml")
+    return str(files("station.surveys") / "demo_station.yaml")
 
 
 def demo_config(link: str) -> Any:
@@ -73,8 +73,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
     cfg = demo_config(link)
     # the simulated timer runs as a process of its own, as a real timer would
     sim = [
-        sys.executable, "-m", "simulators.timer", "--survey", cfg.survey_path, "--link", link,
-        "--descents", "100000", "--interval", str(args.interval), "--first-after", "3",
+        sys.executable, "-m", "station.simulators.timer", "--survey", cfg.survey_path,
+        "--link", link, "--descents", "100000", "--interval", str(args.interval),
+        "--first-after", "3",
         "--speed", str(args.speed), "--skis", ",".join(f"{mu}" for _n, mu in DEMO_SKIS),
         "--seed", str(args.seed if args.seed is not None else random.randrange(1 << 30)),
         "--noise-ms", "0.3", "--double-trigger", "0.05", "--hold", "0",

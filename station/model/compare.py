@@ -30,7 +30,7 @@ criterion of that linearisation, and takes the Gauss-Newton step at that γ.
 Scale. Each descent's own parameters (u_k, v0_k, offset_k) touch only its own rows, so the
 normal equations are block-arrow shaped: 3×3 blocks per descent are eliminated (Schur
 complement) and only the few global parameters are solved densely. Time and memory grow
-linearly in the number of descents; BLAS threads are capped at one (threadpoolctl) since the
+linearly in the number of descents; BLAS threads are capped at one (station.runtime) since the
 dense parts are tiny and a pool of threads on a shared 2-core machine costs far more than it
 saves (50 descents took 3.7 s instead of 0.19 s with the default pool).
 
@@ -74,8 +74,8 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
-from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
 
+from station import runtime
 from station.model.compare_drift import (
     BEND_P,
     bend_unseen,
@@ -126,7 +126,7 @@ def joint_fit(
         timer_sd_s = day_timer_sd(data)
     bent = drift_bend(data) if drift != "off" else None
     follow = bent is not None and bent.p < BEND_P
-    with threadpool_limits(limits=1, user_api="blas"):
+    with runtime.blas_on_one_thread():
         try:
             res = fit_day(track, data, cda_fixed, model, drift, reference, timer_sd_s, follow)
         except CompareError:  # too few times for the quadratic: the straight drift, warned

@@ -158,7 +158,8 @@ def import_into(path: str, session: str) -> ImportReport:
     """Merge a memory download into a session: only impulses it does not have yet."""
     if not sessions.is_session(session):
         raise InputError("not a session directory (no raw.jsonl)", path=session)
-    if sessions.recording_state(session) is sessions.Recording.NOW:  # two writers of one raw log
+    # two writers of one raw log
+    if sessions.recording_state(session) is sessions.RecordingStatus.NOW:
         raise InputError(
             "is being recorded now; merge the memory download once the recording has ended",
             path=session,

@@ -131,7 +131,7 @@ class RecordedSession:
     def file(self, name: str) -> str:
         return os.path.join(self.path, name)
 
-    def recording_state(self) -> sessions.Recording:
+    def recording_state(self) -> sessions.RecordingStatus:
         return sessions.recording_state(self.path)
 
     def first_record(self) -> Any:
@@ -322,10 +322,10 @@ class RecordedSession:
             n = len(records)
             said = f"{n} annotation{'' if n == 1 else 's'} added to {self.path}"
             state = self.recording_state()
-            if state is sessions.Recording.NOW:  # the recorder takes them up (Acquisition)
+            if state is sessions.RecordingStatus.NOW:  # the recorder takes them up (Acquisition)
                 return (f"{said}; it is being recorded now: the recording takes them up and "
                         "its results.csv shows them in a moment")  # fmt: skip
-            if state is sessions.Recording.UNKNOWN:
+            if state is sessions.RecordingStatus.UNKNOWN:
                 return (f"{said}; whether it is being recorded cannot be told (recording.lock), "
                         "so results.csv was left alone: station export "
                         f"{self.path} --csv {self.file(sessions.RESULTS)} "

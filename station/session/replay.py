@@ -122,33 +122,16 @@ def replay_unfitted(source: str, config: StationConfig, warnings: list[str]) -> 
     capture, its crossing times for another tool, and the measure of the replay's own
     throughput (benchmarks/replay_speed.py). ``warnings`` collects what the reader passed
     over."""
-    import gc
-
+    from station import runtime
     from station.session.processor import Processor
-    from station.session.replay import bulk_chunks
     from station.survey.load import load_survey
     from station.survey.track import build_track
 
     proc = Processor(config, build_track(load_survey(config.survey_path)))
     ended: dict[int, TimedDescent] = {}  # a descent an edit changed ends again: the latest kept
-    # a bulk replay makes no garbage cycles (tuples, lists and descents, all kept or freed by
-    # their counts): the collector is out of the way while it runs (it scanned the growing
-    # lists of events again and again: 15 % of the time), and the set-up's objects (modules,
-    # the track) are frozen out of its later scans
-    gc.freeze()
-    was_enabled = gc.isenabled()
-    gc.disable()
-    try:
+    with runtime.bulk_without_collector():  # a bulk replay makes no garbage cycles
         for d in proc.feed_chunks(bulk_chunks(source, warnings)):
             ended[d.number] = d
         for d in proc.finish():
             ended[d.number] = d
-    finally:
-        # what the replay made (all kept) joins the frozen set-up before the collector is back:
-        # else its first collection walked every object made while it was off (25 ms of a
-        # 100 800-line capture's 330, benchmarks/replay_speed.py)
-        gc.freeze()
-        if was_enabled:
-            gc.enable()
-        gc.unfreeze()
     return Unfitted(ended, proc)

@@ -73,7 +73,7 @@ def replay(
     (and ``warnings`` collects what the raw log's reader passed over). ``fits``: the fits
     stored with the session, used where they fit and added to; ``speed_curves``: the fitted
     speed along the run of each descent (for the views that draw it)."""
-    import gc
+    from station import runtime
 
     acq = Acquisition.open(
         config, listener or QuietListener(), date=source_date(source, date), threaded=False
@@ -82,10 +82,7 @@ def replay(
     acq.day.analyser.speed_curves = speed_curves
     # a replay makes objects by the hundred thousand and keeps most: the garbage collector
     # need not scan the set-up's (modules, the track, the grids) at every full collection
-    gc.freeze()
-    try:
+    with runtime.set_up_frozen():
         acq.replay(source, speed, warnings)
         acq.close()
-    finally:
-        gc.unfreeze()
     return acq

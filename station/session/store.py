@@ -312,9 +312,6 @@ class RecordingStatus(enum.Enum):
     UNKNOWN = "unknown"  # the lock cannot be read or tried (permissions, a file system without)
 
 
-#: the name earlier code used
-Recording = RecordingStatus
-
 _BUSY = (errno.EWOULDBLOCK, errno.EAGAIN)
 
 
@@ -386,22 +383,22 @@ def recording_state(session: str) -> RecordingStatus:
     try:  # without waiting: a FIFO put there must not hang a listing
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     except FileNotFoundError:
-        return Recording.ENDED
+        return RecordingStatus.ENDED
     except OSError:
-        return Recording.UNKNOWN
+        return RecordingStatus.UNKNOWN
     try:
         if fcntl is None:
-            return Recording.UNKNOWN
+            return RecordingStatus.UNKNOWN
         try:
             fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
         except OSError as exc:
-            return Recording.NOW if exc.errno in _BUSY else Recording.UNKNOWN
+            return RecordingStatus.NOW if exc.errno in _BUSY else RecordingStatus.UNKNOWN
         # got it: was the file removed (the recorder ended) between our open and our lock?
         try:
             same = os.path.samestat(os.stat(path), os.fstat(fd))
         except FileNotFoundError:
             same = False
-        return Recording.INTERRUPTED if same else Recording.ENDED
+        return RecordingStatus.INTERRUPTED if same else RecordingStatus.ENDED
     finally:
         os.close(fd)
 

@@ -64,7 +64,7 @@ def identify(session: str) -> Identity:
         raise InputError("no such session folder", path=session)
     if not sessions.is_session(session):
         raise InputError("not a session folder (no raw.jsonl)", path=session)
-    if sessions.recording_state(session) is sessions.Recording.NOW:
+    if sessions.recording_state(session) is sessions.RecordingStatus.NOW:
         raise InputError("being recorded now: add it when the recording has ended", path=session)
     # what is made from the others (the results CSV, the fits' cache) or says who records is
     # not part of its identity: session/store.DERIVED

@@ -10,7 +10,6 @@ from collections import Counter
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
 import sqlalchemy as sa
 
 from station.errors import InputError
@@ -86,11 +85,17 @@ def day_conditions(conn: sa.Connection) -> dict[str, dict[str, Any]]:
     for sid, vals in per.items():
         o: dict[str, Any] = {}
         for k in schema.NUMERIC_CONDITIONS:
-            o[k] = float(np.mean(vals[k])) if vals[k] else None
+            o[k] = _mean(vals[k]) if vals[k] else None
         for k in schema.TEXT_CONDITIONS:
             o[k] = Counter(vals[k]).most_common(1)[0][0] if vals[k] else None
         out[sid] = o
     return out
+
+
+def _mean(values: list[Any]) -> float:
+    import numpy as np  # here: listing a store without conditions loads no numpy
+
+    return float(np.mean(values))
 
 
 def list_sessions(store: Store) -> list[dict[str, Any]]:
@@ -212,6 +217,8 @@ def _day_fits(store: Store, by: str) -> _DayFits:
 def day_effects(store: Store, by: str, where: list[Where] | None = None) -> SeasonDays:
     """Each selected day's item effects for ``by`` (:class:`station.model.season.DayEffects`),
     the days left out with why, and every day's conditions (by session name)."""
+    import numpy as np
+
     from station.model.season import DayEffects, SeasonDays
 
     stored = _day_fits(store, by)

@@ -10,7 +10,6 @@ it shows is what the messages brought, and what the engineer enters goes to the 
 from __future__ import annotations
 
 import datetime as dt
-import gc
 import os
 import time
 from dataclasses import replace
@@ -20,6 +19,7 @@ from textual.app import App
 from textual.binding import Binding
 from textual.widgets import DataTable, RichLog, Static
 
+from station import runtime
 from station.report.comparison_text import comparison_view, headline
 from station.report.text import count
 from station.session.acquisition import Acquisition
@@ -41,7 +41,6 @@ from station.session.records import (
 from station.session.store import RESULTS, is_session
 from station.timing.impulses import format_tod
 from station.ui.cells import Column, cell, justify, panel_text, table_columns
-from station.ui.collector import IdleCollector
 from station.ui.messages import (
     AcquisitionWarning,
     ComparisonUpdated,
@@ -121,7 +120,7 @@ class StationApp(App):
         self.demo_skis = demo_skis or []
         self.config = config
         self.acq: Acquisition | None = None
-        self.collector = IdleCollector()
+        self.collector = runtime.IdleCollector()
         self._fitted_at = 0.0  # time.monotonic() of the latest fit
         #: drawn with the fit that is due (HOLD_S): the log's lines, the progress's text
         self._held_log: list[str] = []
@@ -168,8 +167,7 @@ class StationApp(App):
         # what is here now (the libraries, the screen) lives as long as the app: out of the
         # garbage collector's way, or every full collection of the day walks it again (one
         # every two descents, ~150 ms of the UI's process each, whatever descent it fell in)
-        gc.collect()
-        gc.freeze()
+        runtime.freeze_long_lived()
         # and the full collections, which walk the day's objects (100–300 ms at descent 800),
         # run between descents, not whenever an allocation tips Python's count
         self.collector.start()
@@ -608,7 +606,7 @@ class StationApp(App):
         as it closes) must not leave a process that goes on (a test, an embedding program)
         with no full collection ever, nor the app's objects frozen out of its reach."""
         self.collector.stop()
-        gc.unfreeze()
+        runtime.thaw()
         try:
             if self.acq is not None:
                 self.acq.stop()  # no more bytes: the simulator may go now

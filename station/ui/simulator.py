@@ -1,6 +1,6 @@
 """The simulated timer of ``station demo``: a process of its own on a real pseudo-terminal, as
 a real timer would be. ``station`` never imports the simulators; it runs
-``python -m simulators.timer`` and reads the port from its first line (``PORT <path>``)."""
+``python -m station.simulators.timer`` and reads the port from its first line (``PORT <path>``)."""
 
 from __future__ import annotations
 

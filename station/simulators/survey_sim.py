@@ -7,7 +7,7 @@ target noise) and both posts of each photocell, with realistic instrument noise.
 zenith angles include earth curvature and refraction (k = 0.13), so a reduction that corrects
 for them recovers the truth.
 
-Run ``python -m simulators.survey_sim OUTDIR`` to regenerate ``surveys/demo_run.*``.
+Run ``python -m station.simulators.survey_sim OUTDIR`` to regenerate ``surveys/demo_run.*``.
 """
 
 from __future__ import annotations
@@ -207,7 +207,7 @@ def simulate_survey(
 
 SURVEY_YAML = """\
 # Demo run: a 340 m timed section with nine photocells, surveyed from three setups.
-# Produced by `python -m simulators.survey_sim surveys` (true profile in simulators/survey_sim.py).
+# Produced by `python -m station.simulators.survey_sim surveys` (the true profile: its TrueRun).
 name: Demo run (simulated survey)
 observations: demo_run.gsi
 refraction_k: 0.13
