@@ -28,8 +28,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from station.cli.main import main  # noqa: E402
+from station.session.folder import RecordingLock, recording_state  # noqa: E402
 from station.session.resultsstate import STATE  # noqa: E402
-from station.session.store import RecordingLock, recording_state  # noqa: E402
 from tests.session_helpers import make_session  # noqa: E402
 
 

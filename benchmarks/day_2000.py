@@ -41,7 +41,7 @@ sys.path.insert(0, str(ROOT))
 from replay_speed import demo_station  # noqa: E402  # the replay benchmark's station
 
 from station.model.physics import Conditions, Params, StraightRun  # noqa: E402
-from station.session import store as sessions  # noqa: E402
+from station.session import folder as sessions  # noqa: E402
 from station.session.acquisition import Acquisition  # noqa: E402
 from station.session.listener import Listener  # noqa: E402
 from station.session.rawlog import Chunk  # noqa: E402

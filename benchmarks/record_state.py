@@ -29,7 +29,7 @@ sys.path.insert(0, str(ROOT))
 from station.session import store  # noqa: E402
 from station.session.acquisition import Acquisition  # noqa: E402
 from station.session.listener import QuietListener  # noqa: E402
-from station.session.recorded import RecordedSession  # noqa: E402
+from station.session.recorded_session import RecordedSession  # noqa: E402
 from station.session.records import InvalidMark  # noqa: E402
 from station.session.replay import replay_chunks  # noqa: E402
 from station.session.resultsstate import STATE  # noqa: E402

@@ -142,7 +142,7 @@ def pg():
 def replays(monkeypatch):
     """The sessions a RecordedSession replayed (its ``run``), in order: a test of the in-place
     annotate asserts none ran."""
-    from station.session.recorded import RecordedSession
+    from station.session.recorded_session import RecordedSession
 
     calls: list[str] = []
     run = RecordedSession.run

@@ -45,7 +45,7 @@ def make_day(
     true ``mus``; ``items`` the metadata of each item (default ``ski: pair X``), ``conditions``
     the snow and air of the day (annotated from descent 1 on)."""
     from station.model.physics import Conditions, Params, StraightRun
-    from station.session import store
+    from station.session import folder as session_folder
     from station.session.config import load_config
     from station.session.rawlog import RawLogWriter
     from station.session.records import Metadata, MetadataAnnotation
@@ -59,13 +59,13 @@ def make_day(
         write_config(base, "/dev/ttyUSB0")
     session = base / name
     cfg = load_config(str(cfg_path))
-    store.create(cfg, str(session))
+    session_folder.create(cfg, str(session))
     track = _track(cfg.survey_path, build_track, load_survey)
     xs = np.array([pc.x for pc in track.photocells])
     run = StraightRun(track.profile, xs)
     rng = np.random.default_rng(seed)
     t0 = dt.datetime(day.year, day.month, day.day, 10, 0).timestamp()
-    log = RawLogWriter(str(session / store.RAW), header={"port": "/dev/ttyUSB0"})
+    log = RawLogWriter(str(session / session_folder.RAW), header={"port": "/dev/ttyUSB0"})
     bib = 0
     for k, item in enumerate(order):
         t_start = t0 + k * interval_s
@@ -83,19 +83,19 @@ def make_day(
             line = format_alge(ch, tod0 + int(round(t * 1e6)), bib)
             log.write(t_start + float(t) + 0.01, (line + "\r").encode("ascii"))
     log.close()
-    raw = session / store.RAW  # as if recorded that day
+    raw = session / session_folder.RAW  # as if recorded that day
     lines = raw.read_text().splitlines()
     lines[0] = json.dumps({**json.loads(lines[0]), "t": t0 - 60.0}, separators=(",", ":"))
     raw.write_text("\n".join(lines) + "\n")
     if conditions:
-        store.append_annotation(
+        session_folder.append_annotation(
             str(session),
             MetadataAnnotation(Metadata.from_values(conditions), from_descent=1, t=t0),
         )
     for item in sorted(set(order)):
         numbers = tuple(k + 1 for k, it in enumerate(order) if it == item)
         meta = dict((items or {}).get(item, {"ski": f"pair {item}", "wax": "blue"}))
-        store.append_annotation(
+        session_folder.append_annotation(
             str(session),
             MetadataAnnotation(Metadata.from_values(meta), descents=numbers, t=t0),
         )

@@ -33,7 +33,7 @@ def make_session(
     """A session of ``len(order)`` descents of items A, B … (with ski annotations); μ drifts
     by ``drift_per_hour`` from the first descent on."""
     from station.model.physics import Conditions, Params, StraightRun
-    from station.session import store
+    from station.session import folder as session_folder
     from station.session.config import load_config
     from station.session.rawlog import RawLogWriter
     from station.session.records import Metadata, MetadataAnnotation
@@ -46,13 +46,13 @@ def make_session(
     cfg_path = write_config(tmp_path, "/dev/ttyUSB0", extra=config_extra)
     session = tmp_path / "session"
     cfg = load_config(str(cfg_path))
-    store.create(cfg, str(session))
-    cfg = store.load_session_config(str(session))
+    session_folder.create(cfg, str(session))
+    cfg = session_folder.load_session_config(str(session))
     track = build_track(load_survey(cfg.survey_path))
     xs = np.array([pc.x for pc in track.photocells])
     run = StraightRun(track.profile, xs)
     rng = np.random.default_rng(seed)
-    log = RawLogWriter(str(session / store.RAW), header={"port": "/dev/ttyUSB0"})
+    log = RawLogWriter(str(session / session_folder.RAW), header={"port": "/dev/ttyUSB0"})
     channels = list(ALGE_CHANNELS)
     bib = 0
     for k, item in enumerate(order):
@@ -74,7 +74,7 @@ def make_session(
             line = format_alge(ch, tod0 + int(round(t * 1e6)), bib)
             log.write(t_start + float(t) + 0.01, (line + "\r").encode("ascii"))
     log.close()
-    raw = session / store.RAW  # as if recorded that day: header time, file date
+    raw = session / session_folder.RAW  # as if recorded that day: header time, file date
     lines = raw.read_text().splitlines()
     lines[0] = json.dumps({**json.loads(lines[0]), "t": T0 - 60.0}, separators=(",", ":"))
     raw.write_text("\n".join(lines) + "\n")
@@ -82,14 +82,14 @@ def make_session(
     if annotate:
         for item in sorted(set(order)):
             numbers = [k + 1 for k, it in enumerate(order) if it == item]
-            store.append_annotation(
+            session_folder.append_annotation(
                 str(session),
                 MetadataAnnotation(
                     Metadata(ski=f"pair {item}", wax="blue"), descents=tuple(numbers), t=T0
                 ),
             )
     done = replay(str(session), cfg)
-    done.write_csv(str(session / store.RESULTS))
+    done.write_csv(str(session / session_folder.RESULTS))
     return session
 
 

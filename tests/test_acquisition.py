@@ -19,7 +19,7 @@ import station.session.results as results
 from station.cli.console import PrintListener
 from station.errors import InputError
 from station.model.physics import Conditions, Params, StraightRun
-from station.session import store as sessions
+from station.session import folder as sessions
 from station.session.acquisition import Acquisition
 from station.session.config import load_config
 from station.session.listener import Listener

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from station.session import store
-from station.session.recorded import RecordedSession
+from station.session import folder as session_folder
+from station.session.recorded_session import RecordedSession
 from station.session.records import (
     Annotation,
     FitModel,
@@ -55,7 +55,7 @@ def session(recorded, tmp_path):
 def from_scratch(session: Path) -> bytes:
     """The results CSV of a replay of the session with every fit computed (no stored fit,
     no state), as ``station export`` writes it."""
-    cfg = store.load_session_config(str(session))
+    cfg = session_folder.load_session_config(str(session))
     acq = replay(str(session), cfg, speed_curves=False)
     out = io.StringIO(newline="")
     acq.write_csv_to(out)
@@ -63,7 +63,7 @@ def from_scratch(session: Path) -> bytes:
 
 
 def csv_of(session: Path) -> bytes:
-    return (session / store.RESULTS).read_bytes()
+    return (session / session_folder.RESULTS).read_bytes()
 
 
 NOTES = 'line one\nline two, "quoted"; =not a formula'
@@ -143,7 +143,7 @@ def test_an_annotation_in_place_writes_what_a_replay_from_scratch_writes(session
     for records, in_place in KINDS[kind]:
         replays.clear()
         said = RecordedSession(str(session)).annotate(records)
-        assert said.endswith(f"{session / store.RESULTS} rewritten")
+        assert said.endswith(f"{session / session_folder.RESULTS} rewritten")
         assert (replays == []) is in_place, (records, replays)
         assert csv_of(session) == from_scratch(session), records
 
@@ -152,7 +152,7 @@ def poor_first_descent(session: Path) -> None:
     """Descent 1's third crossing 5 ms late (the same size): its fit is poor (χ² against the
     timer's 0.5 ms), so descent 2's reference fit gives its photocells the survey covariance,
     and descent 1's fit computes its own."""
-    raw = session / store.RAW
+    raw = session / session_folder.RAW
     lines = raw.read_text().splitlines(keepends=True)
     rec = json.loads(lines[3])
     assert rec["rx"] == " 0003 C2  10:00:07.0310 00\r", rec  # make_session's seed 1
@@ -194,7 +194,7 @@ def test_a_descent_fitted_before_its_photocells_had_the_survey_is_fitted_again_i
     rows = csv_of(session).decode().splitlines()
     assert '"poor-fit"' in rows[-6] and '"ok"' in rows[-5]
     said = RecordedSession(str(session)).annotate(BEFORE_THE_SOURCE[kind])
-    assert said.endswith(f"{session / store.RESULTS} rewritten")
+    assert said.endswith(f"{session / session_folder.RESULTS} rewritten")
     assert replays == []
     assert csv_of(session) == from_scratch(session)
 
@@ -203,7 +203,7 @@ def test_a_model_change_of_an_aborted_descent_is_in_place(tmp_path, replays):
     """Descent 1 a lone start (its other crossings cut from the raw log): no fit, no survey
     covariance for its one photocell; its model changed in place all the same."""
     session = make_session(tmp_path, order="ABBA")
-    raw = session / store.RAW
+    raw = session / session_folder.RAW
     lines = raw.read_text().splitlines(keepends=True)
     assert json.loads(lines[2])["rx"].startswith(" 0002 C1 ")
     raw.write_text("".join(lines[:2] + lines[10:]))
@@ -216,12 +216,12 @@ def test_a_model_change_of_an_aborted_descent_is_in_place(tmp_path, replays):
 
 
 def damage_missing(session: Path) -> None:
-    os.unlink(session / store.RESULTS)
+    os.unlink(session / session_folder.RESULTS)
 
 
 def damage_cut(session: Path) -> None:
     data = csv_of(session)
-    (session / store.RESULTS).write_bytes(data[: len(data) - 40])
+    (session / session_folder.RESULTS).write_bytes(data[: len(data) - 40])
 
 
 def damage_hand_edited(session: Path) -> None:
@@ -231,18 +231,18 @@ def damage_hand_edited(session: Path) -> None:
     mu = cells[8]
     cells[8] = mu[:-1] + ("1" if mu[-1] != "1" else "2")
     lines[-3] = ",".join(cells)
-    (session / store.RESULTS).write_text("\n".join(lines), encoding="utf-8")
+    (session / session_folder.RESULTS).write_text("\n".join(lines), encoding="utf-8")
 
 
 def damage_row_missing(session: Path) -> None:
     lines = csv_of(session).decode().split("\n")
     del lines[-2]  # the last row (the file ends with a line end)
-    (session / store.RESULTS).write_text("\n".join(lines), encoding="utf-8")
+    (session / session_folder.RESULTS).write_text("\n".join(lines), encoding="utf-8")
 
 
 def damage_raw_log(session: Path) -> None:
     """A crossing time of the raw log changed (the same size): the results are stale."""
-    raw = session / store.RAW
+    raw = session / session_folder.RAW
     lines = raw.read_text().splitlines(keepends=True)
     k = next(i for i, line in enumerate(lines) if " C1 " in line and i > 20)  # descent 3 or so
     rec = json.loads(lines[k])
@@ -259,11 +259,11 @@ def damage_state(session: Path) -> None:
 
 def damage_annotated_by_another(session: Path) -> None:
     """An annotation appended without rewriting the CSV (as a recorder's is)."""
-    store.append_annotation(str(session), InvalidMark(4, "seen later", 5.0))
+    session_folder.append_annotation(str(session), InvalidMark(4, "seen later", 5.0))
 
 
 def damage_config(session: Path) -> None:
-    cfg = session / store.CONFIG
+    cfg = session / session_folder.CONFIG
     cfg.write_text(cfg.read_text().replace("mass_kg: 88", "mass_kg: 84"))
 
 
@@ -280,7 +280,7 @@ DAMAGES = [damage_missing, damage_cut, damage_hand_edited, damage_row_missing, d
 @pytest.mark.parametrize("damage", DAMAGES, ids=lambda f: f.__name__[7:])
 def test_a_csv_that_is_not_the_states_is_replayed_not_trusted(session, replays, damage):
     if damage is damage_config:
-        assert "mass_kg: 88" in (session / store.CONFIG).read_text()
+        assert "mass_kg: 88" in (session / session_folder.CONFIG).read_text()
     damage(session)
     RecordedSession(str(session)).annotate([InvalidMark(2, "fell", 9.0)])
     assert replays, "the damaged CSV was trusted"
@@ -295,7 +295,7 @@ def test_a_copy_of_the_session_is_annotated_in_place(session, tmp_path, replays)
     """A copy has new file times: the raw log is then read for its hash, which is the same."""
     copy = tmp_path / "copy"
     shutil.copytree(session, copy)
-    os.utime(copy / store.RAW, ns=(1, 1))
+    os.utime(copy / session_folder.RAW, ns=(1, 1))
     RecordedSession(str(copy)).annotate([InvalidMark(2, "fell", 9.0)])
     assert replays == []
     assert csv_of(copy) == from_scratch(copy)
@@ -303,7 +303,7 @@ def test_a_copy_of_the_session_is_annotated_in_place(session, tmp_path, replays)
 
 def test_while_recorded_the_csv_and_its_state_are_left_to_the_recorder(session, replays):
     before, state = csv_of(session), (session / STATE).read_bytes()
-    lock = store.RecordingLock.take(str(session))
+    lock = session_folder.RecordingLock.take(str(session))
     try:
         said = RecordedSession(str(session)).annotate([InvalidMark(2, "gate", 1.0)])
     finally:

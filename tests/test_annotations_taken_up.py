@@ -10,8 +10,8 @@ import time
 
 import numpy as np
 
-from station.session import store
-from station.session.store import RecordingStatus, recording_state
+from station.session import folder as session_folder
+from station.session.folder import RecordingStatus, recording_state
 from tests.timing_helpers import ALGE_CHANNELS, write_config
 
 T0 = dt.datetime(2026, 2, 2, 10, 0).timestamp()
@@ -86,7 +86,10 @@ def test_an_annotate_meanwhile_reaches_the_live_csv_as_a_replay_has_it(tmp_path,
     finally:
         acq.close()
     assert [x["invalid_reason"] for x in _rows(session)] == ["", ""]
-    assert _replayed_csv(session, tmp_path, run_station) == (session / store.RESULTS).read_bytes()
+    assert (
+        _replayed_csv(session, tmp_path, run_station)
+        == (session / session_folder.RESULTS).read_bytes()
+    )
 
 
 def test_the_file_order_decides_between_an_own_and_another_annotation(tmp_path, run_station):
@@ -97,14 +100,17 @@ def test_the_file_order_decides_between_an_own_and_another_annotation(tmp_path, 
     acq, session = _open(tmp_path, threaded=False)
     try:
         _feed_descents(acq, 1)
-        with store.annotations_locked(str(session)):
-            store.append_annotation(str(session), InvalidMark(1, "elsewhere", T0))
+        with session_folder.annotations_locked(str(session)):
+            session_folder.append_annotation(str(session), InvalidMark(1, "elsewhere", T0))
         acq.annotate(ValidMark(1, T0 + 1))
         assert acq.results()[0].row.invalid_reason == ""
     finally:
         acq.close()
     assert _rows(session)[0]["invalid_reason"] == ""
-    assert _replayed_csv(session, tmp_path, run_station) == (session / store.RESULTS).read_bytes()
+    assert (
+        _replayed_csv(session, tmp_path, run_station)
+        == (session / session_folder.RESULTS).read_bytes()
+    )
 
 
 def test_an_annotate_while_the_recording_ends_is_taken_up_or_finds_it_ended(tmp_path, run_station):
@@ -115,14 +121,17 @@ def test_an_annotate_while_the_recording_ends_is_taken_up_or_finds_it_ended(tmp_
     acq, session = _open(tmp_path, threaded=False)
     _feed_descents(acq, 1)
     closer = threading.Thread(target=acq.close)
-    with store.annotations_locked(str(session)):  # an annotate in the middle of its append
+    with session_folder.annotations_locked(str(session)):  # an annotate in the middle of its append
         closer.start()
         time.sleep(0.3)
         assert closer.is_alive()  # the close waits for it
-        store.append_annotation(str(session), InvalidMark(1, "last word", T0))
+        session_folder.append_annotation(str(session), InvalidMark(1, "last word", T0))
         assert recording_state(str(session)) is RecordingStatus.NOW
     closer.join(timeout=30)
     assert not closer.is_alive()
     assert recording_state(str(session)) is RecordingStatus.ENDED
     assert _rows(session)[0]["invalid_reason"] == "last word"
-    assert _replayed_csv(session, tmp_path, run_station) == (session / store.RESULTS).read_bytes()
+    assert (
+        _replayed_csv(session, tmp_path, run_station)
+        == (session / session_folder.RESULTS).read_bytes()
+    )

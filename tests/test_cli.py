@@ -263,8 +263,8 @@ def test_the_demo_session_records_the_port_it_opened(tmp_path):
     as the 'connected' record after it does, and the current reader reads it."""
     from station.cli.terminal import demo_config
     from station.session.acquisition import Acquisition
+    from station.session.folder import load_session_config
     from station.session.rawlog import read_rawlog
-    from station.session.store import load_session_config
 
     link = str(tmp_path / "station-demo-x" / "timer")
     cfg = demo_config(link)

@@ -22,14 +22,14 @@ def test_cells_are_formula_safe_and_numbers_stay_numbers():
 
 
 def test_compare_csv_writes_item_names_safely(tmp_path, run_station):
-    from station.session import store
+    from station.session import folder as session_folder
     from station.session.records import Metadata, MetadataAnnotation
 
     session = make_session(tmp_path, order="ABBAABBA", annotate=False)
     names = {"A": '=HYPERLINK("http://x")', "B": "pair B\n# live, row; here"}
     for item, name in names.items():
         numbers = tuple(k + 1 for k, it in enumerate("ABBAABBA") if it == item)
-        store.append_annotation(
+        session_folder.append_annotation(
             str(session), MetadataAnnotation(Metadata(ski=name), descents=numbers, t=T0)
         )
     out = tmp_path / "cmp.csv"

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from station.model.fit import FitResult
-from station.session import store
+from station.session import folder as session_folder
 from station.session.fitstore import FITS, FitStore, fit_from_json, fit_key, to_json
-from station.session.recorded import RecordedSession
+from station.session.recorded_session import RecordedSession
 from station.session.records import InvalidMark, Metadata, MetadataAnnotation, ModelChange
 from tests.session_helpers import make_session
 
@@ -74,7 +74,7 @@ def test_the_second_replay_computes_no_fit_and_writes_the_same_bytes(session):
     assert (fits.hits, fits.misses) == (0, 6)
     again, fits = replayed(session)
     assert (fits.hits, fits.misses) == (6, 0)
-    assert again == first == (session / store.RESULTS).read_text()
+    assert again == first == (session / session_folder.RESULTS).read_text()
 
 
 @pytest.mark.parametrize(
@@ -99,7 +99,7 @@ def test_an_annotation_that_changes_a_fit_refits_that_descent_only(session, anno
     RecordedSession(str(session)).annotate([annotation])
     text, fits = replayed(session)
     assert (fits.hits, fits.misses) == (6, 0)  # the annotate stored the new fit of descent 3
-    assert text == (session / store.RESULTS).read_text() == every_fit_computed(session)
+    assert text == (session / session_folder.RESULTS).read_text() == every_fit_computed(session)
 
 
 def test_annotate_refits_one_descent_and_an_invalid_mark_none(session):
@@ -112,7 +112,7 @@ def test_annotate_refits_one_descent_and_an_invalid_mark_none(session):
     s.annotate([MetadataAnnotation(Metadata(mass_kg=70.0), descents=(5,), t=2.0)])
     fits = s.run().day.analyser.fits
     assert isinstance(fits, FitStore) and (fits.hits, fits.misses) == (5, 1)
-    assert (session / store.RESULTS).read_text() == every_fit_computed(session)
+    assert (session / session_folder.RESULTS).read_text() == every_fit_computed(session)
 
 
 def test_the_key_is_everything_the_fit_depends_on():
@@ -180,10 +180,10 @@ def test_the_recorder_stores_its_fits_so_the_first_annotate_refits_nothing(recor
     from station.session.acquisition import Acquisition
     from station.session.rawlog import read_rawlog
 
-    cfg = store.load_session_config(str(recorded))
+    cfg = session_folder.load_session_config(str(recorded))
     new = tmp_path / "recorded-again"
     acq = Acquisition.open(cfg, session_dir=str(new), threaded=False)
-    for chunk in read_rawlog(str(recorded / store.RAW)):
+    for chunk in read_rawlog(str(recorded / session_folder.RAW)):
         if not chunk.event:
             acq.receive(chunk)
     acq.close()

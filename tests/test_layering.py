@@ -174,7 +174,7 @@ def _for_annotations_only(tree: ast.AST) -> set[int]:
 def station_imports(name: str, annotations: bool = True) -> set[str]:
     """The station modules ``name`` imports anywhere in its source (module level, in a
     function, and under TYPE_CHECKING unless ``annotations`` is false): ``from station.session
-    import store`` is an import of ``station.session.store``, the module, not the package."""
+    import store`` is an import of ``station.session.folder``, the module, not the package."""
     known = set(every_module())
     path = module_path(name) if name != "station.__main__" else ROOT / "__main__.py"
     tree = ast.parse(path.read_text())

@@ -75,7 +75,7 @@ def test_an_imported_session_is_annotated_in_place_as_after_a_recording(
 ):
     """``station import`` leaves the results state a recording leaves, so the next annotate
     changes rows in place (no replay of the day) and writes what a replay writes."""
-    from station.session.recorded import RecordedSession
+    from station.session.recorded_session import RecordedSession
     from station.session.records import FitModel, InvalidMark, ModelChange
     from tests.test_annotate_in_place import csv_of, from_scratch
 
@@ -137,14 +137,14 @@ def test_a_torn_session_is_repaired_and_a_merge_replays_every_descent_of_both(
     import datetime as dt
     import json
 
-    from station.session import store
+    from station.session import folder as session_folder
     from station.session.config import load_config
     from station.session.rawlog import RawLogWriter
 
     cap = real / "alge" / "ALGETdC8001-202002020841.dump"
     cfg = write_config(tmp_path, "/dev/null", channels={"C0": "PC1", "C1": "PC9"})
     session = tmp_path / "s"
-    store.create(load_config(str(cfg)), str(session))
+    session_folder.create(load_config(str(cfg)), str(session))
     lines = cap.read_bytes().split(b"\n")
     cut = len(lines) * 2 // 5
     t0 = dt.datetime(2020, 2, 2, 8, 0).timestamp()
@@ -272,7 +272,7 @@ def test_the_cp540s_download_joins_the_descent_whose_start_was_recorded_live(
     lone start, and the finish a descent of its own that went nowhere)."""
     import datetime as dt
 
-    from station.session import store
+    from station.session import folder as session_folder
     from station.session.config import load_config
     from station.session.rawlog import RawLogWriter
     from station.session.runs import replay
@@ -280,14 +280,14 @@ def test_the_cp540s_download_joins_the_descent_whose_start_was_recorded_live(
 
     cfg = write_config(tmp_path, "/dev/ttyUSB0", "tag", {"M1": "PC1", "M4": "PC2"})
     session = tmp_path / "s"
-    store.create(load_config(str(cfg)), str(session))
+    session_folder.create(load_config(str(cfg)), str(session))
     t0 = dt.datetime(2018, 11, 21, 20, 37, 44).timestamp()
-    log = RawLogWriter(str(session / store.RAW), header={"port": "/dev/ttyUSB0"})
+    log = RawLogWriter(str(session / session_folder.RAW), header={"port": "/dev/ttyUSB0"})
     log.write(t0 + 0.14, _tag_line("TN    1    1 M1 20:37:44.13600  6899").encode())
     log.event(t0 + 1.0, "disconnected", "[Errno 5] Input/output error")
     log.event(t0 + 90.0, "timeout")  # the reader's clock ended it: nothing came for 90 s
     log.close()
-    (session / store.RESULTS).write_text("")
+    (session / session_folder.RESULTS).write_text("")
 
     r = run_station("import", real / "tag" / "cp540_frames.txt", "--config", cfg, "--into",
                     session)  # fmt: skip
@@ -299,7 +299,7 @@ def test_the_cp540s_download_joins_the_descent_whose_start_was_recorded_live(
     assert first["photocells_used"] == 2 and first["descent_status"] == "complete"
     assert "joined: PC1 recorded live, PC2 on from the timer's memory" in first["flags"]
     assert "lone start" not in first["flags"] and "missing" not in first["flags"]
-    got = replay(str(session), store.load_session_config(str(session)))
+    got = replay(str(session), session_folder.load_session_config(str(session)))
     d = got.day.results[1].descent
     assert d.photocells == ("PC1", "PC2")
     assert [t % DAY_US for t in d.times_us] == [74_264_136_000, 74_266_613_000]
@@ -380,7 +380,7 @@ def test_a_descent_split_by_an_unplugged_cable_is_whole_after_the_memory_import(
     the timer's crossing times, fitted, and a note that it was joined; replays agree."""
     import json
 
-    from station.session import store
+    from station.session import folder as session_folder
     from station.session.runs import replay
     from station.timing.impulses import DAY_US
     from tests.timing_helpers import start_sim
@@ -413,7 +413,7 @@ def test_a_descent_split_by_an_unplugged_cable_is_whole_after_the_memory_import(
     # every crossing time the timer's own (TAG: 10 µs), the truth the simulator sent
     sent = [json.loads(x) for x in truth.read_text().splitlines()][1]
     want = [(sent["start_tod_us"] + round(t * 1e6)) // 10 * 10 for t in sent["t"]]
-    got = replay(str(session), store.load_session_config(str(session)))
+    got = replay(str(session), session_folder.load_session_config(str(session)))
     d = got.day.results[2].descent
     assert [t % DAY_US for t in d.times_us] == [w % DAY_US for w in want]
     assert got.day.results[2].row.mu is not None
@@ -810,16 +810,16 @@ def _split_session(tmp_path, demo_track, *, timed_out: bool):
     PC4 by the cable (with ``timed_out``, the reader's time-out ended each before the
     recording did); and a download of the timer's memory with descent 1 only, and one with
     both: (config, session, first download, second download)."""
-    from station.session import store
+    from station.session import folder as session_folder
     from station.session.config import load_config
     from station.session.rawlog import RawLogWriter
 
     cfg = write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)
     session = tmp_path / "s"
-    store.create(load_config(str(cfg)), str(session))
+    session_folder.create(load_config(str(cfg)), str(session))
     host0 = 1_767_484_800.0
     days = [_descent_lines(demo_track, 36_000 + 600 * k, k + 1, "TN", 9 * k + 1) for k in range(2)]
-    log = RawLogWriter(str(session / store.RAW), header={"port": "/dev/null"})
+    log = RawLogWriter(str(session / session_folder.RAW), header={"port": "/dev/null"})
     for k, body in enumerate(days):
         for c in _host_aligned(body[:4], host0):
             log.write(c.t, c.data)
@@ -828,7 +828,7 @@ def _split_session(tmp_path, demo_track, *, timed_out: bool):
             log.event(host0 + 36_000 + 600 * k + 100, "timeout")
         log.event(host0 + 36_000 + 600 * k + 300, "connected")
     log.close()
-    (session / store.RESULTS).write_text("")
+    (session / session_folder.RESULTS).write_text("")
     downloads = []
     for n in (1, 2):
         lines = [_frame("DS 01  00 START - FINISH     ")]

@@ -15,10 +15,10 @@ from pathlib import Path
 
 import pytest
 
-from station.session import store
+from station.session import folder as session_folder
 from station.session.acquisition import Acquisition
 from station.session.listener import QuietListener
-from station.session.recorded import RecordedSession
+from station.session.recorded_session import RecordedSession
 from station.session.records import (
     Annotation,
     FitModel,
@@ -46,7 +46,7 @@ def record_chunks(source: Path, session: Path, during=None) -> Acquisition:
     """The recorder's own loop (threads, fit worker, results CSV, raw log) fed the chunks of
     a recorded day as its serial reader would feed them; ``during(acq)`` after the third
     descent's chunks. Quick: no timer in real time (the pty tests below have one)."""
-    cfg = store.load_session_config(str(source))
+    cfg = session_folder.load_session_config(str(source))
     acq = Acquisition.open(cfg, QuietListener(), session_dir=str(session))
     try:
         for chunk in replay_chunks(str(source), None, threading.Event(), []):
@@ -133,7 +133,7 @@ def test_record_then_annotate_runs_in_place_and_writes_what_a_replay_writes(tmp_
     said = RecordedSession(str(session)).annotate(
         [InvalidMark(2, "fell at gate 3", time.time()), ModelChange(3, FitModel.VELOCITY)]
     )
-    assert said.endswith(f"{session / store.RESULTS} rewritten")
+    assert said.endswith(f"{session / session_folder.RESULTS} rewritten")
     assert replays == []  # in place: no replay of the day
     rows = csv_of(session).decode().splitlines()
     assert "fell at gate 3" in rows[-3] and ',"velocity",' in rows[-2]
@@ -160,21 +160,21 @@ def test_a_recording_whose_results_csv_was_not_written_leaves_no_state(tmp_path,
     try:
         # the empty CSV of the start, then a folder in its place: every write after it fails
         end = time.monotonic() + 60
-        while not (session / store.RESULTS).exists():
+        while not (session / session_folder.RESULTS).exists():
             assert time.monotonic() < end and rec.poll() is None, rec.stderr.read()
             time.sleep(0.01)
-        (session / store.RESULTS).unlink()
-        (session / store.RESULTS).mkdir()
+        (session / session_folder.RESULTS).unlink()
+        (session / session_folder.RESULTS).mkdir()
         out, err = rec.communicate(timeout=120)
     finally:
         sim.wait(timeout=30)
     assert rec.returncode == 0, err
-    assert f"cannot write {session / store.RESULTS}" in out + err
+    assert f"cannot write {session / session_folder.RESULTS}" in out + err
     assert "results: not written" in err
     assert not (session / STATE).exists() and not (session / DESCENTS).exists()
 
     # the annotate replays the day, and writes the CSV (and its state) a replay writes
-    (session / store.RESULTS).rmdir()
+    (session / session_folder.RESULTS).rmdir()
     said = RecordedSession(str(session)).annotate([InvalidMark(1, "gate", time.time())])
     assert said.endswith("rewritten")
     assert replays == [str(session)]
@@ -196,7 +196,7 @@ def test_a_descent_joined_by_a_download_on_the_line_is_vouched_for_as_a_replay_g
 
     cfg_path = write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)
     source = tmp_path / "src"
-    store.create(load_config(str(cfg_path)), str(source))
+    session_folder.create(load_config(str(cfg_path)), str(source))
     host = 1_767_520_800.0
     days = [_descent_lines(demo_track, 36_000 + s, k + 1, "TN", 9 * k + 1)
             for k, s in enumerate((0, 120, 400))]  # fmt: skip
@@ -212,7 +212,7 @@ def test_a_descent_joined_by_a_download_on_the_line_is_vouched_for_as_a_replay_g
     memory.append(_frame("DE 01"))
     chunks += [Chunk(host + 320.0 + 0.01 * i, x.encode()) for i, x in enumerate(memory)]
     chunks += [Chunk(host + 400 + 0.01 * i, x.encode()) for i, x in enumerate(days[2])]
-    log = RawLogWriter(str(source / store.RAW), header={"port": "/dev/null"})
+    log = RawLogWriter(str(source / session_folder.RAW), header={"port": "/dev/null"})
     for c in chunks:
         if c.event:
             log.event(c.t, c.event, c.detail)
@@ -249,7 +249,7 @@ def test_an_edit_that_changes_descent_1s_photocells_after_later_ones_is_as_repla
 
     cfg_path = write_config(tmp_path, "/dev/null", "tag", TAG_CHANNELS)
     source = tmp_path / "src"
-    store.create(load_config(str(cfg_path)), str(source))
+    session_folder.create(load_config(str(cfg_path)), str(source))
     host = 1_767_520_800.0
     days = [_descent_lines(demo_track, 36_000 + 120 * k, k + 1, "TN", 9 * k + 1) for k in range(4)]
     del days[3][4]  # descent 4 missed PC5
@@ -262,7 +262,7 @@ def test_an_edit_that_changes_descent_1s_photocells_after_later_ones_is_as_repla
     cancel = format_tag("5", tod_us, 5, 1, DAY, "TC") + "\r\n"
     chunks.append(Chunk(host + 300.0, cancel.encode()))
     chunks += [Chunk(host + 360 + 0.01 * i, x.encode()) for i, x in enumerate(days[3])]
-    log = RawLogWriter(str(source / store.RAW), header={"port": "/dev/null"})
+    log = RawLogWriter(str(source / session_folder.RAW), header={"port": "/dev/null"})
     for c in chunks:
         log.write(c.t, c.data)
     log.close()

@@ -1,4 +1,4 @@
-"""The recorded session object (station/session/recorded.py): what each command used to put
+"""The recorded session object (station/session/recorded_session.py): what each command used to put
 together by itself, checked once here against the files it stands for."""
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ import pytest
 
 from station import __version__
 from station.errors import InputError
-from station.session import store
-from station.session.recorded import RecordedSession
+from station.session import folder as session_folder
+from station.session.recorded_session import RecordedSession
 from station.session.records import InvalidMark, Metadata, MetadataAnnotation
 from tests.session_helpers import T0, make_session
 
@@ -39,17 +39,20 @@ def test_provenance_is_the_files_hashes_the_version_and_the_raw_logs_first_and_l
     session,
 ):
     p = RecordedSession(str(session)).provenance()
-    cfg = store.load_session_config(str(session))
-    assert p.raw_sha256 == hashlib.sha256((session / store.RAW).read_bytes()).hexdigest()
-    assert p.config_sha256 == hashlib.sha256((session / store.CONFIG).read_bytes()).hexdigest()
+    cfg = session_folder.load_session_config(str(session))
+    assert p.raw_sha256 == hashlib.sha256((session / session_folder.RAW).read_bytes()).hexdigest()
+    assert (
+        p.config_sha256
+        == hashlib.sha256((session / session_folder.CONFIG).read_bytes()).hexdigest()
+    )
     with open(cfg.survey_path, "rb") as fh:
         assert p.survey_sha256 == hashlib.sha256(fh.read()).hexdigest()
     assert p.station_version == __version__
-    records = [json.loads(x) for x in (session / store.RAW).read_text().splitlines()]
+    records = [json.loads(x) for x in (session / session_folder.RAW).read_text().splitlines()]
     assert p.first_host_time == records[0]["t"] == T0 - 60.0
     assert p.last_host_time == records[-1]["t"] > p.first_host_time
     # the results CSV's header names the same files by the beginning of the same hashes
-    header = store.results_header(cfg, "x")
+    header = session_folder.results_header(cfg, "x")
     assert p.config_sha256[:12] in header["config"] and p.survey_sha256[:12] in header["survey"]
 
 
@@ -72,8 +75,8 @@ def test_results_are_the_replay_with_the_annotations_and_the_csv_rows_agree(sess
 
 
 def test_rows_show_annotations_appended_after_the_csv_without_a_replay(session):
-    store.append_annotation(str(session), InvalidMark(3, "fell", 0.0))
-    store.append_annotation(
+    session_folder.append_annotation(str(session), InvalidMark(3, "fell", 0.0))
+    session_folder.append_annotation(
         str(session), MetadataAnnotation(Metadata(ski="pair C"), descents=(4,), t=0.0)
     )
     s = RecordedSession(str(session))
@@ -87,7 +90,7 @@ def test_annotate_appends_and_rewrites_the_csv_as_export_writes_it(session, tmp_
     s = RecordedSession(str(session))
     before = s.results()
     said = s.annotate([InvalidMark(2, "gate", 1.0)])
-    assert said.endswith(f"{session / store.RESULTS} rewritten")
+    assert said.endswith(f"{session / session_folder.RESULTS} rewritten")
     assert "1 annotation added" in said
     assert [r.row.invalid_reason for r in s.results()] == ["", "gate", "", ""]
     assert before[1].row.invalid_reason == ""  # the earlier replay's snapshot is unchanged
@@ -95,18 +98,18 @@ def test_annotate_appends_and_rewrites_the_csv_as_export_writes_it(session, tmp_
     out = tmp_path / "export.csv"
     with open(out, "w", encoding="utf-8", newline="") as fh:
         fresh.write_results_to(fh)
-    assert out.read_bytes() == (session / store.RESULTS).read_bytes()
+    assert out.read_bytes() == (session / session_folder.RESULTS).read_bytes()
 
 
 def test_annotate_leaves_the_csv_to_a_recorder_holding_the_session(session):
-    before = (session / store.RESULTS).read_bytes()
-    lock = store.RecordingLock.take(str(session))
+    before = (session / session_folder.RESULTS).read_bytes()
+    lock = session_folder.RecordingLock.take(str(session))
     try:
         said = RecordedSession(str(session)).annotate([InvalidMark(2, "gate", 1.0)])
     finally:
         lock.release()
     assert "being recorded now" in said
-    assert (session / store.RESULTS).read_bytes() == before
+    assert (session / session_folder.RESULTS).read_bytes() == before
 
 
 def test_check_descents_refuses_a_descent_the_session_does_not_have(session):

@@ -11,7 +11,7 @@ import time
 
 import pytest
 
-from station.session import store
+from station.session import folder as session_folder
 from tests.conftest import station_cmd
 from tests.timing_helpers import start_sim, write_config
 
@@ -38,7 +38,9 @@ def _recording(tmp_path, sim_args=SILENT):
         text=True,
     )
     deadline = time.monotonic() + 60
-    while not ((session / store.RAW).exists() and (session / store.RESULTS).exists()):
+    while not (
+        (session / session_folder.RAW).exists() and (session / session_folder.RESULTS).exists()
+    ):
         assert rec.poll() is None, rec.stderr.read()
         assert time.monotonic() < deadline, "the recorder did not start"
         time.sleep(0.1)
@@ -60,26 +62,28 @@ def test_recording_while_the_recorder_runs_and_finished_at_once_after_sigterm(
     try:
         assert _status(run_station, session) == "recording"
         old = time.time() - 3600  # the timer silent for an hour: still recording
-        os.utime(session / store.RAW, (old, old))
+        os.utime(session / session_folder.RAW, (old, old))
         assert _status(run_station, session) == "recording"
         # annotate: saved, and the recorder's results.csv left to it
-        before = (session / store.RESULTS).read_bytes()
+        before = (session / session_folder.RESULTS).read_bytes()
         r = run_station("annotate", session, "--from", "1", "--ski", "pair 7")
         assert r.returncode == 0, r.stderr
         assert "being recorded now" in r.stderr and len(r.stderr.strip().splitlines()) == 1
         assert "takes them up" in r.stderr
-        assert (session / store.RESULTS).read_bytes() == before
+        assert (session / session_folder.RESULTS).read_bytes() == before
         rec.send_signal(signal.SIGTERM)
         assert rec.wait(timeout=30) == 0, rec.stderr.read()
-        os.utime(session / store.RAW)  # written a moment ago: the raw log's age would mislead
+        os.utime(
+            session / session_folder.RAW
+        )  # written a moment ago: the raw log's age would mislead
         assert _status(run_station, session) == "finished"
-        assert not (session / store.LOCK).exists()
+        assert not (session / session_folder.LOCK).exists()
         # now annotate rewrites the CSV, as export writes it
         r = run_station("annotate", session, "--from", "1", "--wax", "blue")
         assert r.returncode == 0 and "rewritten" in r.stderr, r.stderr
         out = tmp_path / "export.csv"
         assert run_station("export", session, "--csv", out).returncode == 0
-        assert out.read_bytes() == (session / store.RESULTS).read_bytes()
+        assert out.read_bytes() == (session / session_folder.RESULTS).read_bytes()
     finally:
         _stop(rec, sim)
 
@@ -124,6 +128,6 @@ def test_the_recorder_takes_up_an_annotate_and_its_csv_is_the_replays(tmp_path, 
         assert rec.wait(timeout=30) == 0, rec.stderr.read()
         out = tmp_path / "export.csv"
         assert run_station("export", session, "--csv", out).returncode == 0
-        assert out.read_bytes() == (session / store.RESULTS).read_bytes()
+        assert out.read_bytes() == (session / session_folder.RESULTS).read_bytes()
     finally:
         _stop(rec, sim)

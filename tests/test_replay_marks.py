@@ -7,7 +7,7 @@ from __future__ import annotations
 import datetime as dt
 
 from station.cli.tui import save_kept
-from station.session import store
+from station.session import folder as session_folder
 from station.session.records import InvalidMark
 from station.ui.app import StationApp
 from station.ui.screens import ReasonScreen
@@ -17,7 +17,7 @@ from tests.test_ui import replay_app, run_async, wait_for, wait_for_replay, wait
 
 def session_replay_app(session) -> StationApp:
     """The UI replaying a recorded session folder (not a capture file), with its own config."""
-    cfg = store.load_session_config(str(session))
+    cfg = session_folder.load_session_config(str(session))
     return StationApp(cfg, mode="replay", source=str(session), date=dt.date(2026, 2, 2))
 
 
@@ -40,7 +40,7 @@ async def _mark_invalid(app, pilot, reason: str) -> None:
 @run_async
 async def test_a_mark_made_while_replaying_a_session_is_saved_in_it(tmp_path):
     session = make_session(tmp_path, order="ABAB")
-    before = (session / store.ANNOTATIONS).read_text()
+    before = (session / session_folder.ANNOTATIONS).read_text()
     app = session_replay_app(session)
     async with app.run_test(size=(100, 30)) as pilot:
         await wait_for_replay(pilot, app)
@@ -48,12 +48,14 @@ async def test_a_mark_made_while_replaying_a_session_is_saved_in_it(tmp_path):
         said = await _notified(app, pilot)
         assert "saved in the session when you quit" in said
     assert [type(a) for a in app.kept] == [InvalidMark] and app.kept[0].t is not None
-    assert (session / store.ANNOTATIONS).read_text() == before  # saved at the end, not before
+    assert (
+        session / session_folder.ANNOTATIONS
+    ).read_text() == before  # saved at the end, not before
 
     assert save_kept(app) == 0
-    records = read_json_lines(session / store.ANNOTATIONS)
+    records = read_json_lines(session / session_folder.ANNOTATIONS)
     assert records[-1]["type"] == "invalid" and records[-1]["reason"] == "wrong mass"
-    csv_text = (session / store.RESULTS).read_text()
+    csv_text = (session / session_folder.RESULTS).read_text()
     first = next(line for line in csv_text.splitlines() if line.startswith("1,"))
     assert "wrong mass" in first  # results.csv rewritten with the mark
 
@@ -74,7 +76,7 @@ def test_the_printed_lines_say_invalid_and_updated(run_station, tmp_path):
     """Headless, a descent marked invalid printed as plain "ok", and a refit printed the same
     line again with nothing to say why."""
     from station.cli.console import PrintListener
-    from station.session.recorded import RecordedSession
+    from station.session.recorded_session import RecordedSession
 
     session = make_session(tmp_path, order="AB")
     assert run_station("annotate", session, "--descents", "2", "--invalid", "fell").returncode == 0

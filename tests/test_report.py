@@ -124,11 +124,11 @@ def test_aborted_and_unfitted_descents_have_their_panel(tmp_path, demo_track):
     from station.model.estimate import MISSING
     from station.report.day_data import DayData, descent_views
     from station.report.day_report import build_day_report
-    from station.session import store
+    from station.session import folder as session_folder
     from station.session.runs import replay
 
     session = make_session(tmp_path, order="AB")
-    run = replay(str(session), store.load_session_config(str(session)))
+    run = replay(str(session), session_folder.load_session_config(str(session)))
     views = descent_views(run.results())
     assert [v.item for v in views] == ["pair A / blue", "pair B / blue"]
     assert all(v.good and len(v.residuals_ms) == 9 for v in views)
@@ -222,11 +222,11 @@ def test_the_time_axis_labels_every_tick_on_a_whole_minute(tmp_path):
     """The picture itself: its ticks are the minute ticks, every one labelled hh:mm."""
     from station.report.day_data import descent_views
     from station.report.day_figures import item_colours, time_of_day_axes
-    from station.session import store
+    from station.session import folder as session_folder
     from station.session.runs import replay
 
     session = make_session(tmp_path, order="ABBA", interval_s=437.0)
-    run = replay(str(session), store.load_session_config(str(session)))
+    run = replay(str(session), session_folder.load_session_config(str(session)))
     views = descent_views(run.results())
     fig = time_of_day_axes(views, item_colours(["pair A / blue", "pair B / blue"]))
     ax = fig.axes[1]

@@ -175,7 +175,7 @@ def test_results_are_written_with_the_users_umask(tmp_path):
 
 def test_the_air_header_says_the_density_once(tmp_path):
     from station.session.config import load_config
-    from station.session.store import results_header
+    from station.session.folder import results_header
     from tests.timing_helpers import write_config
 
     given = results_header(load_config(str(write_config(tmp_path, "loop://"))), "Demo run")

@@ -10,7 +10,7 @@ import os
 import pandas as pd
 
 import station.session.results as results
-from station.session import store as sessions
+from station.session import folder as sessions
 from station.session.acquisition import Acquisition
 from station.session.config import load_config
 from station.session.listener import Listener

@@ -255,7 +255,7 @@ def test_the_items_named_left_out_follow_the_day_fits_own_rule(run_station, tmp_
     it in the store's query that could drift apart. Changed, both the day's selection and the
     names follow."""
     from station.model import compare
-    from station.session import store as sessions
+    from station.session import folder as sessions
     from station.session.runs import replay
 
     base = tmp_path / "s"

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import datetime as dt
 
-from station.session import store as sessions
+from station.session import folder as sessions
 from station.session.records import HARDNESS, METADATA_FIELDS, SNOW_TYPES, WETNESS
 from station.session.results import COLUMNS
 from tests.season_helpers import make_day

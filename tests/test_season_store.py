@@ -66,7 +66,7 @@ def test_add_is_idempotent_and_one_row_per_session(store_url, days):
 
 
 def test_an_annotated_session_updates_its_rows(store_url, tmp_path):
-    from station.session import store as sessions
+    from station.session import folder as sessions
     from station.session.records import InvalidMark
 
     day = make_day(tmp_path, "d", dt.date(2026, 1, 12), "ABBAABBA", {"A": 0.01, "B": 0.011})

@@ -233,7 +233,7 @@ def test_the_comparison_panel_and_the_record_console_say_decided_or_not(session)
     from station.cli.console import PrintListener
     from station.report.comparison_text import comparison_view, headline
     from station.session.comparison import compare_results
-    from station.session.recorded import RecordedSession
+    from station.session.recorded_session import RecordedSession
 
     acq = RecordedSession(str(session))
     acq.run()

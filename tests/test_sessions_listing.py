@@ -13,7 +13,7 @@ import sys
 
 import pytest
 
-from station.session import store
+from station.session import folder as session_folder
 from tests.conftest import ROOT
 from tests.session_helpers import make_session
 
@@ -62,36 +62,36 @@ def check_listing(folder, why: str) -> None:
 
 def test_a_raw_log_that_is_a_fifo_is_broken_not_a_hang(recorded, tmp_path):
     folder, bad = two_sessions(recorded, tmp_path)
-    (bad / store.RAW).unlink()
-    os.mkfifo(bad / store.RAW)
+    (bad / session_folder.RAW).unlink()
+    os.mkfifo(bad / session_folder.RAW)
     check_listing(folder, "is a pipe (FIFO), not a raw log")
 
 
 def test_a_raw_log_linked_to_dev_zero_is_broken_not_a_hang(recorded, tmp_path):
     folder, bad = two_sessions(recorded, tmp_path)
-    (bad / store.RAW).unlink()
-    os.symlink("/dev/zero", bad / store.RAW)
+    (bad / session_folder.RAW).unlink()
+    os.symlink("/dev/zero", bad / session_folder.RAW)
     check_listing(folder, "is a character device, not a raw log")
 
 
 def test_a_binary_results_csv_is_broken_with_the_reason(recorded, tmp_path):
     folder, bad = two_sessions(recorded, tmp_path)
-    (bad / store.RESULTS).write_bytes(b"\x00\xff\xfe" + os.urandom(2000))
+    (bad / session_folder.RESULTS).write_bytes(b"\x00\xff\xfe" + os.urandom(2000))
     check_listing(folder, "results.csv")
 
 
 def test_a_results_csv_with_text_in_a_number_column_names_line_and_column(recorded, tmp_path):
     folder, bad = two_sessions(recorded, tmp_path)
-    text = (bad / store.RESULTS).read_text().splitlines()
+    text = (bad / session_folder.RESULTS).read_text().splitlines()
     head = next(i for i, ln in enumerate(text) if ln.startswith('"descent"'))
     text[head + 2] = "x" + text[head + 2]  # descent 2's number: "x2"
-    (bad / store.RESULTS).write_text("\n".join(text) + "\n")
+    (bad / session_folder.RESULTS).write_text("\n".join(text) + "\n")
     check_listing(folder, f"results.csv:{head + 3}: field descent: 'x2' is not a whole number")
 
 
 def test_a_recording_lock_that_is_a_fifo_does_not_hang_the_listing(recorded, tmp_path):
     folder, bad = two_sessions(recorded, tmp_path)
-    os.mkfifo(bad / store.LOCK)
+    os.mkfifo(bad / session_folder.LOCK)
     r = sessions(folder, "--json")
     assert r.returncode == 0, r.stderr
     assert len(json.loads(r.stdout)) == 2
@@ -100,7 +100,7 @@ def test_a_recording_lock_that_is_a_fifo_does_not_hang_the_listing(recorded, tmp
 def test_only_broken_sessions_is_exit_status_2_and_no_sessions_is_0(recorded, tmp_path):
     folder, bad = two_sessions(recorded, tmp_path)
     shutil.rmtree(folder / "a-good")
-    (bad / store.RESULTS).write_bytes(b"\x00" * 100)
+    (bad / session_folder.RESULTS).write_bytes(b"\x00" * 100)
     r = sessions(folder)
     assert r.returncode == 2, (r.stdout, r.stderr)
     assert "station: error:" in r.stderr and "broken" in r.stdout

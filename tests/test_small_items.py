@@ -94,7 +94,7 @@ def test_a_timer_reset_to_midnight_is_flagged(tmp_path):
     import numpy as np
 
     from station.model.physics import Conditions, Params, StraightRun
-    from station.session import store
+    from station.session import folder as session_folder
     from station.session.config import load_config
     from station.session.rawlog import RawLogWriter
     from station.session.runs import replay
@@ -104,8 +104,8 @@ def test_a_timer_reset_to_midnight_is_flagged(tmp_path):
     from tests.timing_helpers import ALGE_CHANNELS
 
     session = tmp_path / "s"
-    store.create(load_config(str(write_config(tmp_path, "/dev/null"))), str(session))
-    cfg = store.load_session_config(str(session))
+    session_folder.create(load_config(str(write_config(tmp_path, "/dev/null"))), str(session))
+    cfg = session_folder.load_session_config(str(session))
     track = build_track(load_survey(cfg.survey_path))
     run = StraightRun(track.profile, np.array([pc.x for pc in track.photocells]))
     times = run.solve(Params(0.22, 0.0085, 3.4), Conditions(88, 1.079), sensitivities=False).t

@@ -96,13 +96,13 @@ def test_a_session_replay_of_the_real_capture_dates_every_start(tmp_path, real, 
     """The same through the command a user runs: `station replay SESSION --csv`."""
     import pandas as pd
 
-    from station.session import store
+    from station.session import folder as session_folder
     from station.session.rawlog import RawLogWriter
 
     cfg = write_config(tmp_path, "/dev/null", channels={"C0": "PC1", "C1": "PC9"},
                        extra="descent: {pairing: bib}\n")  # fmt: skip
     session = tmp_path / "s"
-    store.create(load_config(str(cfg)), str(session))
+    session_folder.create(load_config(str(cfg)), str(session))
     t0 = dt.datetime(2020, 2, 2, 8, 0).timestamp()
     log = RawLogWriter(str(session / "raw.jsonl"), header={"port": "/dev/ttyUSB0"})
     for i, line in enumerate((real / "alge" / CAPTURE).read_bytes().split(b"\n")):
@@ -235,7 +235,7 @@ def test_a_memory_download_merged_into_a_session_is_dated_and_not_taken_for_a_re
     but start earlier. Every descent is dated (3 were not: two held starts confirmed by
     another start, one at the end), and the first merged start is not taken for a reset of
     the timer's clock (it was, as going 56 min backwards)."""
-    from station.session import store
+    from station.session import folder as session_folder
     from station.session.memory_import import import_into
     from station.session.rawlog import RawLogWriter
     from station.session.runs import replay
@@ -243,7 +243,7 @@ def test_a_memory_download_merged_into_a_session_is_dated_and_not_taken_for_a_re
     cap = real / "alge" / CAPTURE
     cfg = write_config(tmp_path, "/dev/null", channels={"C0": "PC1", "C1": "PC9"})
     session = tmp_path / "s"
-    store.create(load_config(str(cfg)), str(session))
+    session_folder.create(load_config(str(cfg)), str(session))
     t0 = dt.datetime(2020, 2, 2, 9, 47).timestamp()
     log = RawLogWriter(str(session / "raw.jsonl"), header={"port": "/dev/ttyUSB0"})
     for i, line in enumerate(cap.read_bytes().split(b"\n")):
@@ -251,7 +251,7 @@ def test_a_memory_download_merged_into_a_session_is_dated_and_not_taken_for_a_re
             log.write(t0 + i * 10, line + b"\r")
     log.close()
     assert import_into(str(cap), str(session)).added > 20
-    res = replay(str(session), store.load_session_config(str(session))).results()
+    res = replay(str(session), session_folder.load_session_config(str(session))).results()
     assert len(res) > 100
     assert [r.number for r in res if not r.row.start_time.startswith("2020-02-02T")] == []
     assert [r.number for r in res if any("backwards" in f for f in r.row.flags)] == []

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from station.session import store
+from station.session import folder as session_folder
 from station.session.records import (
     Annotation,
     FitModel,
@@ -37,15 +37,17 @@ ANNOTATIONS: list[Annotation] = [
 def as_recorded_and_replayed(session: Path, tmp_path: Path, annotations=ANNOTATIONS):
     """The day fitted as a recording fits it (each descent as it ends, the annotations after
     all of them), and as a replay of the annotated session fits it."""
-    cfg = store.load_session_config(str(session))
+    cfg = session_folder.load_session_config(str(session))
     live = replay(str(session), cfg, speed_curves=False)  # no annotations yet
     for a in annotations:
         live.day.apply(a)  # fits again the descents it names, after the later ones
     annotated = tmp_path / "annotated"
     shutil.copytree(session, annotated)
     for a in annotations:
-        store.append_annotation(str(annotated), a)
-    again = replay(str(annotated), store.load_session_config(str(annotated)), speed_curves=False)
+        session_folder.append_annotation(str(annotated), a)
+    again = replay(
+        str(annotated), session_folder.load_session_config(str(annotated)), speed_curves=False
+    )
     return live.day, again.day
 
 

@@ -62,7 +62,7 @@ def test_the_processor_takes_the_resolution_of_a_photocell_not_a_keypad(tmp_path
 
 def test_the_descents_and_the_day_are_judged_against_the_configs_timer(tmp_path, run_station):
     session = make_session(tmp_path, order="ABAB", config_extra="timer: {precision_ms: 3}\n")
-    from station.session.recorded import RecordedSession
+    from station.session.recorded_session import RecordedSession
 
     results = RecordedSession(str(session)).results()
     assert {r.fit.timer_precision_s for r in results if r.fit} == {3e-3}

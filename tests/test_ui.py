@@ -643,8 +643,8 @@ async def test_dialogs_fit_the_terminal(tmp_path, demo_track, size):
 async def test_metadata_form_names_the_next_descent_and_saves_only_changes(tmp_path, demo_track):
     """While descent 1 runs the form is for descent 2 on (as the toast then says); a field
     left as it was pre-filled (the demo's next pair of skis) is not written again."""
+    from station.session.folder import read_annotations
     from station.session.rawlog import Chunk
-    from station.session.store import read_annotations
 
     cfg = load_config(str(write_config(tmp_path, "loop://")))
     session = tmp_path / "s"

@@ -43,7 +43,7 @@ def cmd_annotate(args: argparse.Namespace) -> int:
     # here, not at the top: the session's replay loads numpy and scipy (see recording.py);
     # an annotation that changes no fit needs neither (the session's results CSV is changed
     # in place: station.session.resultsstate), so station.cli.console is not imported either
-    from station.session.recorded import RecordedSession
+    from station.session.recorded_session import RecordedSession
 
     session = RecordedSession(args.session)
     values = Metadata.from_values({f.key: getattr(args, f.key) for f in METADATA_FIELDS})
@@ -96,7 +96,7 @@ def cmd_annotate(args: argparse.Namespace) -> int:
 def cmd_compare(args: argparse.Namespace) -> int:
     from station.cli.console import replayed  # here: see cmd_annotate
     from station.report.comparison_text import compare_text, comparison_json, write_ranking_csv
-    from station.session.recorded import RecordedSession
+    from station.session.recorded_session import RecordedSession
 
     session = RecordedSession(args.session)
     output_path(args.csv, "--csv")

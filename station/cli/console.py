@@ -17,12 +17,12 @@ from typing import TYPE_CHECKING
 from station.cli.common import _warn
 from station.errors import InputError
 from station.report.text import describe, summary
-from station.session import store as sessions
+from station.session import folder as sessions
 from station.session.acquisition import Acquisition
 from station.session.analysis import DescentResult
 from station.session.config import StationConfig, load_config
 from station.session.listener import Listener
-from station.session.recorded import RecordedSession
+from station.session.recorded_session import RecordedSession
 from station.session.records import Annotation
 
 if TYPE_CHECKING:  # the comparison's modules load numpy and scipy: when one comes

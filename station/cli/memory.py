@@ -13,10 +13,10 @@ from station.errors import InputError
 
 def cmd_import(args: argparse.Namespace) -> int:
     from station.cli.console import day_summary  # here: numpy, see recording.py's note
+    from station.session import folder as sessions
     from station.session import memory_import
-    from station.session import store as sessions
     from station.session.config import load_config
-    from station.session.recorded import RecordedSession
+    from station.session.recorded_session import RecordedSession
     from station.timing.assembly import JOINED
 
     if args.into and args.date:

@@ -54,7 +54,7 @@ def _past_day(args: argparse.Namespace) -> Any:
     """The past session's :class:`station.model.plan.PastDay`, from its joint fit."""
     from station.cli.console import replayed
     from station.model.plan import PastDay
-    from station.session.recorded import RecordedSession
+    from station.session.recorded_session import RecordedSession
 
     session = replayed(RecordedSession(args.from_session))
     day = session.compare(timer_sd_s=args.timer_ms / 1000.0)

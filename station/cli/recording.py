@@ -23,7 +23,7 @@ if TYPE_CHECKING:
 
 def cmd_record(args: argparse.Namespace) -> int:
     from station.cli.console import PrintListener, day_summary
-    from station.session import store as sessions
+    from station.session import folder as sessions
     from station.session.configcheck import checked_config
     from station.session.ports import check_port
     from station.session.runs import record
@@ -160,7 +160,7 @@ def _write_times(results: Sequence[DescentResult], out: str | None) -> None:
 
 def cmd_export(args: argparse.Namespace) -> int:
     from station.cli.console import replayed
-    from station.session.recorded import RecordedSession
+    from station.session.recorded_session import RecordedSession
 
     session = RecordedSession(args.source)
     if not args.csv and not args.times:

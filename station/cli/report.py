@@ -17,7 +17,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     from station.report.day_data import day_data
     from station.report.day_report import build_day_report
     from station.report.text import count
-    from station.session.recorded import RecordedSession
+    from station.session.recorded_session import RecordedSession
 
     session = RecordedSession(args.session, speed_curves=True)  # the report draws them
     out = output_dir(args.out, "--out")  # checked (and made) before the day is replayed

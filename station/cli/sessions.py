@@ -3,7 +3,7 @@ their date, descents, test items and status, read from each session's results CS
 annotations without replaying or fitting anything (the csv module, not pandas).
 
 Whether a session is being recorded is a fact, not a guess from the raw log's age: the
-recorder holds a lock on ``recording.lock`` in the session (:class:`station.session.store.
+recorder holds a lock on ``recording.lock`` in the session (:class:`station.session.folder.
 RecordingLock`), which this command tries without waiting.
 
 A listing survives its worst member: every file is opened only if it is a regular file, and
@@ -27,7 +27,7 @@ from station.errors import InputError
 
 def find_sessions(folder: str) -> list[str]:
     """Sessions in ``folder`` (or ``folder`` itself when it is one), oldest first."""
-    from station.session import store as sessions
+    from station.session import folder as sessions
 
     if not os.path.exists(folder):
         raise InputError("no such folder", path=folder)
@@ -44,7 +44,7 @@ def find_sessions(folder: str) -> list[str]:
 
 def cmd_sessions(args: argparse.Namespace) -> int:
     from station.session.listing import SessionSummary
-    from station.session.recorded import RecordedSession
+    from station.session.recorded_session import RecordedSession
 
     found: list[SessionSummary] = []
     for path in find_sessions(args.folder):

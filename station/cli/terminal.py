@@ -17,7 +17,7 @@ from station.cli.common import _positive
 def cmd_live(args: argparse.Namespace) -> int:
     # here, not at the top: the UI, numpy and scipy (see station/cli/tui.py and recording.py)
     from station.cli.tui import require_terminal, run_ui
-    from station.session import store as sessions
+    from station.session import folder as sessions
     from station.session.configcheck import checked_config
     from station.session.ports import check_port
     from station.ui.app import StationApp
@@ -61,7 +61,7 @@ def demo_config(link: str) -> Any:
 def cmd_demo(args: argparse.Namespace) -> int:
     # here, not at the top: the UI, numpy and scipy (see station/cli/tui.py and recording.py)
     from station.cli.tui import require_terminal, run_ui
-    from station.session import store as sessions
+    from station.session import folder as sessions
     from station.ui.app import StationApp
 
     folder = args.session_dir or sessions.default_dir("sessions").replace(

@@ -37,7 +37,7 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import replace
 from typing import IO, Any
 
-from station.session import store as sessions
+from station.session import folder as sessions
 from station.session.analysis import DescentResult
 from station.session.comparing import Comparer
 from station.session.config import SerialConfig, StationConfig

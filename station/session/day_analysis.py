@@ -1,6 +1,6 @@
 """A test day's analysis: the one typed result every view of a recorded day renders (the day
 report, ``station compare``), made by :meth:`RecordedSession.analysis
-<station.session.recorded.RecordedSession.analysis>`."""
+<station.session.recorded_session.RecordedSession.analysis>`."""
 
 from __future__ import annotations
 

@@ -38,7 +38,7 @@ from station.files import MAX_OBSERVATIONS, read_bytes, replaced
 from station.model.fit import FitResult
 from station.session.codeversion import code_version
 from station.session.config import StationConfig
-from station.session.store import FITS
+from station.session.folder import FITS
 
 #: a stored fit is 2-4 kB: 64 MB holds a season of days
 MAX_FITS = 64 * 1024 * 1024

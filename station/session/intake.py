@@ -3,7 +3,7 @@ and those another process appends to the session (``station annotate`` while thi
 applied to the day in the order of the annotations file, as a replay applies them.
 
 Every writer appends to annotations.jsonl only under its flock
-(:func:`station.session.store.annotations_locked`). The fits the records call for go to the
+(:func:`station.session.folder.annotations_locked`). The fits the records call for go to the
 fit worker, which sees by then every fit already under way; it looks for others' records when
 idle, and :meth:`~station.session.acquisition.Acquisition.close` takes up the last of them.
 """
@@ -17,7 +17,7 @@ import time
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
-from station.session import store as sessions
+from station.session import folder as sessions
 from station.session.day import Day
 from station.session.jobs import Annotate, Job
 from station.session.listener import Listener

@@ -1,6 +1,6 @@
 """A session as ``station sessions`` lists it: its status and its summary line, read from its
 files without replaying it (:meth:`RecordedSession.summary
-<station.session.recorded.RecordedSession.summary>`)."""
+<station.session.recorded_session.RecordedSession.summary>`)."""
 
 from __future__ import annotations
 

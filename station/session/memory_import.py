@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 
 from station.errors import InputError
 from station.files import read_bytes
-from station.session import store as sessions
+from station.session import folder as sessions
 from station.session.config import StationConfig
 from station.session.rawlog import RawLogWriter, read_rawlog
 from station.timing.assembly import is_joined

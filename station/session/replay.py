@@ -17,7 +17,7 @@ from typing import IO
 
 from station import csvfiles
 from station.files import MAX_CAPTURE, open_regular
-from station.session import store as sessions
+from station.session import folder as sessions
 from station.session.config import StationConfig
 from station.session.processor import Processor
 from station.session.rawlog import Chunk, Lines, read_rawlog, read_rawlog_bulk

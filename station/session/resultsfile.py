@@ -22,8 +22,8 @@ from typing import IO, TYPE_CHECKING, Any
 
 from station.errors import InputError
 from station.files import read_bytes, write_atomic
+from station.session import folder as sessions
 from station.session import results
-from station.session import store as sessions
 from station.session.codeversion import code_version
 from station.session.config import StationConfig
 from station.session.marks import Marks

@@ -55,7 +55,7 @@ from typing import Any
 
 from station.errors import InputError
 from station.files import MAX_OBSERVATIONS, MAX_RAWLOG, read_bytes
-from station.session import store as sessions
+from station.session import folder as sessions
 from station.session.codeversion import code_version
 from station.session.config import StationConfig
 from station.session.records import (

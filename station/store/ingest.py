@@ -1,10 +1,10 @@
 """A recorded session as the season store keeps it: the one place that reads session folders.
 
-It opens the session as a :class:`station.session.recorded.RecordedSession` and replays its raw
-log with its annotations (as ``station replay`` and ``station export`` do: the raw log is the
-day, results.csv only a view of it), so the descents, fits,
-marks and conditions are those the station gives today, and fits the day model of
-:mod:`station.model.compare` once per grouping of the descents (by item, ski, wax, grind) to
+It opens the session as a :class:`station.session.recorded_session.RecordedSession` and
+replays its raw log with its annotations (as ``station replay`` and ``station export`` do: the
+raw log is the day, results.csv only a view of it), so the descents, fits, marks and conditions
+are those the station gives today, and fits the day model of :mod:`station.model.compare` once
+per grouping of the descents (by item, ski, wax, grind) to
 keep each day's μ per item with their covariance, which the season's comparison joins.
 
 Two steps, so a session added again costs a hash, not a replay: :func:`identify` (the raw
@@ -58,7 +58,7 @@ def _sha256(path: str) -> str:
 
 def identify(session: str) -> Identity:
     """The session's identity; a folder that is no finished session is an :class:`InputError`."""
-    from station.session import store as sessions
+    from station.session import folder as sessions
 
     if not os.path.exists(session):
         raise InputError("no such session folder", path=session)
@@ -99,7 +99,7 @@ def read(session: str, identity: Identity | None = None) -> SessionRecord:
     import time
 
     from station.files import MAX_OBSERVATIONS
-    from station.session.recorded import RecordedSession, sha256_of
+    from station.session.recorded_session import RecordedSession, sha256_of
 
     ident = identity or identify(session)
     rs = RecordedSession(session)

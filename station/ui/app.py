@@ -26,7 +26,8 @@ from station.session.acquisition import Acquisition
 from station.session.analysis import DescentResult
 from station.session.comparison import DayComparison
 from station.session.config import StationConfig
-from station.session.recorded import RecordedSession
+from station.session.folder import RESULTS, is_session
+from station.session.recorded_session import RecordedSession
 from station.session.records import (
     Annotation,
     FitModel,
@@ -38,7 +39,6 @@ from station.session.records import (
     Progress,
     ValidMark,
 )
-from station.session.store import RESULTS, is_session
 from station.timing.impulses import format_tod
 from station.ui.cells import Column, cell, justify, panel_text, table_columns
 from station.ui.messages import (

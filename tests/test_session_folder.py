@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from station.errors import InputError
-from station.session import store
+from station.session import folder as session_folder
 from station.session.analysis import start_time
 from station.session.config import load_config
 from station.session.results import COLUMNS
@@ -28,7 +28,7 @@ def cfg(tmp_path):
 
 def test_a_new_folder_gets_the_snapshot(cfg, tmp_path):
     session = tmp_path / "s"
-    store.create(cfg, str(session))
+    session_folder.create(cfg, str(session))
     assert (session / "config.yaml").exists()
     assert any(p.suffix == ".gsi" for p in session.rglob("*"))
 
@@ -39,7 +39,7 @@ def test_a_folder_with_anything_in_it_is_refused_and_left_alone(cfg, tmp_path, c
     session.mkdir()
     (session / content).write_text("someone else's\n")
     with pytest.raises(InputError, match="choose a new --session-dir"):
-        store.create(cfg, str(session))
+        session_folder.create(cfg, str(session))
     assert [p.name for p in session.iterdir()] == [content]
     assert (session / content).read_text() == "someone else's\n"
 
@@ -47,7 +47,7 @@ def test_a_folder_with_anything_in_it_is_refused_and_left_alone(cfg, tmp_path, c
 def test_an_empty_folder_is_used(cfg, tmp_path):
     session = tmp_path / "s"
     session.mkdir()
-    store.create(cfg, str(session))
+    session_folder.create(cfg, str(session))
     assert (session / "config.yaml").exists()
 
 
@@ -55,12 +55,14 @@ def test_a_file_is_not_a_session_folder(cfg, tmp_path):
     path = tmp_path / "f"
     path.write_text("x")
     with pytest.raises(InputError, match="is a file, not a folder"):
-        store.create(cfg, str(path))
+        session_folder.create(cfg, str(path))
 
 
 def test_an_unwritable_place_is_one_line(cfg):
     with pytest.raises(InputError) as err:
-        store.create(cfg, "/sys/station-session-test")  # sysfs: not even root makes folders
+        session_folder.create(
+            cfg, "/sys/station-session-test"
+        )  # sysfs: not even root makes folders
     assert "cannot write the session folder" in str(err.value)
     assert "\n" not in str(err.value)
 
@@ -80,7 +82,7 @@ def test_a_full_disk_while_making_the_session_is_one_line_and_leaves_nothing(
     monkeypatch.setattr(builtins, "open", full)
     session = tmp_path / "s"
     with pytest.raises(InputError, match="No space left on device"):
-        store.create(cfg, str(session))
+        session_folder.create(cfg, str(session))
     assert not session.exists()
 
 
@@ -96,10 +98,10 @@ def test_a_results_csv_that_cannot_be_written_is_a_line_not_an_exception(tmp_pat
     def write(rows):
         return lambda p: results.write_results(rows, p, {})
 
-    assert store.save_results(str(path), write([row])) is None
+    assert session_folder.save_results(str(path), write([row])) is None
     before = path.read_bytes()
     monkeypatch.setattr(results.os, "replace", full)
-    problem = store.save_results(str(path), write([row, row | {"descent": 2}]))
+    problem = session_folder.save_results(str(path), write([row, row | {"descent": 2}]))
     assert problem is not None and "No space left on device" in problem
     assert "raw log keeps recording" in problem and "\n" not in problem
     assert path.read_bytes() == before  # the last good CSV stays

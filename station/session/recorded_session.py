@@ -33,8 +33,8 @@ from station.files import (
     check_regular,
     open_regular,
 )
+from station.session import folder as sessions
 from station.session import resultsstate
-from station.session import store as sessions
 from station.session.config import StationConfig
 from station.session.listing import SessionStatus, SessionSummary, minute_of
 from station.session.marks import Marks
@@ -99,7 +99,7 @@ def sha256_of(path: str, max_bytes: int, what: str) -> str:
 
 
 class RecordedSession:
-    """A session folder (see :mod:`station.session.store` for what it holds)."""
+    """A session folder (see :mod:`station.session.folder` for what it holds)."""
 
     def __init__(
         self, path: str, config: StationConfig | None = None, *, speed_curves: bool = False
