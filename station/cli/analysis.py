@@ -46,7 +46,28 @@ def cmd_annotate(args: argparse.Namespace) -> int:
     from station.session.recorded_session import RecordedSession
 
     session = RecordedSession(args.session)
-    values = Metadata.from_values({f.key: getattr(args, f.key) for f in METADATA_FIELDS})
+    _check_annotate_options(args)
+    targets = _numbers(args.descents) if args.descents is not None else []
+    records = _annotations(args, targets, time.time())
+    session.check_descents(targets)  # --from N may name descents still to come
+    try:
+        print(session.annotate(records), file=sys.stderr)
+    finally:
+        while session.warnings:  # what the replay passed over (a torn last record)
+            _warn(session.warnings.pop(0))
+    try:
+        store = session.config.store
+    except InputError:
+        store = None
+    if configured(store):  # console.add_after's test, without its imports
+        from station.cli.console import add_after
+
+        add_after(session.path, store)  # the season store's rows follow the annotation
+    return 0
+
+
+def _check_annotate_options(args: argparse.Namespace) -> None:
+    """The options of ``annotate`` that contradict each other or lack their partner."""
     if (args.descents is None) == (args.from_descent is None):
         raise InputError("give --descents N[,M,A-B] or --from N")
     if args.invalid and args.valid:
@@ -57,9 +78,12 @@ def cmd_annotate(args: argparse.Namespace) -> int:
         )
     if args.wind_ms and args.wind_from_deg is None:
         raise InputError("--wind-ms needs --wind-from-deg (the direction the wind comes from)")
+
+
+def _annotations(args: argparse.Namespace, targets: list[int], t: float) -> list[Annotation]:
+    """The records ``annotate`` appends: the metadata, then each descent's marks and model."""
+    values = Metadata.from_values({f.key: getattr(args, f.key) for f in METADATA_FIELDS})
     records: list[Annotation] = []
-    t = time.time()
-    targets = _numbers(args.descents) if args.descents is not None else []
     if values.values():
         if args.descents is not None:
             records.append(MetadataAnnotation(values, descents=tuple(targets), t=t))
@@ -76,21 +100,7 @@ def cmd_annotate(args: argparse.Namespace) -> int:
             records.append(ModelChange(n, FitModel(args.model), t))
     if not records:
         raise InputError("nothing to annotate: give metadata, --invalid, --valid or --model")
-    session.check_descents(targets)  # --from N may name descents still to come
-    try:
-        print(session.annotate(records), file=sys.stderr)
-    finally:
-        while session.warnings:  # what the replay passed over (a torn last record)
-            _warn(session.warnings.pop(0))
-    try:
-        store = session.config.store
-    except InputError:
-        store = None
-    if configured(store):  # console.add_after's test, without its imports
-        from station.cli.console import add_after
-
-        add_after(session.path, store)  # the season store's rows follow the annotation
-    return 0
+    return records
 
 
 def cmd_compare(args: argparse.Namespace) -> int:

@@ -102,9 +102,6 @@ def descents_figure(
 
     One image and a few collections, not an Axes per descent: 50 small panels with their own
     ticks and twin axes took ~55 ms per descent, most of the report's time."""
-    from matplotlib.collections import LineCollection
-    from matplotlib.colors import to_rgb
-
     pcs = sorted(pc_x, key=lambda p: pc_x[p])
     m = residual_matrix(descents, pcs)
     finite = np.abs(m[np.isfinite(m)])
@@ -121,8 +118,17 @@ def descents_figure(
     cbar = fig.add_axes((0.945, y_rows, 0.012, rows_in * h))
     sp = fig.add_axes((0.085, 0.5 * h, 0.7, speed_in * h))
 
-    cmap = residual_cmap()
-    im = heat.imshow(m if len(descents) else np.full((1, len(pcs)), np.nan), cmap=cmap,
+    _residual_heat(fig, heat, cbar, m, pcs, lim, empty=not descents)
+    _descent_strip(strip, descents, colours)
+    _rms_column(rms_ax, descents)
+    strip.set_ylim(len(descents) - 0.5 if descents else 0.5, -0.5)
+    _speed_lines(sp, descents, colours, [pc_x[p] for p in pcs])
+    return png(fig, tight=False)  # laid out by hand above: a tight box would draw it twice
+
+
+def _residual_heat(fig, heat, cbar, m: np.ndarray, pcs: list[str], lim: float, empty: bool):
+    """The residuals as colours, a row per descent and a column per photocell, and its bar."""
+    im = heat.imshow(m if not empty else np.full((1, len(pcs)), np.nan), cmap=residual_cmap(),
                      vmin=-lim, vmax=lim, aspect="auto", interpolation="nearest")  # fmt: skip
     heat.set_xticks(range(len(pcs)), pcs, fontsize=8)
     heat.xaxis.set_ticks_position("top")
@@ -130,6 +136,11 @@ def descents_figure(
     fig.colorbar(im, cax=cbar)
     cbar.tick_params(labelsize=7)
     cbar.set_ylabel("computed − measured [ms]", fontsize=8)
+
+
+def _descent_strip(strip, descents: Sequence[DescentView], colours: dict[str, str]) -> None:
+    """Each descent's item colour (grey: invalid or not ok), numbered down the side."""
+    from matplotlib.colors import to_rgb
 
     rgb = np.array([[to_rgb(colours.get(d.item, GREY) if d.good else GREY)]
                     for d in descents] or [[to_rgb(GREY)]])  # fmt: skip
@@ -140,6 +151,9 @@ def descents_figure(
     strip.set_xticks([])
     strip.set_ylabel("descent", fontsize=8)
 
+
+def _rms_column(rms_ax, descents: Sequence[DescentView]) -> None:
+    """Each descent's RMS residual, beside its row."""
     y = np.arange(len(descents))
     r = np.array([np.nan if d.rms_ms is None else d.rms_ms for d in descents], dtype=float)
     rms_ax.plot(r, y, "o-", color="#555555", ms=3, linewidth=0.8)
@@ -149,7 +163,11 @@ def descents_figure(
     rms_ax.xaxis.set_ticks_position("top")
     rms_ax.set_title("RMS [ms]", fontsize=8, loc="left")
     style(rms_ax)
-    strip.set_ylim(len(descents) - 0.5 if descents else 0.5, -0.5)
+
+
+def _speed_lines(sp, descents: Sequence[DescentView], colours: dict[str, str], xs: list[float]):
+    """Every descent's fitted speed along the run, in its item's colour."""
+    from matplotlib.collections import LineCollection
 
     lines, lcols = [], []
     vmax = 1.0
@@ -160,7 +178,6 @@ def descents_figure(
         lcols.append(colours.get(d.item, GREY) if d.good else GREY)
         vmax = max(vmax, float(np.max(d.speed_v)))
     sp.add_collection(LineCollection(lines, colors=lcols, linewidths=1.0, alpha=0.8))
-    xs = [pc_x[p] for p in pcs]
     if xs:
         span = max(xs[-1] - xs[0], 1.0)
         sp.set_xlim(xs[0] - 0.02 * span, xs[-1] + 0.02 * span)
@@ -169,7 +186,6 @@ def descents_figure(
     sp.set_ylabel("fitted speed [m/s]", fontsize=9)
     sp.tick_params(labelsize=8)
     style(sp)
-    return png(fig, tight=False)  # laid out by hand above: a tight box would draw it twice
 
 
 def residual_cmap():
@@ -227,6 +243,38 @@ def time_of_day_axes(descents: Sequence[DescentView], colours: dict[str, str],
     fig = figure(5.6, layout=None)
     fig.subplots_adjust(left=0.085, right=0.985, top=0.93, bottom=0.1, hspace=0.22)
     am, ac = fig.subplots(2, 1, sharex=True)
+    hours_all = _descent_points(am, ac, descents, colours)
+    t_ref = drift_reference_hours(compared)
+    if comparison is not None and hours_all:
+        _joint_fit_lines(am, ac, comparison, colours, hours_all, t_ref)
+    for it, colour in colours.items():
+        am.plot([], [], "o", color=colour, label=plain(it))
+    am.plot([], [], "o", color=GREY, mfc="white", label="invalid or not ok")
+    if comparison is not None:
+        label = "joint fit μ per item"
+        if comparison.drift_per_hour and t_ref is not None:
+            label += f" with the drift (μ at t̄ = {hhmm(t_ref)})"
+        am.plot([], [], "--", color="#555555", label=label)
+        ac.plot([], [], "--", color="#333333", label="joint fit CdA (band: 90 % interval)")
+        ac.legend(loc="lower left", bbox_to_anchor=(0, 1.0), frameon=False, fontsize=8)
+    am.legend(loc="lower left", bbox_to_anchor=(0, 1.0), frameon=False, fontsize=8, ncol=4)
+    am.set_ylabel("μ (90 % interval)")
+    ac.set_ylabel("CdA [m²] (90 % interval)")
+    ac.set_xlabel("start time (timer's time of day, hh:mm)")
+    if hours_all:
+        t0, t1 = min(hours_all), max(hours_all)
+        pad = max((t1 - t0) * 0.04, 1 / 60)
+        ac.set_xlim(t0 - pad, t1 + pad)
+        ac.set_xticks(minute_ticks(t0 - pad, t1 + pad))
+        ac.xaxis.set_major_formatter(hhmm_formatter())
+    for a in (am, ac):
+        style(a)
+    return fig
+
+
+def _descent_points(am, ac, descents: Sequence[DescentView], colours: dict[str, str]):
+    """Each descent's μ (top) and CdA (bottom) with its interval, one errorbar per item and
+    kind of point; returns the start times drawn."""
     hours_all: list[float] = []
     groups: dict[tuple[str, bool], list[DescentView]] = {}
     for d in descents:
@@ -252,48 +300,28 @@ def time_of_day_axes(descents: Sequence[DescentView], colours: dict[str, str],
             am.annotate(str(d.number), (d.start_hours, d.mu.value),
                         textcoords="offset points", xytext=(5, 3), fontsize=7,
                         color="#555555")  # fmt: skip
-    t_ref = drift_reference_hours(compared)
-    if comparison is not None and hours_all:
-        t0, t1 = min(hours_all), max(hours_all)
-        pad = max((t1 - t0) * 0.03, 1 / 60)
-        hx = np.array([t0 - pad, t1 + pad])
-        drift = comparison.drift_per_hour[0] if comparison.drift_per_hour else 0.0
-        ref = t_ref if t_ref is not None else 0.0
-        for it in comparison.items:
-            am.plot(hx, it.mu + drift * (hx - ref), "--", color=colours.get(it.item, GREY),
-                    linewidth=1.0)  # fmt: skip
-        if comparison.drift_per_hour and t_ref is not None:
-            am.axvline(t_ref, color="#999999", linestyle=":", linewidth=1.0)
-            am.annotate(f"t̄ {hhmm(t_ref)}", (t_ref, 1.0), xycoords=("data", "axes fraction"),
-                        xytext=(3, -10), textcoords="offset points", fontsize=7,
-                        color="#555555")  # fmt: skip
-        for cda in comparison.cda.values():
-            ac.axhline(cda.value, color="#333333", linestyle="--", linewidth=1.0)
-            if cda.ci90 is not None:
-                ac.axhspan(cda.ci90[0], cda.ci90[1], color="#333333", alpha=0.08)
-    for it, colour in colours.items():
-        am.plot([], [], "o", color=colour, label=plain(it))
-    am.plot([], [], "o", color=GREY, mfc="white", label="invalid or not ok")
-    if comparison is not None:
-        label = "joint fit μ per item"
-        if comparison.drift_per_hour and t_ref is not None:
-            label += f" with the drift (μ at t̄ = {hhmm(t_ref)})"
-        am.plot([], [], "--", color="#555555", label=label)
-        ac.plot([], [], "--", color="#333333", label="joint fit CdA (band: 90 % interval)")
-        ac.legend(loc="lower left", bbox_to_anchor=(0, 1.0), frameon=False, fontsize=8)
-    am.legend(loc="lower left", bbox_to_anchor=(0, 1.0), frameon=False, fontsize=8, ncol=4)
-    am.set_ylabel("μ (90 % interval)")
-    ac.set_ylabel("CdA [m²] (90 % interval)")
-    ac.set_xlabel("start time (timer's time of day, hh:mm)")
-    if hours_all:
-        t0, t1 = min(hours_all), max(hours_all)
-        pad = max((t1 - t0) * 0.04, 1 / 60)
-        ac.set_xlim(t0 - pad, t1 + pad)
-        ac.set_xticks(minute_ticks(t0 - pad, t1 + pad))
-        ac.xaxis.set_major_formatter(hhmm_formatter())
-    for a in (am, ac):
-        style(a)
-    return fig
+    return hours_all
+
+
+def _joint_fit_lines(am, ac, comparison, colours, hours_all: list[float], t_ref) -> None:
+    """The joint fit's μ per item (with the drift) and CdA per skier across the day."""
+    t0, t1 = min(hours_all), max(hours_all)
+    pad = max((t1 - t0) * 0.03, 1 / 60)
+    hx = np.array([t0 - pad, t1 + pad])
+    drift = comparison.drift_per_hour[0] if comparison.drift_per_hour else 0.0
+    ref = t_ref if t_ref is not None else 0.0
+    for it in comparison.items:
+        am.plot(hx, it.mu + drift * (hx - ref), "--", color=colours.get(it.item, GREY),
+                linewidth=1.0)  # fmt: skip
+    if comparison.drift_per_hour and t_ref is not None:
+        am.axvline(t_ref, color="#999999", linestyle=":", linewidth=1.0)
+        am.annotate(f"t̄ {hhmm(t_ref)}", (t_ref, 1.0), xycoords=("data", "axes fraction"),
+                    xytext=(3, -10), textcoords="offset points", fontsize=7,
+                    color="#555555")  # fmt: skip
+    for cda in comparison.cda.values():
+        ac.axhline(cda.value, color="#333333", linestyle="--", linewidth=1.0)
+        if cda.ci90 is not None:
+            ac.axhspan(cda.ci90[0], cda.ci90[1], color="#333333", alpha=0.08)
 
 
 def hhmm_formatter():

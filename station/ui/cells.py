@@ -122,18 +122,22 @@ def cell(res: DescentResult, col: Column) -> str:
         return fixed_width(row.v0, 2, w)
     if key == "rms":
         return fixed_width(row.rms_residual_ms, 2, w)
-    velocity = row.model == FitModel.VELOCITY
     if key == "status":
-        if w < 10:  # narrow: short status, v for the velocity model, ! when there are flags
-            short = "INV" if row.invalid else SHORT_STATUS.get(row.status.value, "?")
-            marks = ("v" if velocity else "") + ("!" if row.flags else "")
-            return f"{short} {marks}".strip()
-        status = "INVALID" if row.invalid else row.status.value
-        return status + (" (v)" if velocity else "")
+        return _status_cell(row, w)
     if key == "flags":
         invalid = [f"invalid: {row.invalid_reason}"] if row.invalid else []
         return "; ".join([*invalid, *row.flags])
     raise KeyError(key)
+
+
+def _status_cell(row: ResultRow, w: int) -> str:
+    velocity = row.model == FitModel.VELOCITY
+    if w < 10:  # narrow: short status, v for the velocity model, ! when there are flags
+        short = "INV" if row.invalid else SHORT_STATUS.get(row.status.value, "?")
+        marks = ("v" if velocity else "") + ("!" if row.flags else "")
+        return f"{short} {marks}".strip()
+    status = "INVALID" if row.invalid else row.status.value
+    return status + (" (v)" if velocity else "")
 
 
 def conditions(row: ResultRow) -> str:
