@@ -39,6 +39,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import station.model.compare as compare  # noqa: E402
+import station.model.compare_reml as reml  # noqa: E402
 from benchmarks.plan_power import track  # noqa: E402
 from simulators.days import DaySetup, simulate_day  # noqa: E402
 from station.model.sequential import standard_error  # noqa: E402
@@ -55,13 +56,13 @@ class _Held:
 
 def _estimate(data: list, held: float | None) -> tuple[float, float, float]:
     """(Δμ̂ = μ_A − μ_B, its standard error, dof), the scatter estimated or held at log γ."""
-    search = compare.minimize_scalar
+    search = reml.minimize_scalar
     if held is not None:
-        compare.minimize_scalar = lambda *a, **k: _Held(held)  # type: ignore[assignment]
+        reml.minimize_scalar = lambda *a, **k: _Held(held)  # type: ignore[assignment]
     try:
         c = compare.joint_fit(track("demo"), data).comparisons[0]
     finally:
-        compare.minimize_scalar = search
+        reml.minimize_scalar = search
     assert c.ci90 is not None and c.dof is not None
     sign = 1.0 if c.a == "A" else -1.0
     return sign * c.delta_mu, standard_error(c.ci90, c.dof), c.dof

@@ -11,7 +11,7 @@ drift 0.005 per hour) fitted by the real joint fit after ``--descents`` descents
   relative to the first crossing, a free offset per descent), the scale of the posture effect
   (CdA·exp(u), u ~ N(0, s²)), the Hessian (Schur complement of the penalised normal equations)
   and the convergence are right;
-- *as reported*: Δμ̂ (the mixture's centre, :class:`station.model.compare._Inference`) over
+- *as reported*: Δμ̂ (the mixture's centre, :class:`station.model.compare_inference.Inference`) over
   se = √(c'·cov·c) of the mixture over γ's posterior; and the solution at γ̂, which was
   reported before;
 - the parts, over the variance at the true γ day by day: E se² = the mean of the components'
@@ -48,9 +48,11 @@ from scipy.special import stdtrit
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-import station.model.compare as compare  # noqa: E402
+import station.model.compare_reml as reml  # noqa: E402
 from benchmarks.plan_power import track  # noqa: E402
 from simulators.days import DaySetup, simulate_day  # noqa: E402
+from station.model.compare_inference import Inference  # noqa: E402
+from station.model.compare_layout import DayModel, Layout  # noqa: E402
 
 
 class _Held:
@@ -67,21 +69,21 @@ def one_day(job: tuple[float, int, int]) -> list[float]:
     setup = DaySetup(scatter=scatter)
     data = simulate_day(track("demo"), ("ABBA" * 10)[:k], {"A": 0.0085, "B": 0.0085}, setup,
                         np.random.default_rng(seed))  # fmt: skip
-    lay = compare._Layout.of(data, None, "constant", "auto", None)
-    day = compare._DayModel(track("demo"), data, lay, None)
-    sol = compare._solve(day)
-    inf = compare._Inference(sol, lay.dof)
+    lay = Layout.of(data, None, "constant", "auto", None)
+    day = DayModel(track("demo"), data, lay, None)
+    sol = reml.solve(day)
+    inf = Inference(sol, lay.dof)
     c = np.zeros(lay.n_glob)
     c[lay.mu_index("A")], c[lay.mu_index("B")] = 1.0, -1.0
     # the same fit with γ held at the truth (the REML search replaced by it)
-    search = compare.minimize_scalar
-    compare.minimize_scalar = lambda *a, **kw: _Held(math.log((scatter / setup.timer_sd_s) ** 2))
+    search = reml.minimize_scalar
+    reml.minimize_scalar = lambda *a, **kw: _Held(math.log((scatter / setup.timer_sd_s) ** 2))
     try:
-        held = compare._solve(day)
+        held = reml.solve(day)
     finally:
-        compare.minimize_scalar = search
+        reml.minimize_scalar = search
     cs = c * held.cs
-    st = compare._linear_step(held.pc, math.exp(-held.lg))
+    st = reml.linear_step(held.pc, math.exp(-held.lg))
     d_true = float(c @ held.glob)
     se_known = setup.timer_sd_s * math.sqrt(float(cs @ st.s_inv @ cs))
     m, s = inf.parts(c)

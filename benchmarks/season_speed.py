@@ -87,7 +87,7 @@ def timed_compare(target: str) -> tuple[float, int]:
     store = open_store(target)
     try:
         t = time.perf_counter()
-        res, _days, _c = season_comparison(args, store)
+        res = season_comparison(args, store).result
         args.at = ["snow_temperature_c=-8"]
         season_comparison(args, store)
         dt_s = (time.perf_counter() - t) / 2

@@ -1,4 +1,4 @@
-"""Does `station compare`'s per-pair "drift separable" judgement (station/model/compare.py:
+"""Does `station compare`'s per-pair "drift separable" judgement (station/model/compare_result.py:
 the pair's items overlap in time and its Δμ correlates with the drift at most 0.9) mark the run
 orders whose A–B interval is honest, and "not separable" those where it is not, or where it is
 so wide that it decides nothing?
@@ -82,7 +82,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-import station.model.compare as compare_mod  # noqa: E402
+import station.model.compare_result as compare_mod  # noqa: E402
 from benchmarks.plan_power import MU_A, track  # noqa: E402
 from simulators.days import DaySetup, simulate_day  # noqa: E402
 from station.model.compare import joint_fit  # noqa: E402
@@ -118,7 +118,7 @@ compare_mod._drift = _drift_seen
 
 
 def corr_ab() -> float:
-    """|corr(Δμ_AB, drift)| of the last fit, as compare.py computes it (nan: no drift)."""
+    """|corr(Δμ_AB, drift)| of the last fit, as compare_result.py computes it (nan: no drift)."""
     lay, inf = _seen
     if not lay.use_drift:
         return float("nan")

@@ -95,3 +95,11 @@ def make_session(
 
 def read_json_lines(path: Path) -> list[dict]:
     return [json.loads(x) for x in path.read_text().splitlines() if x.strip()]
+
+
+def live_comparison_text(track, results) -> str:
+    """The comparison's text as the UI's panel shows it: the live comparison, rendered."""
+    from station.report.comparison_text import comparison_view
+    from station.session.comparison import compare_results
+
+    return comparison_view(compare_results(track, results, at_least=2))

@@ -10,15 +10,11 @@ import pytest
 from reference_dae import simulate_dae
 
 from station.model.batch import Rows, solve_rows
-from station.model.compare import (
-    DescentData,
-    _linear_step,
-    _Pieces,
-    format_comparison,
-    joint_fit,
-)
+from station.model.compare import DescentData, joint_fit
+from station.model.compare_reml import Pieces, linear_step
 from station.model.fit import fit_descent
 from station.model.physics import Conditions, Params, StraightRun
+from station.report.comparison_text import format_comparison
 from station.session.day import along_track_wind
 from tests.timing_helpers import record_with_sim
 
@@ -301,12 +297,12 @@ def test_the_block_elimination_is_the_dense_least_squares_solution():
     b = rng.normal(size=(d, n, 3))
     r = rng.normal(size=(d, n))
     u = rng.normal(size=d)
-    pc = _Pieces(
+    pc = Pieces(
         bb=np.einsum("dni,dnj->dij", b, b), ab=np.einsum("dng,dni->dgi", a, b),
         aa=np.einsum("dng,dnh->gh", a, a), br=np.einsum("dni,dn->di", b, r),
         ar=np.einsum("dng,dn->g", a, r), a=a, b=b, r=r, u=u,
     )  # fmt: skip
-    st = _linear_step(pc, wu)
+    st = linear_step(pc, wu)
     # dense: rows of times, then one penalty row per descent on its u
     big = np.zeros((d * n + d, g + 3 * d))
     rhs = np.zeros(d * n + d)

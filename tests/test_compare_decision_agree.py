@@ -89,7 +89,8 @@ def test_a_poor_joint_fit_is_not_decided_anywhere(run_station, tmp_path):
 
 
 def test_decide_obeys_a_caveat_whatever_the_interval():
-    from station.model.sequential import decide, describe
+    from station.model.sequential import decide
+    from station.report.comparison_text import decision_words as describe
 
     run = "ABBAABBA"
     assert decide("A", "B", -0.001, 1e-5, 50.0, run).state == "decided"
@@ -103,7 +104,7 @@ def test_decide_obeys_a_caveat_whatever_the_interval():
     [(0.9999, "p > 0.99"), (0.996, "p > 0.99"), (0.36, "p = 0.36"), (1e-9, "p < 0.001")],
 )
 def test_chi2_p_never_reads_as_one(p, words):
-    from station.model.compare import chi2_p_words
+    from station.report.comparison_text import chi2_p_words
 
     assert chi2_p_words(p) == words
 

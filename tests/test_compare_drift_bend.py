@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from station.model.compare import DescentData, drift_bend, joint_fit
+from station.model.compare import DescentData, joint_fit
+from station.model.compare_drift import drift_bend
 from station.model.fit import fit_descent
 from station.model.physics import Conditions, Params, StraightRun
 

@@ -58,25 +58,25 @@ async def test_the_comparison_runs_in_a_process_of_its_own_and_survives_its_deat
     starts a new one with the whole day."""
     import os
 
-    from station.session.acquisition import comparison_text
+    from tests.session_helpers import live_comparison_text
 
     session = make_session(tmp_path, order="ABBAABBA")
     app = session_replay_app(session)
     async with app.run_test(size=(120, 40)) as pilot:
         await wait_for_replay(pilot, app)  # the whole day's comparison, shown or not
-        proc = app.comparer._proc
+        proc = app.acq.comparer._proc
         assert proc is not None and proc.pid != os.getpid() and proc.poll() is None
         whole_day = app.comparison_text
         proc.kill()
         proc.wait()
         app.comparison_text = ""
-        app.comparer.update(app.results[1])  # a change: compared again (the replay ended)
+        app.acq.comparer.update(app.results[1])  # a change: compared again (the replay ended)
         await wait_for(pilot, lambda: "comparison failed" in app.problem)
-        app.comparer.update(app.results[2])
+        app.acq.comparer.update(app.results[2])
         await wait_for(pilot, lambda: app.comparison_text == whole_day)
-        assert app.comparer._proc is not None and app.comparer._proc.pid != proc.pid
-        assert whole_day == comparison_text(app.acq.track, app.acq.results())
-    assert app.comparer._proc is None  # quitting ended it
+        assert app.acq.comparer._proc is not None and app.acq.comparer._proc.pid != proc.pid
+        assert whole_day == live_comparison_text(app.acq.track, app.acq.results())
+    assert app.acq.comparer._proc is None  # quitting ended it
     assert proc.poll() is not None
 
 

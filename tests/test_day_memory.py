@@ -5,14 +5,15 @@ while it is shown, so a descent's fit never waits for the day's joint fit."""
 
 from __future__ import annotations
 
+import sys
 import threading
 import time
 
 import numpy as np
 import pytest
 
-import station.session.acquisition as acquisition
 from station.session.acquisition import Acquisition, Listener
+from station.session.comparing import Comparer
 from station.session.config import load_config
 from tests.test_acquisition import descent_lines, feed_like_a_reader
 from tests.timing_helpers import write_config
@@ -21,15 +22,15 @@ from tests.timing_helpers import write_config
 class Seen(Listener):
     def __init__(self) -> None:
         self.results: list = []
-        self.comparisons: list[str] = []
+        self.comparisons: list = []  # DayComparison
         self.fitted = threading.Semaphore(0)
 
     def result(self, result) -> None:
         self.results.append(result)
         self.fitted.release()
 
-    def comparison(self, text: str) -> None:
-        self.comparisons.append(text)
+    def comparison(self, day) -> None:
+        self.comparisons.append(day)
 
 
 def wait_fitted(seen: Seen, n: int) -> None:
@@ -61,60 +62,65 @@ def test_a_recording_keeps_no_speed_curve_and_no_impulse_fates(tmp_path, demo_tr
     assert len(replayed.day.processor.events) == 27
 
 
-def test_the_comparison_is_computed_only_while_shown(tmp_path, demo_track, monkeypatch):
-    monkeypatch.setattr(acquisition, "COMPARE_QUIET_S", 0.05)
+def test_the_comparison_is_computed_only_while_shown(tmp_path, demo_track):
     cfg = load_config(str(write_config(tmp_path, "loop://")))
     seen = Seen()
     acq = Acquisition.open(cfg, seen, compare=True)
     try:
         feed_like_a_reader(acq, descent_lines(demo_track, [36000, 36060, 36120]))
         wait_fitted(seen, 3)
-        time.sleep(0.5)
+        time.sleep(0.8)
         assert seen.comparisons == []  # not shown: not computed
         acq.show_comparison(True)
         deadline = time.monotonic() + 30
         while not seen.comparisons:
             assert time.monotonic() < deadline, "no comparison while shown"
             time.sleep(0.05)
-        assert "joint fit" in seen.comparisons[-1]
+        assert seen.comparisons[-1].result is not None  # the joint fit
         acq.show_comparison(False)
         n = len(seen.comparisons)
         feed_like_a_reader(acq, descent_lines(demo_track, [36180]))
         wait_fitted(seen, 1)
-        time.sleep(0.5)
+        time.sleep(0.8)
         assert len(seen.comparisons) == n  # closed again: the new descent is not compared
     finally:
         acq.close()
 
 
+#: the comparison's process, 3 s slower per comparison (the day's joint fit at 2000 descents)
+SLOW_COMPARER = (
+    sys.executable, "-c",
+    "import time, station.session.comparing as c\n"
+    "fit = c.live_comparison\n"
+    "def slow(*args):\n    time.sleep(3.0)\n    return fit(*args)\n"
+    "c.live_comparison = slow\n"
+    "c.main()\n",
+)  # fmt: skip
+
+
 def test_a_fit_never_waits_for_the_comparison(tmp_path, demo_track, monkeypatch):
-    """The day's joint fit takes seconds at 2000 descents: here it takes 3 s, and a descent
-    ending while it runs is fitted and handed out meanwhile."""
-    monkeypatch.setattr(acquisition, "COMPARE_QUIET_S", 0.05)
-    started, release = threading.Event(), threading.Event()
-
-    def slow_comparison(track, results) -> str:
-        started.set()
-        release.wait(3.0)
-        return "joint fit (slow)"
-
-    monkeypatch.setattr(acquisition, "comparison_text", slow_comparison)
+    """The day's joint fit takes seconds at 2000 descents: here it takes 3 s more, and a
+    descent ending while it runs is fitted and handed out meanwhile."""
+    monkeypatch.setattr(Comparer, "command", SLOW_COMPARER)
     cfg = load_config(str(write_config(tmp_path, "loop://")))
     seen = Seen()
     acq = Acquisition.open(cfg, seen, compare=True)
+    assert acq.comparer is not None
     try:
         acq.show_comparison(True)
         lines = descent_lines(demo_track, [36000, 36060])
         feed_like_a_reader(acq, lines[:1])
         wait_fitted(seen, 1)
-        assert started.wait(30)  # the comparison is running
+        deadline = time.monotonic() + 30
+        while not acq.comparer.busy:  # the comparison is running
+            assert time.monotonic() < deadline, "the comparison did not start"
+            time.sleep(0.01)
         t0 = time.monotonic()
         feed_like_a_reader(acq, lines[1:])
         wait_fitted(seen, 1)
-        assert time.monotonic() - t0 < 2.5 and not release.is_set()
+        assert time.monotonic() - t0 < 2.5
         assert seen.comparisons == []  # the comparison was still under way
     finally:
-        release.set()
         acq.close()
 
 

@@ -218,3 +218,54 @@ def test_sigterm_mid_descent_ends_it_as_the_end_of_a_capture_and_replays_the_sam
     r = run_station("replay", session, "--csv", replayed)
     assert r.returncode == 0, r.stderr
     assert replayed.read_bytes() == (session / "results.csv").read_bytes()
+
+
+def _descents_in(results_csv) -> int:
+    """Descents the results CSV has so far (0 before it is written)."""
+    try:
+        lines = results_csv.read_text().splitlines()
+    except FileNotFoundError:
+        return 0
+    return max(0, len([line for line in lines if line and not line.startswith("#")]) - 1)
+
+
+@pytest.mark.slow  # a simulated timer on a pty, in real time
+def test_record_says_decided_or_not_as_the_day_goes(tmp_path, run_station):
+    """`station record`'s console prints whether the day is decided after a descent when it
+    changed, through record() itself: two pairs skied ABBAABBA on a real pty, each descent's
+    ski entered with `station annotate` while the recording goes on (before it starts)."""
+    order = "ABBAABBA"
+    sim, port, _truth = start_sim(
+        tmp_path, "--speed", "5", "--first-after", "4", "--hold", "1", "--descents", "8",
+        "--skis", "0.0085,0.0100", "--order", order, "--noise-ms", "0.3", "--seed", "3",
+    )  # fmt: skip
+    cfg = write_config(tmp_path, port, extra="wax: blue\n")
+    session = tmp_path / "s"
+    rec = subprocess.Popen(
+        [*station_cmd(), "record", "--config", str(cfg), "--session-dir", str(session),
+         "--max-descents", "8"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        deadline = time.monotonic() + 30
+        while not (session / "raw.jsonl").exists():
+            assert time.monotonic() < deadline and rec.poll() is None, "no session made"
+            time.sleep(0.05)
+        entered = 0  # descents whose ski is entered: the next one's before it starts
+        while entered < len(order) and rec.poll() is None:
+            n = _descents_in(session / "results.csv")
+            if n >= entered:
+                a = run_station("annotate", session, "--from", str(n + 1), "--ski", order[n])
+                assert a.returncode == 0, a.stderr
+                entered = n + 1
+            time.sleep(0.1)
+        out, err = rec.communicate(timeout=120)
+    finally:
+        if rec.poll() is None:
+            rec.kill()
+        sim.wait(timeout=30)
+    assert rec.returncode == 0, err
+    assert "decided or not after descent 4, with a look after every descent" in out
+    assert "decided or not after descent 8, with a look after every descent" in out
+    last = out[out.rindex("decided or not after descent 8") :].splitlines()
+    assert last[1].startswith("  A / blue vs B / blue: decided: A / blue faster by Δμ"), out

@@ -122,7 +122,8 @@ def test_aborted_and_unfitted_descents_have_their_panel(tmp_path, demo_track):
     import dataclasses
 
     from station.model.estimate import MISSING
-    from station.report.day_report import DayData, build_day_report, descent_views
+    from station.report.day_data import DayData, descent_views
+    from station.report.day_report import build_day_report
     from station.session import store
     from station.session.acquisition import replay
 
@@ -202,7 +203,7 @@ def test_an_item_with_one_valid_descent_is_not_comparable(tmp_path, run_station)
 
 
 def test_time_of_day_ticks_fall_on_whole_minutes():
-    from station.report.day_report import MAX_TICKS, minute_ticks
+    from station.report.day_figures import MAX_TICKS, minute_ticks
 
     rng = np.random.default_rng(3)
     for _ in range(500):
@@ -219,7 +220,8 @@ def test_time_of_day_ticks_fall_on_whole_minutes():
 
 def test_the_time_axis_labels_every_tick_on_a_whole_minute(tmp_path):
     """The picture itself: its ticks are the minute ticks, every one labelled hh:mm."""
-    from station.report.day_report import descent_views, item_colours, time_of_day_axes
+    from station.report.day_data import descent_views
+    from station.report.day_figures import item_colours, time_of_day_axes
     from station.session import store
     from station.session.acquisition import replay
 
@@ -251,10 +253,10 @@ def test_names_drawn_in_pictures_are_never_read_as_math():
     with a bad formula between dollars would end the report in a parse error."""
     from matplotlib.text import Text
 
-    from station.report.day_report import _plain
+    from station.report.day_figures import plain
 
     for name in ("wax $x_1$", "pair $\\frac$ b", "$5 and $10"):
-        shown, is_math = Text(text=_plain(name))._preprocess_math(_plain(name))
+        shown, is_math = Text(text=plain(name))._preprocess_math(plain(name))
         assert not is_math and shown == name, (name, shown)
 
 

@@ -13,12 +13,12 @@ from station.model.sequential import (
     Decision,
     boundaries,
     decide,
-    describe,
     information,
     look_boundaries,
     look_fractions,
     pair_counts,
 )
+from station.report.comparison_text import decision_words as describe
 
 
 def test_the_boundaries_are_the_published_obrien_fleming_type_ones():
@@ -228,25 +228,34 @@ def test_watched_days_declare_equal_skis_rarely_and_never_the_wrong_one(
 
 
 def test_the_comparison_panel_and_the_record_console_say_decided_or_not(session):
-    """The UI's comparison panel shows comparison_text; `station record`'s console
-    (PrintListener) prints its decision block, once for each change."""
+    """The UI's comparison panel renders the day's comparison with its decisions; `station
+    record`'s console (PrintListener) prints the decision block, once for each change."""
     from station.cli.console import PrintListener
-    from station.session.acquisition import comparison_text
+    from station.report.comparison_text import comparison_view, headline
+    from station.session.comparison import compare_results
     from station.session.recorded import RecordedSession
 
     acq = RecordedSession(str(session))
     acq.run()
-    text = comparison_text(acq.track, acq.results())
-    assert "\ndecided or not after descent 12, with a look after every descent" in text
-    assert "\n  pair A / blue vs pair B / blue: decided: pair A / blue faster by Δμ 0.000" in text
+    day = compare_results(acq.track, acq.results(), at_least=2)
+    text = comparison_view(day)
+    # the decisions first, each pair's decision on a line of its own (no phrase broken at 80)
+    assert text.startswith("decided or not after descent 12,\nwith a look after every descent")
+    assert (
+        "\n  pair A / blue vs pair B / blue:\n      decided: pair A / blue faster by Δμ 0.000"
+        in (text)
+    )
+    assert headline(day).startswith("decided: pair A / blue faster by Δμ 0.000")
+    assert headline(day).endswith(" · pair A / blue vs pair B / blue")
     said: list[str] = []
     console = PrintListener(said.append)
-    console.comparison(text)
-    console.comparison(text)  # unchanged: not said again
+    console.comparison(day)
+    console.comparison(day)  # unchanged: not said again
     assert len(said) == 1 and said[0].startswith("decided or not after descent 12")
     assert said[0].splitlines()[1].startswith("  pair A / blue vs pair B / blue: decided: ")
-    early = comparison_text(acq.track, acq.results()[:3])
-    assert "not yet: a comparison needs two descents of each item" in early
+    early = compare_results(acq.track, acq.results()[:3], at_least=2)
+    assert "not yet: a comparison needs two descents of each item" in comparison_view(early)
+    assert "not yet: a comparison needs two descents of each item · " in headline(early)
     console.comparison(early)
     assert len(said) == 2
 
@@ -280,9 +289,12 @@ def test_the_ui_comparison_panel_says_whether_the_day_is_decided(tmp_path):
             await wait_for_replay(pilot, app)
             await wait_for(pilot, lambda: "after descent 8" in app.comparison_text)
             assert "decided or not after descent 8" in app.comparison_text
-            assert "pair A / blue vs pair B / blue: decided: pair A / blue faster" in (
+            assert "pair A / blue vs pair B / blue:\n      decided: pair A / blue faster" in (
                 app.comparison_text
             )
+            # the answer on the main screen, always in sight
+            answer = str(app.main.query_one("#answer").render())
+            assert answer.startswith("decided: pair A / blue faster by Δμ 0.000")
             await pilot.press("c")
             await wait_for_screen(pilot, app, ComparisonScreen)
 

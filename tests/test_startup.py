@@ -93,8 +93,9 @@ def test_the_fit_runs_on_one_blas_thread_unless_the_user_chose_another_number():
 FIT_MODULES = {
     "station", "station.errors", "station.files", "station.limits", "station.numbers",
     "station.yamlfile",
-    "station.cli", "station.cli.main", "station.cli.common", "station.cli.survey",
+    "station.cli", "station.cli.main", "station.cli.common", "station.cli.fit",
     "station.model", "station.model.air", "station.model.estimate", "station.model.fit",
+    "station.model.fit_result", "station.model.fit_search",
     "station.model.physics", "station.model.timer", "station.model.track_error",
     "station.survey", "station.survey.formats", "station.survey.gsi", "station.survey.load",
     "station.survey.network", "station.survey.polar",
@@ -211,9 +212,9 @@ def test_the_fit_runs_without_the_garbage_collector_and_gives_it_back():
     from station.cli.main import main
 
     seen = []
-    import station.cli.survey as survey_cli
+    import station.cli.fit as fit_cli
 
-    real = survey_cli.cmd_fit
+    real = fit_cli.cmd_fit
 
     def spy(args):
         seen.append(gc.isenabled())
@@ -221,7 +222,7 @@ def test_the_fit_runs_without_the_garbage_collector_and_gives_it_back():
 
     assert gc.isenabled()
     try:
-        survey_cli.cmd_fit = spy
+        fit_cli.cmd_fit = spy
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
             assert main(FIT) == 0
             with pytest.raises(SystemExit):  # a usage error: argparse exits
@@ -229,5 +230,5 @@ def test_the_fit_runs_without_the_garbage_collector_and_gives_it_back():
             assert gc.isenabled()
             assert main([*FIT[:2], "no-such-survey.yaml", *FIT[3:]]) == 2
     finally:
-        survey_cli.cmd_fit = real
+        fit_cli.cmd_fit = real
     assert seen == [False, False] and gc.isenabled()

@@ -54,10 +54,10 @@ async def wait_for_replay(pilot, app) -> None:
     """Until the replay has finished and the UI shows the comparison of the whole day. The fit
     worker compares again whenever its queue runs empty: a comparison of part of the day can
     come before "replay finished", and the whole day's after it."""
-    from station.session.acquisition import comparison_text
+    from tests.session_helpers import live_comparison_text
 
     await wait_for(pilot, lambda: "replay finished" in app.connection)
-    whole_day = comparison_text(app.acq.track, app.acq.results())
+    whole_day = live_comparison_text(app.acq.track, app.acq.results())
     await wait_for(pilot, lambda: app.comparison_text == whole_day)
 
 

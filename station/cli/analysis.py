@@ -4,13 +4,11 @@ and which ski or wax glides better, by how much, and how sure."""
 from __future__ import annotations
 
 import argparse
-import csv
 import os
 import sys
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from station import __version__
 from station.cli.common import (
     _celsius,
     _nonnegative,
@@ -38,9 +36,6 @@ from station.session.records import (
     ModelChange,
     ValidMark,
 )
-
-if TYPE_CHECKING:
-    from station.model.compare import JointResult
 
 
 def cmd_annotate(args: argparse.Namespace) -> int:
@@ -100,67 +95,32 @@ def cmd_annotate(args: argparse.Namespace) -> int:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from station.cli.console import replayed  # here: see cmd_annotate
-    from station.model.compare import format_comparison
-    from station.model.sequential import day_decisions, decision_block
+    from station.report.comparison_text import compare_text, comparison_json, write_ranking_csv
     from station.session.comparison import compare_results
     from station.session.recorded import RecordedSession
 
     session = RecordedSession(args.session)
     output_path(args.csv, "--csv")
-    results = replayed(session).results()
-    if args.upto is not None:  # the day as it stood after descent K
-        results = tuple(r for r in results if r.row.descent <= args.upto)
+    results = replayed(session).results_upto(args.upto)  # the day as after descent K
     reference = reference_item(args.reference, results, args.wind_limit)
     day = compare_results(
         session.track, results, wind_limit_ms=args.wind_limit, reference=reference,
         cda_fixed=args.cda, model=args.model, drift=args.drift,
         timer_sd_s=None if args.timer_ms is None else args.timer_ms / 1000.0,
+        horizon=args.horizon, margin=args.margin,
     )  # fmt: skip
     if day.result is None:
         raise InputError(day.error, path=args.session)
-    res = day.result
-    run_items = [d.item for d in day.compared]
-    decisions = day_decisions(res.comparisons, run_items, horizon=args.horizon,
-                              margin=args.margin)  # fmt: skip
     if args.csv:
-        _write_compare_csv(res, args.csv)
+        with open_output(args.csv, "--csv") as fh:
+            write_ranking_csv(day, fh)
     if args.json:
-        out = res.to_dict()
-        for c, d in zip(out["comparisons"], decisions, strict=True):
-            c["decision"] = d.to_dict()
-        _print_json(out)
+        _print_json(comparison_json(day))
         return 0
-    print(format_comparison(res, len(day.compared)))
-    block = decision_block(res.comparisons, run_items, day.compared[-1].number,
-                           horizon=args.horizon, margin=args.margin)  # fmt: skip
-    if block:
-        print("\n" + "\n".join(block))
-    for w in res.warnings:
+    print(compare_text(day))
+    for w in day.result.warnings:
         _warn(w)
     return 0
-
-
-def _write_compare_csv(res: JointResult, path: str) -> None:
-    from station import csvfiles
-
-    with open_output(path, "--csv") as fh:
-        # an item name is the user's text: one header line whatever it holds, and a name
-        # that looks like a formula is shown as text (station.csvfiles)
-        head = [f"station {__version__} comparison", f"reference {res.reference}",
-                f"drift {'on' if res.drift_per_hour else 'off'}",
-                f"g {res.gravity_ms2:.5f} m/s²"]  # fmt: skip
-        fh.write("# " + "; ".join(csvfiles.header_text(h) for h in head) + "\n")
-        w = csvfiles.writer(fh, quoting=csv.QUOTE_NONNUMERIC)
-        w.writerow(["rank", "item", "descents", "mu", "mu_lo", "mu_hi", "delta_mu_vs_reference",
-                    "delta_lo", "delta_hi", "p_faster_than_reference", "delta_t_s"])  # fmt: skip
-        for k, name in enumerate(res.ranking, start=1):
-            it = res.item(name)
-            c = next((c for c in res.comparisons if c.b == name and c.a == res.reference), None)
-            if c is None or c.ci90 is None or c.p_a_faster is None:  # no comparison possible
-                row = [None] * 5
-            else:  # item minus reference: the comparison stores reference minus item
-                row = [-c.delta_mu, -c.ci90[1], -c.ci90[0], 1 - c.p_a_faster, -c.delta_t_s]
-            w.writerow([k, it.item, len(it.descents), it.mu, it.ci90[0], it.ci90[1], *row])
 
 
 #: the number parser of each kind of metadata value (records.MetadataField.check)

@@ -12,10 +12,10 @@ from __future__ import annotations
 import os
 import sys
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 from station.cli.common import _warn
 from station.errors import InputError
-from station.model.sequential import BLOCK_HEADER
 from station.report.text import describe, summary
 from station.session import store as sessions
 from station.session.acquisition import Acquisition, Listener
@@ -23,6 +23,9 @@ from station.session.analysis import DescentResult
 from station.session.config import StationConfig, load_config
 from station.session.recorded import RecordedSession
 from station.session.records import Annotation
+
+if TYPE_CHECKING:  # the comparison's modules load numpy and scipy: when one comes
+    from station.session.comparison import DayComparison
 
 
 def _print(text: str) -> None:
@@ -57,14 +60,15 @@ class PrintListener(Listener):
     def warning(self, text: str) -> None:
         self.out(f"warning: {text}")
 
-    def comparison(self, text: str) -> None:
+    def comparison(self, day: DayComparison) -> None:
         """The decision on each pair of items ("decided: …" or "not yet: …") when it changed;
         the rest of the comparison is for the UI and ``station compare``."""
-        lines = text.splitlines()
-        start = next((k for k, line in enumerate(lines) if line.startswith(BLOCK_HEADER)), None)
-        if start is not None and tuple(lines[start + 1 :]) != self._decisions:
-            self._decisions = tuple(lines[start + 1 :])
-            self.out("\n".join(lines[start:]))
+        from station.report.comparison_text import decision_block
+
+        block = decision_block(day)
+        if block and tuple(block[1:]) != self._decisions:
+            self._decisions = tuple(block[1:])
+            self.out("\n".join(block))
 
 
 def day_summary(acq: Acquisition) -> str:

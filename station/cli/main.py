@@ -21,7 +21,7 @@ from station.errors import InputError
 
 #: every command and the module (station.cli.<module>) that defines it, in the order of --help
 COMMANDS = {
-    "survey": "survey", "simulate": "survey", "fit": "survey", "fit-traverse": "survey",
+    "survey": "survey", "simulate": "fit", "fit": "fit", "fit-traverse": "fit",
     "check": "check", "record": "recording", "replay": "recording", "export": "recording",
     "annotate": "analysis", "compare": "analysis",
     "live": "terminal", "demo": "terminal",

@@ -15,9 +15,8 @@ def cmd_import(args: argparse.Namespace) -> int:
     from station.cli.console import day_summary  # here: numpy, see recording.py's note
     from station.session import memory_import
     from station.session import store as sessions
-    from station.session.acquisition import replay
     from station.session.config import load_config
-    from station.session.resultsstate import annotations_digest
+    from station.session.recorded import RecordedSession
     from station.timing.assembly import JOINED
 
     if args.into and args.date:
@@ -36,9 +35,8 @@ def cmd_import(args: argparse.Namespace) -> int:
     if report.repaired:
         print(f"station: warning: {report.repaired}", file=sys.stderr)
     # with the state a recording leaves: the next annotate changes rows in place
-    digest = annotations_digest(report.session)  # before the replay reads them
-    run = replay(report.session, config)
-    run.write_session_results(report.session, digest)
+    session = RecordedSession(report.session, config)
+    session.write_results_csv()
     print(
         f"{report.impulses_in_file} impulses in {args.file}: {report.already_there} already in "
         f"the session, {report.added} added; the file is kept as {report.kept_as}",
@@ -46,8 +44,8 @@ def cmd_import(args: argparse.Namespace) -> int:
     )
     # the descents this download completed: said, not only flagged (not those an earlier
     # import joined: they are flagged still)
-    mine = memory_import.joined_by_last_import(run.day.processor)
-    results = run.results()
+    mine = session.joined_by_last_import()
+    results = session.results()
     for res in results:
         if res.number not in mine:
             continue
@@ -70,7 +68,7 @@ def cmd_import(args: argparse.Namespace) -> int:
     elif report.dated is not None and not args.date:
         print(f"dated {report.dated.isoformat()} by the file's date; give --date YYYY-MM-DD when "
               "the test day was another", file=sys.stderr)  # fmt: skip
-    print(day_summary(run), file=sys.stderr)
+    print(day_summary(session.run()), file=sys.stderr)
     return 0
 
 

@@ -6,6 +6,7 @@ reads the options, takes the posture scatter from a past session when asked, and
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from typing import Any
 
@@ -21,13 +22,6 @@ from station.cli.common import (
     plausible,
 )
 from station.errors import InputError
-
-#: the posture scatter a plan assumes when a past session could not estimate it (estimated at 0,
-#: or with no interval): field tests give 0.6-2.2 % per run, the tuck's drag area 1-2 % (issue 21)
-DEFAULT_POSTURE = 0.01
-#: below this a session's estimate is "no scatter seen", not a measured one (REML puts the
-#: scatter at 0 when a few descents cannot tell it from the timing noise)
-MIN_POSTURE = 0.001
 
 
 def _fraction(text: str) -> float:
@@ -56,42 +50,33 @@ def _items(text: str) -> int:
     return value
 
 
-def _from_session(args: argparse.Namespace) -> dict[str, Any]:
-    """The posture scatter (and the skier's CdA and v0) that a past session's joint fit
-    estimated, with the words that say where they came from."""
+def _past_day(args: argparse.Namespace) -> Any:
+    """The past session's :class:`station.model.plan.PastDay`, from its joint fit."""
     from station.cli.console import replayed
+    from station.model.plan import PastDay
     from station.session.recorded import RecordedSession
 
     session = replayed(RecordedSession(args.from_session))
     day = session.compare(timer_sd_s=args.timer_ms / 1000.0)
     if day.result is None:
         raise InputError(f"--from: {day.error}", path=args.from_session)
-    res = day.result
-    if res.status != "ok":
-        raise InputError(
-            f"--from: the session's joint fit is {res.status} ({res.message}); its posture "
-            "scatter is not to be trusted: give --posture-scatter",
-            path=args.from_session,
-        )
-    cdas = sorted(e.value for e in res.cda.values() if e.value is not None) or [args.cda]
-    rhos = sorted(d.air_density for d in day.compared)
-    return {
-        "posture_sd": res.posture_sd,
-        "posture_ci90": res.posture_ci90,
-        "drift_per_hour": res.drift_per_hour[0] if res.drift_per_hour is not None else None,
-        "cda": cdas[len(cdas) // 2],
-        "v0": res.typical_v0,
-        "mu": sorted(i.mu for i in res.items)[len(res.items) // 2],
-        "descents": len(day.compared),
-        # the CdA above was fitted with the session's air: planning it in another air would
-        # change the drag ρ·CdA the plan assumes (1.290 instead of 1.079 kg/m³: +20 %)
-        "air_density": rhos[len(rhos) // 2] if rhos else None,
-    }
+    try:
+        return PastDay.of(day.result, [d.air_density for d in day.compared])
+    except ValueError as exc:
+        raise InputError(f"--from: {exc}: give --posture-scatter", path=args.from_session) from None
+
+
+def _given(args: argparse.Namespace, air_given: bool) -> set[str]:
+    """The assumptions the options give (a past session's do not replace them)."""
+    flags = {"posture_sd": args.posture_scatter is not None, "air_density": air_given,
+             "drift_per_hour": args.drift_per_hour_given, "cda": args.cda_given,
+             "v0": args.v0_given, "mu": args.mu_given}  # fmt: skip
+    return {name for name, flag in flags.items() if flag}
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
     from station.model.physics import gravity_for
-    from station.model.plan import DayAssumptions, delta_mu_of_ms, plan_day
+    from station.model.plan import DayAssumptions, Source, delta_mu_of_ms, plan_day, prior
 
     track = _load_track(args.survey)
     if len(track.photocells) < 3:
@@ -99,55 +84,33 @@ def cmd_plan(args: argparse.Namespace) -> int:
     air_given = args.air_density is not None or any(
         v is not None for v in (args.pressure_hpa, args.temperature_c, args.humidity_pct)
     )
-    rho = _density(args) if air_given or args.from_session is None else 0.0
+    # without air options a past session's air is taken (and no assumed air is warned of)
+    rho = _density(args) if air_given or args.from_session is None else math.nan
     g = gravity_for(track, args.gravity).value
-    source = "given"
-    posture, cda, v0, mu = args.posture_scatter, args.cda, args.v0, args.mu
-    drift, drift_source = args.drift_per_hour, "given" if args.drift_per_hour_given else "default"
-    if args.from_session is None and posture is None:
+    if args.from_session is None and args.posture_scatter is None:
         raise InputError("give the posture scatter (--posture-scatter) or a past session (--from)")
-    if args.from_session is not None:
-        past = _from_session(args)
-        if not args.drift_per_hour_given and past["drift_per_hour"] is not None:
-            drift = past["drift_per_hour"]
-            drift_source = f"estimated from {args.from_session}"
-        cda = cda if args.cda_given else past["cda"]
-        v0 = v0 if args.v0_given else past["v0"]
-        mu = mu if args.mu_given else past["mu"]
-        if not air_given:
-            rho = past["air_density"] if past["air_density"] is not None else _density(args)
-        ci = past["posture_ci90"]
-        if posture is not None:
-            source = "given"
-        elif ci is not None and past["posture_sd"] >= MIN_POSTURE:
-            posture = past["posture_sd"]
-            source = f"estimated from {args.from_session} ({past['descents']} descents, 90 % CI "
-            source += f"[{ci[0] * 100:.2f}, {ci[1] * 100:.2f}] %)"
-        else:
-            # a scatter estimated at 0 is the few descents' silence, not a steady skier: a
-            # plan on 0 % promises a power the day cannot keep
-            posture = max(past["posture_sd"], DEFAULT_POSTURE)
-            source = (f"the default: {args.from_session}'s {past['descents']} descents put it at "
-                      f"{past['posture_sd'] * 100:.2f} % with no interval")  # fmt: skip
-            print(
-                f"warning: --from {args.from_session}: the session's posture scatter is "
-                f"estimated at {past['posture_sd'] * 100:.2f} % and its descents say too little "
-                f"about it; planning with {posture * 100:.1f} % (give --posture-scatter for "
-                "another)",
-                file=sys.stderr,
-            )
-    a = DayAssumptions(
+    past = _past_day(args) if args.from_session is not None else None
+    # what the options say (NaN: not given, so the past session's is taken)
+    stated = DayAssumptions(
         mass_kg=args.mass,
         air_density=rho,
-        cda=cda,
-        v0=v0,
-        mu=mu,
+        cda=args.cda,
+        v0=args.v0,
+        mu=args.mu,
         timer_sd_s=args.timer_ms / 1000.0,
-        posture_sd=posture,
-        drift_per_hour=drift,
+        posture_sd=math.nan if args.posture_scatter is None else args.posture_scatter,
+        drift_per_hour=args.drift_per_hour,
         minutes_between=args.minutes_between,
         g=g,
     )
+    pri = prior(stated, _given(args, air_given), past)
+    a = pri.assumptions
+    if pri.posture is Source.DEFAULT and pri.past is not None:
+        print(f"warning: --from {args.from_session}: the session's posture scatter is estimated "
+              f"at {pri.past.posture_sd * 100:.2f} % and its descents say too little about it; "
+              f"planning with {a.posture_sd * 100:.1f} % (give --posture-scatter for another)",
+              file=sys.stderr)  # fmt: skip
+    source, drift_source = _sources(pri, args.from_session)
     try:
         delta = args.delta_mu if args.delta_mu is not None else delta_mu_of_ms(
             track, args.delta_ms, a
@@ -172,6 +135,24 @@ def cmd_plan(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     return 0
+
+
+def _sources(pri: Any, session: str | None) -> tuple[str, str]:
+    """The words for where the posture scatter and the drift of a plan came from."""
+    from station.model.plan import Source
+
+    past = pri.past
+    if pri.posture is Source.PAST:
+        ci = past.posture_ci90
+        posture = (f"estimated from {session} ({past.descents} descents, 90 % CI "
+                   f"[{ci[0] * 100:.2f}, {ci[1] * 100:.2f}] %)")  # fmt: skip
+    elif pri.posture is Source.DEFAULT:
+        posture = (f"the default: {session}'s {past.descents} descents put it at "
+                   f"{past.posture_sd * 100:.2f} % with no interval")  # fmt: skip
+    else:
+        posture = "given"
+    drift = f"estimated from {session}" if pri.drift is Source.PAST else str(pri.drift)
+    return posture, drift
 
 
 def format_plan(
@@ -233,7 +214,9 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--from", dest="from_session", metavar="SESSION",
                    help="take the posture scatter, the drift (and CdA, v0, μ) from a past "
                         "session's joint fit; a scatter the session put at 0 falls back to "
-                        f"{DEFAULT_POSTURE * 100:g} %% with a warning")  # fmt: skip
+                        # station.model.plan.DEFAULT_POSTURE: not imported here, where every
+                        # command's parser is built (it loads numpy and scipy)
+                        "1 %% with a warning")  # fmt: skip
     p.add_argument("--power", type=_power, default=0.9,
                    help="probability that the day's 90 %% interval excludes 0 "
                         "(default 0.9)")  # fmt: skip

@@ -96,41 +96,16 @@ def _replay_no_fit(args: argparse.Namespace, cfg: Any) -> int:
     a capture (a line per descent: its photocells and times, its status and flags), its
     crossing times for another tool (``--times``), its impulses' fates (``--events``); and the
     measure of the replay's own throughput (benchmarks/replay_speed.py)."""
-    import gc
-
     from station.report.text import count, impulses_text
-    from station.session.processor import Processor
-    from station.session.replay import bulk_chunks, write_events
-    from station.survey.load import load_survey
-    from station.survey.track import build_track
+    from station.session.recorded import replay_unfitted
     from station.timing.impulses import format_tod
 
     if args.csv or args.ui:
         option = "--csv" if args.csv else "--ui"
         raise InputError(f"{option} shows fits: leave out --no-fit", path=args.source)
-    proc = Processor(cfg, build_track(load_survey(cfg.survey_path)))
     warnings: list[str] = []
-    ended: dict[int, Any] = {}  # a descent an edit changed ends again: the latest is kept
-    # a bulk replay makes no garbage cycles (tuples, lists and descents, all kept or freed by
-    # their counts): the collector is out of the way while it runs (it scanned the growing
-    # lists of events again and again: 15 % of the time), and the set-up's objects (modules,
-    # the track) are frozen out of its later scans
-    gc.freeze()
-    was_enabled = gc.isenabled()
-    gc.disable()
-    try:
-        for d in proc.feed_chunks(bulk_chunks(args.source, warnings)):
-            ended[d.number] = d
-        for d in proc.finish():
-            ended[d.number] = d
-    finally:
-        # what the replay made (all kept) joins the frozen set-up before the collector is back:
-        # else its first collection walked every object made while it was off (25 ms of a
-        # 100 800-line capture's 330, benchmarks/replay_speed.py)
-        gc.freeze()
-        if was_enabled:
-            gc.enable()
-        gc.unfreeze()
+    replayed = replay_unfitted(args.source, cfg, warnings)
+    ended = replayed.descents
     for w in warnings:
         _warn(w)
     lines = []
@@ -151,7 +126,7 @@ def _replay_no_fit(args: argparse.Namespace, cfg: Any) -> int:
     by_status: dict[str, int] = {}
     for d in ended.values():
         by_status[d.status] = by_status.get(d.status, 0) + 1
-    c = proc.line_counts()
+    c = replayed.line_counts()
     parts = ", ".join(f"{v} {k}" for k, v in sorted(by_status.items()))
     print(
         f"{count(c.lines, 'line')}: {impulses_text(c)}, {count(c.edits, 'edit')}, "
@@ -161,7 +136,7 @@ def _replay_no_fit(args: argparse.Namespace, cfg: Any) -> int:
     )
     if args.events:
         with open_output(args.events, "--events") as fh:
-            write_events(proc, fh)
+            replayed.write_events_to(fh)
     if args.times:
         from station.session.crossings import write_descent_times
         from station.session.records import DescentTimes

@@ -14,7 +14,8 @@ from station.cli.common import _positive, open_output, output_dir, reference_ite
 def cmd_report(args: argparse.Namespace) -> int:
     # here, not at the top: numpy, scipy and matplotlib (see recording.py's note)
     from station.cli.console import day_summary, replayed
-    from station.report.day_report import DayData, build_day_report, descent_views
+    from station.report.day_data import DayData, descent_views
+    from station.report.day_report import build_day_report
     from station.report.text import count
     from station.session import store as sessions
     from station.session.recorded import RecordedSession
@@ -22,28 +23,25 @@ def cmd_report(args: argparse.Namespace) -> int:
     session = RecordedSession(args.session, speed_curves=True)  # the report draws them
     out = output_dir(args.out, "--out")  # checked (and made) before the day is replayed
     path = os.path.join(out, f"{session.name}.html")
-    acq = replayed(session).run()  # the session as a replay gives it, annotations included
-    results = acq.results()
-    base = acq.day.base_metadata()
+    results = replayed(session).results()  # as a replay gives them, annotations included
+    base = session.base_metadata()
     day = DayData(
         session=args.session,
-        track=acq.track,
+        track=session.track,
         descents=descent_views(results),
-        header=sessions.results_header(acq.config, acq.track.name),
-        summary=day_summary(acq),
+        header=session.results_header(),
+        summary=day_summary(session.run()),
         config_metadata={k: getattr(base, k, None) for k in ("skier", "ski", "wax", "notes")},
         recorded=session.started(),
         annotations=len(session.annotations()),
     )
     with open(session.file(sessions.CONFIG), encoding="utf-8") as fh:
         day.config_text = fh.read()
-    day.warnings = list(acq.track.warnings)
+    day.warnings = list(session.track.warnings)
     reference = reference_item(args.reference, results, args.wind_limit)
-    compared = session.compare(wind_limit_ms=args.wind_limit, reference=reference, drift=args.drift)
-    if compared.result is None:
-        day.comparison_error = compared.error
-    else:
-        day.comparison, day.compared = compared.result, compared.compared
+    day.day_comparison = session.compare(
+        wind_limit_ms=args.wind_limit, reference=reference, drift=args.drift
+    )
     page = build_day_report(day)
     with open_output(path, "--out") as fh:
         fh.write(page)

@@ -12,10 +12,13 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from station.cli.common import _print_json, _warn, open_output, output_path
 from station.errors import InputError
+
+if TYPE_CHECKING:
+    from station.model.season import SeasonComparison, SeasonResult
 
 
 def _open(args: argparse.Namespace, create: bool = False) -> Any:
@@ -140,36 +143,33 @@ def _at(texts: list[str]) -> dict[str, float]:
     return out
 
 
-def season_comparison(args: argparse.Namespace, store: Any) -> Any:
-    """The comparison ``compare`` and ``report`` show (:class:`SeasonResult`) and the days."""
+def season_comparison(args: argparse.Namespace, store: Any) -> SeasonComparison:
+    """The comparison ``compare`` and ``report`` show, and the days it joined."""
     from station.cli.common import unique_prefix
-    from station.model.season import SeasonError, compare_season
+    from station.model.season import SeasonError
     from station.store.queries import day_effects, parse_where
 
     where = [parse_where(w) for w in args.where or []]
     at = _at(args.at or [])
-    days, left_out, conds = day_effects(store, args.by, where)
-    if not days:
+    selected = day_effects(store, args.by, where)
+    if not selected.days:
         raise InputError(
             f"no day in {store.where} compares two {args.by}s or more"
             + (" where " + " and ".join(args.where) if args.where else ""),
         )
     reference = args.reference
     if reference is not None:
-        names = sorted({it for d in days for it in d.items})
-        reference = unique_prefix(reference, names, args.by, "--reference")
+        reference = unique_prefix(reference, selected.item_names(), args.by, "--reference")
     try:
-        res = compare_season(days, reference, at)
+        return selected.compare(reference, at)
     except SeasonError as exc:
         raise InputError(str(exc)) from None
-    res.warnings[:0] = [f"left out: {x}" for x in left_out]
-    return res, days, conds
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
     store = _open(args)
     try:
-        res, _days, _conds = season_comparison(args, store)
+        res = season_comparison(args, store).result
     finally:
         store.close()
     if args.json:
@@ -178,7 +178,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
                 "reference": res.reference,
                 "by": args.by,
                 "at": res.at,
-                "items": [it.to_dict() for it in _ranked(res)],
+                "items": [it.to_dict() for it in res.ranked()],
                 "heterogeneity": res.heterogeneity(),
                 "days": res.days,
                 "descents": res.descents,
@@ -194,11 +194,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
-def _ranked(res: Any) -> list[Any]:
-    return sorted(res.items, key=lambda i: (i.delta_mu is None, i.delta_mu or 0.0, i.item))
-
-
-def format_season(res: Any, by: str) -> str:
+def format_season(res: SeasonResult, by: str) -> str:
     at = ", ".join(f"{k}={v:g}" for k, v in res.at.items())
     lines = [
         f"season comparison by {by}: {res.counts()}, against {res.reference}"
@@ -212,7 +208,7 @@ def format_season(res: Any, by: str) -> str:
     w = min(28, max([6, *(len(i.item) + 2 for i in res.items)]))
     lines.append(f"{'rank':<5}{'item':<{w}}{'days':>5}{'descents':>9}{'Δμ':>10}   "
                  f"{'90 % CI':<22}{'P(faster)':>9}{'P(best)':>9}")  # fmt: skip
-    for k, it in enumerate(_ranked(res), start=1):
+    for k, it in enumerate(res.ranked(), start=1):
         if it.delta_mu is None or it.ci90 is None:
             lines.append(f"{'—':<5}{it.item:<{w}}{it.days:>5}{it.descents:>9}   {it.note}")
             continue
@@ -276,10 +272,11 @@ def cmd_report(args: argparse.Namespace) -> int:
     folder = output_dir(args.out, "--out")
     store = _open(args)
     try:
-        res, days, conds = season_comparison(args, store)
+        season = season_comparison(args, store)
     finally:
         store.close()
-    path = write_season_report(folder, res, days, conds, args.by)
+    days = season.selected
+    path = write_season_report(folder, season.result, days.days, days.conditions, args.by)
     print(f"season report: {path}", file=sys.stderr)
     return 0
 

@@ -19,115 +19,10 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from dataclasses import asdict, dataclass
-from enum import StrEnum
 from typing import Any
 
 from station.cli.common import EXIT_BAD_INPUT, _print_json
 from station.errors import InputError
-from station.files import MAX_RAWLOG, check_regular
-
-
-class SessionStatus(StrEnum):
-    """What ``station sessions`` says of a session as a whole (its ``status`` column)."""
-
-    RECORDING = "recording"  # a process holds its recording lock
-    FINISHED = "finished"
-    INTERRUPTED = "interrupted"  # its recorder died: the results CSV may lack the last descent
-    NO_RESULTS = "no results (station export SESSION --csv …)"
-    UNKNOWN = "unknown (its recording.lock cannot be tried)"
-    BROKEN = "broken"  # it cannot be read (the reason is in ``problem``)
-
-
-@dataclass(frozen=True)
-class SessionSummary:
-    """One line of ``station sessions``."""
-
-    path: str
-    started: str  # local date and time of the first raw-log record, "" when unknown
-    descents: int
-    fitted: int  # descents with status ok
-    invalid: int  # marked invalid by the engineer
-    items: tuple[str, ...]
-    status: SessionStatus
-    problem: str = ""  # why a broken session cannot be read; "" for the others
-    #: when ``station import`` made it (its raw log's first record), "" for a recorded one:
-    #: ``started`` is then its first descent's start, the test day, not the day of the import
-    imported: str = ""
-
-    def to_json(self) -> dict[str, Any]:
-        out = asdict(self) | {"items": list(self.items)}
-        if not self.problem:
-            del out["problem"]  # the listing of a readable session is as it was
-        if not self.imported:
-            del out["imported"]
-        return out
-
-
-def _minute(iso: str) -> str:
-    """'2026-01-12 10:00' of a results CSV's start time (ISO 8601 local), "" if it is none."""
-    import datetime as dt
-
-    try:
-        return dt.datetime.fromisoformat(iso).strftime("%Y-%m-%d %H:%M")
-    except (TypeError, ValueError):
-        return ""
-
-
-def session_status(session: Any, has_results: bool) -> SessionStatus:
-    """``recording`` while a process holds the session's lock, whatever the timer does;
-    ``interrupted`` when its recorder died (killed, crashed) without ending it, so its
-    results CSV may lack the last descent; ``finished`` when it was ended (or is older than
-    the lock)."""
-    from station.session import store as sessions  # here: yaml (``station --help``)
-
-    state = session.recording_state()
-    if state is sessions.RecordingStatus.NOW:
-        return SessionStatus.RECORDING
-    if not has_results:
-        return SessionStatus.NO_RESULTS
-    if state is sessions.RecordingStatus.INTERRUPTED:
-        return SessionStatus.INTERRUPTED
-    if state is sessions.RecordingStatus.UNKNOWN:
-        return SessionStatus.UNKNOWN
-    return SessionStatus.FINISHED
-
-
-def summarise(path: str) -> SessionSummary:
-    """One session's line; a session that cannot be read raises :class:`InputError`."""
-    from station.model.compare import item_name  # here: numpy, see recording.py's note
-    from station.session import store as sessions
-    from station.session.recorded import RecordedSession
-
-    check_regular(os.path.join(path, sessions.RAW), MAX_RAWLOG, "raw log")
-    session = RecordedSession(path)
-    rows = session.rows()
-    items: list[str] = []
-    for r in rows:
-        it = item_name(r.ski, r.wax)
-        if r.descent_status != "aborted" and it not in items:
-            items.append(it)
-    has_results = os.path.lexists(session.file(sessions.RESULTS))
-    head = session.first_record()
-    started, imported = session.started(head), ""
-    if session.made_by_import(head):
-        first = next((m for m in map(_minute, (r.start_time for r in rows)) if m), "")
-        if first:
-            started, imported = first, started
-    return SessionSummary(
-        path=path,
-        started=started,
-        imported=imported,
-        descents=sum(r.descent_status != "aborted" for r in rows),
-        fitted=sum(r.status == "ok" and not r.invalid_reason for r in rows),
-        invalid=sum(bool(r.invalid_reason) for r in rows),
-        items=tuple(items),
-        status=session_status(session, has_results),
-    )
-
-
-def broken(path: str, why: str) -> SessionSummary:
-    return SessionSummary(path, "", 0, 0, 0, (), SessionStatus.BROKEN, why)
 
 
 def find_sessions(folder: str) -> list[str]:
@@ -148,14 +43,17 @@ def find_sessions(folder: str) -> list[str]:
 
 
 def cmd_sessions(args: argparse.Namespace) -> int:
+    from station.session.recorded import RecordedSession, SessionSummary
+
     found: list[SessionSummary] = []
     for path in find_sessions(args.folder):
         try:
-            found.append(summarise(path))
+            found.append(RecordedSession(path).summary())
         except InputError as exc:
-            found.append(broken(path, str(exc)))
+            found.append(SessionSummary.broken(path, str(exc)))
         except OSError as exc:  # a file that went away or cannot be read meanwhile
-            found.append(broken(path, f"{exc.filename or path}: {exc.strerror or exc}"))
+            found.append(SessionSummary.broken(path, f"{exc.filename or path}: "
+                                                     f"{exc.strerror or exc}"))  # fmt: skip
     found.sort(key=lambda s: (s.started, s.path))
     readable = [s for s in found if not s.problem]
     word = "error" if found and not readable else "warning"

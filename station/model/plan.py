@@ -26,15 +26,20 @@ noncentral t (the far side adds a negligible amount).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from collections.abc import Collection, Sequence
+from dataclasses import dataclass, field, replace
+from enum import StrEnum
 from itertools import combinations
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from station.model.batch import Rows, solve_rows
 from station.model.physics import G_STANDARD, Conditions, Params, StraightRun
 from station.survey.track import Track
+
+if TYPE_CHECKING:
+    from station.model.compare import JointResult
 
 #: the smallest day the planner plans, descents per item. The joint fit compares two (one
 #: descent's glide cannot be told from its posture), but its interval does not keep its 90 %
@@ -49,6 +54,12 @@ MIN_PER_ITEM = 3
 MAX_PER_ITEM = 60
 #: the interval's level: 90 %, two-sided, as ``station compare`` reports
 LEVEL = 0.90
+#: the posture scatter a plan assumes when a past session could not estimate it (estimated at 0,
+#: or with no interval): field tests give 0.6-2.2 % per run, the tuck's drag area 1-2 %
+DEFAULT_POSTURE = 0.01
+#: below this a session's estimate is "no scatter seen", not a measured one (REML puts the
+#: scatter at 0 when a few descents cannot tell it from the timing noise)
+MIN_POSTURE = 0.001
 
 
 @dataclass(frozen=True)
@@ -381,3 +392,93 @@ def plan_day(
         power_by_n=power_by_n,
         power_watched=watched,
     )
+
+
+# ----------------------------------------------------------------------------- a past day's prior
+
+
+@dataclass(frozen=True)
+class PastDay:
+    """What a past day's joint fit says of the skier and the snow, for planning the next day:
+    its posture scatter (with its interval, None when it could not be bounded), its drift of μ
+    per hour, the median of the skiers' fitted CdA (None: none fitted), the typical v0, the
+    median μ of its items, the descents compared and the median air density they were fitted
+    with (the CdA was fitted in that air: another air would change the drag ρ·CdA)."""
+
+    posture_sd: float
+    posture_ci90: tuple[float, float] | None
+    drift_per_hour: float | None
+    cda: float | None
+    v0: float
+    mu: float
+    descents: int
+    air_density: float
+
+    @classmethod
+    def of(cls, result: JointResult, air_densities: Sequence[float]) -> PastDay:
+        """From the day's joint fit and the air density of each descent it compared; a fit
+        that is not ``ok`` is a :class:`ValueError` (its scatter is not to be trusted)."""
+        if result.status != "ok":
+            raise ValueError(
+                f"the session's joint fit is {result.status} ({result.message}); its posture "
+                "scatter is not to be trusted"
+            )
+        if not air_densities:
+            raise ValueError("the session's joint fit compared no descent")
+        cdas = sorted(e.value for e in result.cda.values() if e.value is not None)
+        rhos = sorted(air_densities)
+        return cls(
+            posture_sd=result.posture_sd,
+            posture_ci90=result.posture_ci90,
+            drift_per_hour=result.drift_per_hour[0] if result.drift_per_hour is not None else None,
+            cda=cdas[len(cdas) // 2] if cdas else None,
+            v0=result.typical_v0,
+            mu=sorted(i.mu for i in result.items)[len(result.items) // 2],
+            descents=len(rhos),
+            air_density=rhos[len(rhos) // 2],
+        )
+
+
+class Source(StrEnum):
+    """Where an assumption of a plan comes from."""
+
+    GIVEN = "given"
+    DEFAULT = "default"
+    PAST = "past"  # estimated from the past day
+
+
+@dataclass(frozen=True)
+class Prior:
+    """A plan's assumptions, and where its posture scatter and drift came from."""
+
+    assumptions: DayAssumptions
+    posture: Source
+    drift: Source
+    past: PastDay | None = None
+
+
+def prior(stated: DayAssumptions, given: Collection[str], past: PastDay | None) -> Prior:
+    """The assumptions of a plan: ``stated`` (the options, their defaults where not given)
+    with what ``past`` says where ``given`` (names of :class:`DayAssumptions` fields) does not
+    name the field. A past scatter estimated below :data:`MIN_POSTURE`, or with no interval, is
+    the silence of a few descents, not a steady skier: a plan on 0 % promises a power the day
+    cannot keep, so it takes at least :data:`DEFAULT_POSTURE` (:attr:`Source.DEFAULT`)."""
+    drift = Source.GIVEN if "drift_per_hour" in given else Source.DEFAULT
+    if past is None:
+        if "posture_sd" not in given:
+            raise ValueError("a plan needs the posture scatter: given, or from a past day")
+        return Prior(stated, Source.GIVEN, drift)
+    taken: dict[str, float] = {}
+    if drift is Source.DEFAULT and past.drift_per_hour is not None:
+        taken["drift_per_hour"], drift = past.drift_per_hour, Source.PAST
+    for name, value in (("cda", past.cda), ("v0", past.v0), ("mu", past.mu),
+                        ("air_density", past.air_density)):  # fmt: skip
+        if name not in given and value is not None:
+            taken[name] = value
+    if "posture_sd" in given:
+        posture = Source.GIVEN
+    elif past.posture_ci90 is not None and past.posture_sd >= MIN_POSTURE:
+        taken["posture_sd"], posture = past.posture_sd, Source.PAST
+    else:
+        taken["posture_sd"], posture = max(past.posture_sd, DEFAULT_POSTURE), Source.DEFAULT
+    return Prior(replace(stated, **taken), posture, drift, past)

@@ -43,7 +43,7 @@ re-estimated at every look the rule declares on exactly the α it spends).
 Why the boundaries spend 8.5 %, not the 10 % promised (``SPEND`` against ``ALPHA``). The
 fit's Δμ̂/se is a Wald statistic of a nonlinear model with an estimated posture scatter. Its
 standard error carries Kenward-Roger's correction and its degrees of freedom count the
-scatter's uncertainty (station.model.compare._Inference), which brought the share of
+scatter's uncertainty (station.model.compare_inference.Inference), which brought the share of
 equal-ski days declared different from 10.4-11.7 % to 9.9-11.0 % on the demo run (nine
 photocells) and from 16.8 to 13.8 % on four photocells; with the scatter known the rule
 declared on 10.0-11.3 % (the model's own small-sample excess: the Wald z is 1-2 % wider than
@@ -300,10 +300,6 @@ class Decision:
             "reason": self.reason,
         }
 
-    def line(self) -> str:
-        """One line for the console and the UI: "decided: …" or "not yet: …"."""
-        return describe(self)
-
 
 def _more(
     delta: float,
@@ -387,28 +383,6 @@ def decide(
                     horizon, beyond, margin)  # fmt: skip
 
 
-def describe(d: Decision) -> str:
-    """ "decided: A faster by Δμ 0.00100 [0.00042, 0.00158]", "equivalent: …" or
-    "not yet: about k more descents per item at today's scatter"."""
-    if d.state == "decided" and d.interval is not None:
-        lo, hi = sorted(abs(v) for v in d.interval)
-        return f"decided: {d.faster} faster by Δμ {abs(d.delta_mu):.5f} [{lo:.5f}, {hi:.5f}]"
-    if d.state == "equivalent" and d.interval is not None and d.margin is not None:
-        lo, hi = d.interval
-        ahead = f" ({d.faster} faster, by less than that)" if d.faster else ""
-        return (f"equivalent: Δμ {d.delta_mu:+.5f} [{lo:+.5f}, {hi:+.5f}] lies within "
-                f"±{d.margin:g}: no difference that matters{ahead}")  # fmt: skip
-    if d.reason:
-        return f"not yet: {d.reason}"
-    if d.interval is None:
-        return "not yet: a comparison needs two descents of each item"
-    if d.more_descents_per_item is None:
-        return (f"not yet: no difference in sight (more than {MAX_MORE} more descents per item "
-                "at today's scatter)")  # fmt: skip
-    k = d.more_descents_per_item
-    return f"not yet: about {k} more descent{'s' * (k != 1)} per item at today's scatter"
-
-
 def standard_error(ci90: tuple[float, float], dof: float | None) -> float:
     """The standard error behind a 90 % Student-t interval (the joint fit's comparisons)."""
     from scipy.special import ndtri, stdtrit
@@ -435,32 +409,3 @@ def day_decisions(
                    margin=margin, caveat=getattr(c, "caveat", ""))
         )  # fmt: skip
     return out
-
-
-def decision_lines(decisions: Sequence[Decision]) -> list[str]:
-    """One line per pair: "A vs B: decided: A faster by Δμ … [..]" or "… not yet: …"."""
-    return [f"{d.a} vs {d.b}: {describe(d)}" for d in decisions]
-
-
-#: the first words of the decision block (the console of ``station record`` picks it out of
-#: the comparison the UI shows)
-BLOCK_HEADER = "decided or not after descent"
-
-
-def decision_block(
-    comparisons: Sequence[Any],
-    run_items: Sequence[str],
-    last_descent: int,
-    *,
-    horizon: int = DEFAULT_HORIZON,
-    margin: float | None = None,
-) -> list[str]:
-    """The decision on every pair as ``station compare``, the UI's comparison panel and
-    ``station record``'s console show it: a header line and one indented line per pair (no
-    lines when there is no pair)."""
-    decisions = day_decisions(comparisons, run_items, horizon=horizon, margin=margin)
-    if not decisions:
-        return []
-    head = (f"{BLOCK_HEADER} {last_descent}, with a look after every descent "
-            f"(α spent over {horizon} descents per item):")  # fmt: skip
-    return [head, *(f"  {line}" for line in decision_lines(decisions))]

@@ -26,7 +26,8 @@ from scipy.optimize import least_squares
 from station.errors import InputError
 from station.files import MAX_TIMES, read_text
 from station.model.estimate import Estimate, FitStatus
-from station.model.fit import CI_METHOD, TOLERANCES, uncertainty
+from station.model.fit_result import CI_METHOD, uncertainty
+from station.model.fit_search import TOLERANCES
 from station.model.physics import G_STANDARD
 
 NAMES = ["cda", "mu", "v0", "s0"]
@@ -170,6 +171,27 @@ def read_traverse_data(path: str) -> tuple[np.ndarray, np.ndarray]:
     return np.array(t), np.array(s)
 
 
+def _start(
+    t: np.ndarray,
+    s: np.ndarray,
+    slope_deg: float,
+    traverse_deg: float,
+    mass_kg: float,
+    air_density: float,
+    g: float,
+) -> np.ndarray:
+    """The search's start (CdA, μ, v0, s0): a quadratic s(t) gives v0 and the mean
+    acceleration; CdA 0.3 m² accounts for drag."""
+    tr = t - t[0]
+    c2, c1, c0 = np.polyfit(tr, s, 2)
+    v0 = max(c1, 0.0)
+    k0 = air_density * 0.3 / (2.0 * mass_kg)
+    vbar = max((s[-1] - s[0]) / max(tr[-1], 1e-9), 0.0)
+    alpha, beta = math.radians(slope_deg), math.radians(traverse_deg)
+    mu0 = (g * math.sin(alpha) * math.cos(beta) - 2 * c2 - k0 * vbar**2) / (g * math.cos(alpha))
+    return np.array([0.3, min(max(mu0, 1e-3), 0.9), min(v0, 59.0), c0])
+
+
 def fit_traverse(
     t: np.ndarray,
     s: np.ndarray,
@@ -187,16 +209,7 @@ def fit_traverse(
     def model(p: np.ndarray):
         return simulate_traverse(t, *p[:3], slope_deg, traverse_deg, mass_kg, air_density, g, p[3])  # type: ignore[call-arg]
 
-    # start: a quadratic s(t) gives v0 and the mean acceleration; CdA 0.3 m² accounts for drag
-    tr = t - t[0]
-    c2, c1, c0 = np.polyfit(tr, s, 2)
-    v0 = max(c1, 0.0)
-    k0 = air_density * 0.3 / (2.0 * mass_kg)
-    vbar = max((s[-1] - s[0]) / max(tr[-1], 1e-9), 0.0)
-    alpha, beta = math.radians(slope_deg), math.radians(traverse_deg)
-    mu0 = (g * math.sin(alpha) * math.cos(beta) - 2 * c2 - k0 * vbar**2) / (g * math.cos(alpha))
-    x0 = np.array([0.3, min(max(mu0, 1e-3), 0.9), min(v0, 59.0), c0])
-
+    x0 = _start(t, s, slope_deg, traverse_deg, mass_kg, air_density, g)
     cache: dict[bytes, Any] = {}
 
     def solve(p):

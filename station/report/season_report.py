@@ -12,18 +12,8 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from station.files import write_atomic
-from station.report.day_report import (
-    Section,
-    _e,
-    _figure,
-    _num,
-    _plain,
-    _png,
-    _style,
-    _table,
-    item_colours,
-    render_html,
-)
+from station.report.day_figures import figure, item_colours, plain, png, style
+from station.report.page import Section, esc, num, render_html, table
 
 REPORT = "season.html"
 
@@ -33,9 +23,9 @@ def effects_figure(res: Any, days: Sequence[Any], colours: dict[str, str]) -> st
     reference is a point (the day's own difference); the band is the season's estimate with its
     90 % interval over the range of temperatures the item was tested at."""
     key = "snow_temperature_c"
-    fig = _figure(3.6)
+    fig = figure(3.6)
     ax = fig.add_subplot()
-    _style(ax)
+    style(ax)
     drawn = False
     for it in res.items:
         if it.item == res.reference or it.delta_mu is None or it.ci90 is None:
@@ -51,7 +41,7 @@ def effects_figure(res: Any, days: Sequence[Any], colours: dict[str, str]) -> st
         if temps:
             lo, hi = min(temps) - 0.3, max(temps) + 0.3
             ax.fill_between([lo, hi], it.ci90[0], it.ci90[1], color=c, alpha=0.18, lw=0)
-            ax.plot([lo, hi], [it.delta_mu] * 2, color=c, lw=1.5, label=_plain(it.item))
+            ax.plot([lo, hi], [it.delta_mu] * 2, color=c, lw=1.5, label=plain(it.item))
             drawn = True
         if xs:
             ax.plot(xs, ys, "o", color=c, ms=4)
@@ -59,9 +49,9 @@ def effects_figure(res: Any, days: Sequence[Any], colours: dict[str, str]) -> st
         return None
     ax.axhline(0.0, color="#555", lw=0.8)
     ax.set_xlabel("snow temperature (°C) of the day")
-    ax.set_ylabel(f"Δμ against {_plain(res.reference)}")
+    ax.set_ylabel(f"Δμ against {plain(res.reference)}")
     ax.legend(fontsize=7, loc="best")
-    return _png(fig)
+    return png(fig)
 
 
 def network_figure(days: Sequence[Any], colours: dict[str, str]) -> str:
@@ -76,7 +66,7 @@ def network_figure(days: Sequence[Any], colours: dict[str, str]) -> str:
     n = len(items)
     pos = {it: (math.cos(2 * math.pi * k / n), math.sin(2 * math.pi * k / n))
            for k, it in enumerate(items)}  # fmt: skip
-    fig = _figure(3.6)
+    fig = figure(3.6)
     ax = fig.add_subplot()
     most = max(met.values(), default=1)
     for (a, b), k in met.items():
@@ -93,12 +83,12 @@ def network_figure(days: Sequence[Any], colours: dict[str, str]) -> str:
         # left or right of the circle was written over its node)
         ha = "left" if x > 0.3 else "right" if x < -0.3 else "center"
         va = "bottom" if y > 0.3 else "top" if y < -0.3 else "center"
-        ax.text(x * 1.1, y * 1.1, _plain(it), fontsize=8, ha=ha, va=va)
+        ax.text(x * 1.1, y * 1.1, plain(it), fontsize=8, ha=ha, va=va)
     ax.set_xlim(-2.2, 2.2)
     ax.set_ylim(-1.45, 1.45)
     ax.set_aspect("equal")
     ax.axis("off")
-    return _png(fig)
+    return png(fig)
 
 
 def season_verdicts(res: Any, by: str) -> str:
@@ -106,15 +96,15 @@ def season_verdicts(res: Any, by: str) -> str:
     the reference, which glides better across the days, Δμ with its 90 % interval (the
     between-day heterogeneity in it), how sure, on how many days and descents, and whether
     the interval settles it. An item that cannot be compared says why."""
-    ref = _e(res.reference)
-    where = ", ".join(f"{_e(k)} = {v:g}" for k, v in res.at.items())
+    ref = esc(res.reference)
+    where = ", ".join(f"{esc(k)} = {v:g}" for k, v in res.at.items())
     lines = []
     for it in sorted(res.items, key=lambda i: (i.delta_mu is None, i.delta_mu or 0.0)):
         if it.item == res.reference:
             continue
-        name = _e(it.item)
+        name = esc(it.item)
         if it.delta_mu is None or it.ci90 is None or it.p_faster is None:
-            why = _e(it.note) if it.note else "no interval"
+            why = esc(it.note) if it.note else "no interval"
             lines.append(("none", f"<b>{name}</b> against <b>{ref}</b>: not comparable ({why})"))
             continue
         lo, hi = it.ci90
@@ -137,11 +127,11 @@ def season_verdicts(res: Any, by: str) -> str:
             kind = "open"
         lines.append((kind, f"{head} <span class='numbers'>{numbers}</span>. {tail}."))
     if not lines:
-        lines.append(("none", f"one {_e(by)} only: nothing to compare"))
+        lines.append(("none", f"one {esc(by)} only: nothing to compare"))
     items = "".join(f"<li class='{k}'>{h}</li>" for k, h in lines)
     at = f" at {where}" if where else ""
     return (
-        f"<ul class='verdicts'>{items}</ul><p class='sub'>Each {_e(by)} against {ref}{at}, "
+        f"<ul class='verdicts'>{items}</ul><p class='sub'>Each {esc(by)} against {ref}{at}, "
         f"across {res.days} days (between-day heterogeneity τ = {res.tau:.5f} in every "
         "interval).</p>"
     )
@@ -156,22 +146,22 @@ def build_season_report(
     at = ", ".join(f"{k} = {v:g}" for k, v in res.at.items())
     rows = [
         [str(k), it.item, str(it.days), str(it.descents),
-         "reference" if it.item == res.reference else _num(it.delta_mu, "+.5f"),
+         "reference" if it.item == res.reference else num(it.delta_mu, "+.5f"),
          f"[{it.ci90[0]:+.5f}, {it.ci90[1]:+.5f}]"
          if it.ci90 and it.item != res.reference else "—",
-         _num(it.p_faster, ".3f"), _num(it.p_best, ".3f"), it.note]
+         num(it.p_faster, ".3f"), num(it.p_best, ".3f"), it.note]
         for k, it in enumerate(ranked, start=1)
     ]  # fmt: skip
-    warn = "".join(f"<p class='warn'>{_e(w)}</p>" for w in res.warnings)
+    warn = "".join(f"<p class='warn'>{esc(w)}</p>" for w in res.warnings)
     sections = [
         Section("verdict", "Verdict", season_verdicts(res, by)),
         Section(
             "ranking",
             "Ranking" + (f" at {at}" if at else ""),
-            f"<p>Δμ of each {_e(by)} against {_e(res.reference)} (negative: glides better), "
+            f"<p>Δμ of each {esc(by)} against {esc(res.reference)} (negative: glides better), "
             "from the within-day differences of every day, joined through the items the days "
             f"shared. Between-day heterogeneity τ = {res.tau:.5f} is in every interval.</p>",
-            after=_table(
+            after=table(
                 ["rank", by, "days", "descents", "Δμ", "90 % CI", "P(faster)", "P(best)", "note"],
                 rows,
             )
@@ -193,14 +183,14 @@ def build_season_report(
     day_rows = []
     for d in days:
         c = conditions.get(d.day, {})
-        day_rows.append([d.day, _num(c.get("snow_temperature_c"), ".1f"),
-                         _num(c.get("air_temperature_c"), ".1f"), c.get("snow_type") or "—",
+        day_rows.append([d.day, num(c.get("snow_temperature_c"), ".1f"),
+                         num(c.get("air_temperature_c"), ".1f"), c.get("snow_type") or "—",
                          c.get("wetness") or "—", c.get("hardness") or "—",
-                         _num(c.get("grain_size_mm"), ".2g"), "; ".join(d.items),
+                         num(c.get("grain_size_mm"), ".2g"), "; ".join(d.items),
                          str(sum(d.descents))])  # fmt: skip
     sections.append(Section(
         "days", "The days", "",
-        after=_table(["session", "snow °C", "air °C", "snow type", "wetness", "hardness",
+        after=table(["session", "snow °C", "air °C", "snow type", "wetness", "hardness",
                       "grain mm", "items", "descents"], day_rows)))  # fmt: skip
     return render_html(
         "Season comparison",

@@ -63,6 +63,25 @@ def track_figure(track: Track, title: str | None = None):
     fig = Figure(figsize=(10, 9))
     axes = fig.subplots(4, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1.4, 1.4, 1.4]})
     ax_h, ax_r, ax_s, ax_k = axes
+    _heights(ax_h, axes, track, x, used, out, title)
+    _residuals(ax_r, track, used, out)
+
+    ax_s.plot(x, prof.slope_deg(x), color="C1", lw=1.2)
+    ax_s.set_ylabel("slope [°]")
+    ax_k.plot(x, prof.curvature(x) * 1000, color="C4", lw=1.2)
+    ax_k.axhline(0.0, color="0.3", lw=0.6)
+    ax_k.set_ylabel("curvature [1/km]")
+    ax_k.set_xlabel("x along the fall line [m]")
+    for ax in axes:
+        ax.grid(True, lw=0.3)
+    fig.tight_layout()
+    return fig
+
+
+def _heights(ax_h, axes, track: Track, x: np.ndarray, used: list, out: list, title: str | None):
+    """The heights panel: the profile, the points used and left out, the photocells (their
+    lines across every panel) and the title."""
+    prof = track.profile
     ax_h.plot(x, prof.h(x), color="C0", lw=1.2, label="profile h(x)")
     ax_h.plot(
         [p.x for p in used],
@@ -107,6 +126,10 @@ def track_figure(track: Track, title: str | None = None):
         f"{track.drop_m:.1f} m drop, points scatter {track.scatter_m * 1000:.1f} mm"
     )
 
+
+def _residuals(ax_r, track: Track, used: list, out: list):
+    """The residuals panel: the points about the profile in mm, with ±2 × the scatter; a point
+    left out is clipped to the edge with its value written."""
     ax_r.axhspan(
         -2 * track.scatter_m * 1000,
         2 * track.scatter_m * 1000,
@@ -132,14 +155,3 @@ def track_figure(track: Track, title: str | None = None):
         ax_r.set_ylim(-lim, lim)
     ax_r.set_ylabel("residual [mm]")
     ax_r.legend(loc="upper right", fontsize=8)
-
-    ax_s.plot(x, prof.slope_deg(x), color="C1", lw=1.2)
-    ax_s.set_ylabel("slope [°]")
-    ax_k.plot(x, prof.curvature(x) * 1000, color="C4", lw=1.2)
-    ax_k.axhline(0.0, color="0.3", lw=0.6)
-    ax_k.set_ylabel("curvature [1/km]")
-    ax_k.set_xlabel("x along the fall line [m]")
-    for ax in axes:
-        ax.grid(True, lw=0.3)
-    fig.tight_layout()
-    return fig

@@ -39,11 +39,10 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import IO, Any
 
-from station.model.compare import collect, format_comparison
-from station.model.sequential import decision_block
 from station.session import store as sessions
 from station.session.analysis import DescentResult, FitCache
-from station.session.comparison import compare_results
+from station.session.comparing import Comparer
+from station.session.comparison import DayComparison
 from station.session.config import SerialConfig, StationConfig
 from station.session.day import Day, Effect
 from station.session.fitstore import FitStore
@@ -87,8 +86,9 @@ class Listener:
     def result(self, result: DescentResult) -> None:
         """A descent was fitted, fitted again, or marked."""
 
-    def comparison(self, text: str) -> None:
-        """The day's comparison of items, recomputed (when asked for)."""
+    def comparison(self, day: DayComparison) -> None:
+        """The day's comparison of items, recomputed (while shown, and when the source
+        ended)."""
 
     def warning(self, text: str) -> None:
         """Something failed and the acquisition went on."""
@@ -137,12 +137,11 @@ _STOP = object()
 #: how often an idle fit worker looks for annotations another process (``station annotate``)
 #: appended to the session being recorded
 ANNOTATIONS_POLL_S = 0.5
-#: the comparison waits until the results have not changed for this long (a refit of many
-#: descents, a replay: one comparison at the end, not one per descent)
-COMPARE_QUIET_S = 0.3
 #: how long the recorder waits for another writer of the annotations file (it appends one
 #: record) before it appends its own without the lock
 ANNOTATIONS_WAIT_S = 2.0
+#: how long the end of ``station record`` waits to print the whole day's decisions
+FINAL_COMPARISON_S = 30.0
 _Job = _Fit | _Annotate | _End | _WriteResults
 
 
@@ -201,22 +200,18 @@ class Acquisition:
         self._own_lines: list[str] = []  # own records appended, not yet read back
         self._last_poll = 0.0
         self._worker: threading.Thread | None = None
-        # the comparison (the UI's): a thread of its own, never the fit worker's (at 2000
+        # the day's comparison, in a process of its own (never the fit worker's: at 2000
         # descents a joint fit takes seconds, and the next descent's fit would wait for it)
-        self._cmp = threading.Condition()
-        self._cmp_dirty = False  # results changed since the comparison last shown
-        self._cmp_changed_at = 0.0  # when (monotonic): the comparison waits for quiet
-        self._cmp_shown = False  # the UI shows it: only then is it computed
-        self._cmp_ended = False  # the source ended: computed once more, shown or not
-        self._comparer: threading.Thread | None = None
+        self.comparer: Comparer | None = None
         if threaded:
             self._worker = threading.Thread(target=self._work, name="fit-worker", daemon=True)
             self._worker.start()
             if compare:
-                self._comparer = threading.Thread(
-                    target=self._compare_loop, name="comparison", daemon=True
+                self.comparer = Comparer(
+                    day.track,
+                    post=lambda cmp: self._tell(self.listener.comparison, cmp),
+                    warn=lambda text: self._tell(self.listener.warning, text),
                 )
-                self._comparer.start()
 
     @classmethod
     def open(
@@ -596,11 +591,8 @@ class Acquisition:
             with self.lock:
                 counts, snapshot = day.processor.line_counts(), day.snapshot()
             self._tell(self.listener.ended, counts, snapshot)
-            with self._cmp:  # the whole day's comparison, once, shown or not
-                self._cmp_ended = True
-                self._cmp.notify_all()
-            if self.compare and self._comparer is None:
-                self._compare()
+            if self.comparer is not None:  # the whole day's comparison, once, shown or not
+                self.comparer.source_ended()
             return
         with self.lock:
             if isinstance(job, _Fit):
@@ -624,48 +616,14 @@ class Acquisition:
                 f = fitted[i]
                 v = replace(v, kept_fit=f.kept_fit, speed_x=f.speed_x, speed_v=f.speed_v)
             self._tell(self.listener.result, v)
-        if views and self.compare:
-            with self._cmp:
-                self._cmp_dirty = True
-                self._cmp_changed_at = time.monotonic()
-                self._cmp.notify_all()
-
-    # -- the comparison of the day's items (the UI's): off the fit path
-    #
-    # Computed by a thread of its own, only while the UI shows it (and once when the source
-    # ended), after the results have been quiet for COMPARE_QUIET_S, and not while fits wait:
-    # the fit worker never runs it, so a descent's fit never waits for the day's joint fit.
+        if self.comparer is not None:
+            for v in views:
+                self.comparer.update(v)
 
     def show_comparison(self, shown: bool) -> None:
-        """The UI opened (True) or closed (False) the comparison: computed only while shown."""
-        with self._cmp:
-            self._cmp_shown = shown
-            self._cmp.notify_all()
-
-    def _compare_loop(self) -> None:
-        while True:
-            with self._cmp:
-                while not (
-                    self._closed or (self._cmp_dirty and (self._cmp_shown or self._cmp_ended))
-                ):
-                    self._cmp.wait()
-                if self._closed:
-                    return
-                quiet = self._cmp_changed_at + COMPARE_QUIET_S - time.monotonic()
-                if quiet > 0 or not self._jobs.empty():  # debounced; fits first
-                    self._cmp.wait(max(quiet, COMPARE_QUIET_S / 4))
-                    continue
-                self._cmp_dirty = False
-            try:
-                self._compare()
-            except Exception as exc:  # noqa: BLE001 - the comparison is a view: the day goes on
-                self._tell(self.listener.warning, f"comparison failed: {type(exc).__name__}: "
-                           f"{exc}")  # fmt: skip
-
-    def _compare(self) -> None:
-        with self.lock:
-            snapshot = self.day.snapshot()
-        self._tell(self.listener.comparison, comparison_text(self.day.track, snapshot))
+        """A view opened (True) or closed (False) the comparison: computed only while shown."""
+        if self.comparer is not None:
+            self.comparer.show(shown)
 
     def _save_csv(self, results: Sequence[DescentResult]) -> None:
         """The session's results CSV up to date with ``results`` (:meth:`ResultsFile.save`)."""
@@ -717,14 +675,20 @@ class Acquisition:
         if src is not None and src is not threading.current_thread():
             src.join(timeout=10)
 
-    def close(self) -> None:
+    def close(self, comparison_wait_s: float = 0.0) -> None:
         """End the day as the end of a capture would: stop the source, end the open descent,
-        fit what is left, write the results CSV, close the raw log. Idempotent."""
+        fit what is left, write the results CSV, close the raw log. Idempotent. Then the
+        comparison ends, after ``comparison_wait_s`` at most for the whole day's."""
         if self._closed:
             return
         self._closed = True
-        with self._cmp:  # the comparison thread ends (one under way is not waited for)
-            self._cmp.notify_all()
+        try:
+            self._end_day()
+        finally:
+            if self.comparer is not None:
+                self.comparer.close(comparison_wait_s)
+
+    def _end_day(self) -> None:
         try:
             self.stop()
             self.end_of_input()
@@ -815,21 +779,6 @@ def _effect_now(day: Day, a: Annotation) -> Effect:
     return Effect(changed=(a.descent,))
 
 
-def comparison_text(track: Track, results: Sequence[DescentResult]) -> str:
-    """The joint fit of the day's valid descents, as the UI shows it."""
-    if len(collect(results)[0]) < 2:
-        return "no comparison yet: it needs at least two fitted descents"
-    day = compare_results(track, results)
-    if day.result is None:
-        return f"no comparison yet: {day.error}"
-    res = day.result
-    text = format_comparison(res, len(day.compared)) + "".join(f"\n! {w}" for w in res.warnings)
-    block = decision_block(
-        res.comparisons, [d.item for d in day.compared], day.compared[-1].number
-    )  # decided or not, after every descent (station/model/sequential.py)
-    return text + "".join(f"\n{line}" for line in ["", *block]) if block else text
-
-
 # ----------------------------------------------------------------------------- commands
 
 
@@ -847,8 +796,10 @@ def record(
     from station.session.serialport import ensure_port_free
 
     ensure_port_free(config.serial)  # a second recorder on the port: one line, no session made
-    # compare: the console says after every descent whether the day is decided
+    # compare, shown all along: the console says after every descent whether the day is
+    # decided
     acq = Acquisition.open(config, listener, session_dir=session_dir, compare=True)
+    acq.show_comparison(True)
     if started is not None:
         started()
     stop = threading.Event()
@@ -865,7 +816,7 @@ def record(
                 break
             stop.wait(0.1)
     finally:
-        acq.close()
+        acq.close(comparison_wait_s=FINAL_COMPARISON_S)
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     if acq.source_error is not None:

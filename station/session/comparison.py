@@ -1,10 +1,9 @@
-"""The day's comparison of its items (skis, waxes): the one glue between a day's results and the
-joint fit of :mod:`station.model.compare`, for ``station compare``, ``station report`` and the
-UI's comparison view.
+"""The day's comparison of its items (skis, waxes): the one producer of what ``station
+compare``, ``station report``, ``station record``'s console and the UI's comparison show.
 
-It was written three times (the compare command, the report, the acquisition loop), each
-choosing the descents, fitting them and noting the ones left out and those with wind its own
-way; one function keeps the three answers the same.
+It chooses the descents, fits them jointly, notes the ones left out and those with wind, and
+decides each pair (:mod:`station.model.sequential`); every view renders the typed
+:class:`DayComparison` it returns (:mod:`station.report.comparison_text`), none computes its own.
 """
 
 from __future__ import annotations
@@ -12,28 +11,50 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
-from station.model.compare import (
-    CompareError,
-    DescentData,
-    JointResult,
-    collect,
-    joint_fit,
-)
+from station.model.compare import collect, joint_fit
+from station.model.compare_types import CompareError, Comparison, DescentData, JointResult
+from station.model.sequential import DEFAULT_HORIZON, Decision, day_decisions
 from station.session.analysis import DescentResult
 from station.survey.track import Track
 
 #: along-track wind (m/s) above which a compared descent is flagged
 WIND_LIMIT_MS = 1.0
+_WORDS = {2: "two", 3: "three"}
 
 
 @dataclass(frozen=True)
 class DayComparison:
-    """A day's comparison: the descents compared, and the joint fit or why there is none."""
+    """A day's comparison: the descents compared, the joint fit or why there is none, and the
+    decision on each of its pairs after the latest descent."""
 
     compared: list[DescentData] = field(default_factory=list)
     result: JointResult | None = None
     #: why there is no result (the joint fit's own words); "" when there is one
     error: str = ""
+    #: one per comparison of ``result``, in its order (none without a result)
+    decisions: tuple[Decision, ...] = ()
+    #: descents per item over which the decisions spend their error rate
+    horizon: int = DEFAULT_HORIZON
+    margin: float | None = None
+
+    @property
+    def run_items(self) -> list[str]:
+        """The item of each compared descent, in run order."""
+        return [d.item for d in self.compared]
+
+    @property
+    def last_descent(self) -> int:
+        """The number of the latest compared descent (0: none)."""
+        return self.compared[-1].number if self.compared else 0
+
+    def decision(self, comparison: Comparison) -> Decision | None:
+        """The decision on one of the result's comparisons (None: not one of them)."""
+        if self.result is None:
+            return None
+        for c, d in zip(self.result.comparisons, self.decisions, strict=True):
+            if c is comparison:
+                return d
+        return None
 
 
 def compared_items(
@@ -55,11 +76,20 @@ def compare_results(
     model: str = "constant",
     drift: str = "auto",
     timer_sd_s: float | None = None,
+    horizon: int = DEFAULT_HORIZON,
+    margin: float | None = None,
+    at_least: int = 0,
 ) -> DayComparison:
     """The joint fit of the valid descents among ``results`` (marked invalid, failed fits and
     descents with fewer than three photocells are left out and listed in the result), with a
-    warning naming the descents that had more along-track wind than ``wind_limit_ms``."""
+    warning naming the descents that had more along-track wind than ``wind_limit_ms``, and
+    the decision on every pair after the latest of them. With fewer than ``at_least``
+    descents to compare there is no joint fit (the live views wait for two)."""
     data, excluded, windy = collect(results, wind_limit_ms)
+    if len(data) < at_least:
+        return DayComparison(data, None, f"it needs at least {_WORDS.get(at_least, at_least)} "
+                             "fitted descents",
+                             horizon=horizon, margin=margin)  # fmt: skip
     try:
         res = joint_fit(
             track, data, cda_fixed=cda_fixed, model=model, drift=drift,
@@ -67,5 +97,7 @@ def compare_results(
             wind_flagged=windy, wind_limit_ms=wind_limit_ms,
         )  # fmt: skip
     except CompareError as exc:
-        return DayComparison(data, None, str(exc))
-    return DayComparison(data, res)
+        return DayComparison(data, None, str(exc), horizon=horizon, margin=margin)
+    run_items = [d.item for d in data]
+    decisions = day_decisions(res.comparisons, run_items, horizon=horizon, margin=margin)
+    return DayComparison(data, res, "", tuple(decisions), horizon, margin)

@@ -21,17 +21,24 @@ import hashlib
 import json
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
+from enum import StrEnum
 from typing import IO, TYPE_CHECKING, Any
 
 from station import __version__
 from station.errors import InputError
-from station.files import MAX_OBSERVATIONS, MAX_RAWLOG, check_output, open_regular
+from station.files import (
+    MAX_OBSERVATIONS,
+    MAX_RAWLOG,
+    check_output,
+    check_regular,
+    open_regular,
+)
 from station.session import resultsstate
 from station.session import store as sessions
 from station.session.config import StationConfig
 from station.session.marks import Marks
-from station.session.records import Annotation
+from station.session.records import Annotation, LineCounts, Metadata
 from station.session.results import read_results
 from station.session.resultsfile import ResultsFile
 
@@ -42,7 +49,9 @@ if TYPE_CHECKING:
     from station.session.analysis import DescentResult
     from station.session.comparison import DayComparison
     from station.session.fitstore import FitStore
+    from station.session.processor import Processor
     from station.survey.track import Track
+    from station.timing.assembly import TimedDescent
 
 _BLOCK = 1 << 20
 
@@ -399,6 +408,200 @@ class RecordedSession:
             **options,
         )  # fmt: skip
 
+    # ------------------------------------------------------------------ what the commands show
+
+    def results_upto(self, upto: int | None) -> tuple[DescentResult, ...]:
+        """The descents as the day stood after descent ``upto`` (``compare --upto``; every
+        descent: None)."""
+        results = self.results()
+        if upto is None:
+            return results
+        return tuple(r for r in results if r.row.descent <= upto)
+
+    def line_counts(self) -> LineCounts:
+        """The lines the replay read and what became of them (a command's summary line)."""
+        return self.run().line_counts()
+
+    def base_metadata(self) -> Metadata:
+        """The day's metadata before any descent's own: the config's, with the annotations."""
+        return self.run().day.base_metadata()
+
+    def results_header(self) -> dict[str, str]:
+        """The header lines of the results CSV a replay writes (station, config, track)."""
+        acq = self.run()
+        return sessions.results_header(acq.config, acq.track.name)
+
+    def write_results_csv(self) -> str:
+        """The results CSV of the replay into the session, with the state a recording leaves
+        (``station import``), so the next annotate changes rows in place; returns its path."""
+        digest = resultsstate.annotations_digest(self.path)  # before the replay reads them
+        return self.run().write_session_results(self.path, digest)
+
+    def joined_by_last_import(self) -> set[int]:
+        """The descents the session's last ``station import`` joined to the recording
+        (:func:`station.session.memory_import.joined_by_last_import`)."""
+        from station.session.memory_import import joined_by_last_import
+
+        return joined_by_last_import(self.run().day.processor)
+
+    def summary(self) -> SessionSummary:
+        """The session as ``station sessions`` lists it, from its results CSV and annotations
+        without replaying or fitting anything; one that cannot be read is an
+        :class:`InputError` (or the :class:`OSError` of a file that went meanwhile)."""
+        from station.model.compare import item_name  # here: numpy (see the note above)
+
+        check_regular(self.file(sessions.RAW), MAX_RAWLOG, "raw log")
+        rows = self.rows()
+        items: list[str] = []
+        for r in rows:
+            it = item_name(r.ski, r.wax)
+            if r.descent_status != "aborted" and it not in items:
+                items.append(it)
+        has_results = os.path.lexists(self.file(sessions.RESULTS))
+        head = self.first_record()
+        started, imported = self.started(head), ""
+        if self.made_by_import(head):
+            first = next((m for m in map(_minute, (r.start_time for r in rows)) if m), "")
+            if first:
+                started, imported = first, started
+        return SessionSummary(
+            path=self.path,
+            started=started,
+            imported=imported,
+            descents=sum(r.descent_status != "aborted" for r in rows),
+            fitted=sum(r.status == "ok" and not r.invalid_reason for r in rows),
+            invalid=sum(bool(r.invalid_reason) for r in rows),
+            items=tuple(items),
+            status=self.status(has_results),
+        )
+
+    def status(self, has_results: bool) -> SessionStatus:
+        """``recording`` while a process holds the session's lock, whatever the timer does;
+        ``interrupted`` when its recorder died (killed, crashed) without ending it, so its
+        results CSV may lack the last descent; ``finished`` when it was ended (or is older
+        than the lock)."""
+        state = self.recording_state()
+        if state is sessions.RecordingStatus.NOW:
+            return SessionStatus.RECORDING
+        if not has_results:
+            return SessionStatus.NO_RESULTS
+        if state is sessions.RecordingStatus.INTERRUPTED:
+            return SessionStatus.INTERRUPTED
+        if state is sessions.RecordingStatus.UNKNOWN:
+            return SessionStatus.UNKNOWN
+        return SessionStatus.FINISHED
+
 
 def _text(value: Any) -> str:
     return "" if value is None else str(value)
+
+
+# ----------------------------------------------------------------------------- a bare replay
+
+
+@dataclass(frozen=True)
+class Unfitted:
+    """``replay --no-fit`` of a session folder or a plain capture: its descents as they ended
+    (one an edit changed, as it ended last), by number, nothing fitted, and the processor that
+    made them (its line counts, every impulse's fate)."""
+
+    descents: dict[int, TimedDescent]
+    processor: Processor
+
+    def line_counts(self) -> LineCounts:
+        return self.processor.line_counts()
+
+    def write_events_to(self, fh: IO[str]) -> None:
+        """Every parsed impulse and its fate (:func:`station.session.replay.write_events`)."""
+        from station.session.replay import write_events
+
+        write_events(self.processor, fh)
+
+
+def replay_unfitted(source: str, config: StationConfig, warnings: list[str]) -> Unfitted:
+    """Framing, parsing and the descents of ``source``, nothing fitted: a quick check of a
+    capture, its crossing times for another tool, and the measure of the replay's own
+    throughput (benchmarks/replay_speed.py). ``warnings`` collects what the reader passed
+    over."""
+    import gc
+
+    from station.session.processor import Processor
+    from station.session.replay import bulk_chunks
+    from station.survey.load import load_survey
+    from station.survey.track import build_track
+
+    proc = Processor(config, build_track(load_survey(config.survey_path)))
+    ended: dict[int, TimedDescent] = {}  # a descent an edit changed ends again: the latest kept
+    # a bulk replay makes no garbage cycles (tuples, lists and descents, all kept or freed by
+    # their counts): the collector is out of the way while it runs (it scanned the growing
+    # lists of events again and again: 15 % of the time), and the set-up's objects (modules,
+    # the track) are frozen out of its later scans
+    gc.freeze()
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        for d in proc.feed_chunks(bulk_chunks(source, warnings)):
+            ended[d.number] = d
+        for d in proc.finish():
+            ended[d.number] = d
+    finally:
+        # what the replay made (all kept) joins the frozen set-up before the collector is back:
+        # else its first collection walked every object made while it was off (25 ms of a
+        # 100 800-line capture's 330, benchmarks/replay_speed.py)
+        gc.freeze()
+        if was_enabled:
+            gc.enable()
+        gc.unfreeze()
+    return Unfitted(ended, proc)
+
+
+# ----------------------------------------------------------------------------- a listing's line
+
+
+class SessionStatus(StrEnum):
+    """What ``station sessions`` says of a session as a whole (its ``status`` column)."""
+
+    RECORDING = "recording"  # a process holds its recording lock
+    FINISHED = "finished"
+    INTERRUPTED = "interrupted"  # its recorder died: the results CSV may lack the last descent
+    NO_RESULTS = "no results (station export SESSION --csv …)"
+    UNKNOWN = "unknown (its recording.lock cannot be tried)"
+    BROKEN = "broken"  # it cannot be read (the reason is in ``problem``)
+
+
+@dataclass(frozen=True)
+class SessionSummary:
+    """One line of ``station sessions`` (:meth:`RecordedSession.summary`)."""
+
+    path: str
+    started: str  # local date and time of the first raw-log record, "" when unknown
+    descents: int
+    fitted: int  # descents with status ok
+    invalid: int  # marked invalid by the engineer
+    items: tuple[str, ...]
+    status: SessionStatus
+    problem: str = ""  # why a broken session cannot be read; "" for the others
+    #: when ``station import`` made it (its raw log's first record), "" for a recorded one:
+    #: ``started`` is then its first descent's start, the test day, not the day of the import
+    imported: str = ""
+
+    @classmethod
+    def broken(cls, path: str, why: str) -> SessionSummary:
+        """The line of a session that cannot be read, saying why."""
+        return cls(path, "", 0, 0, 0, (), SessionStatus.BROKEN, why)
+
+    def to_json(self) -> dict[str, Any]:
+        out = asdict(self) | {"items": list(self.items)}
+        if not self.problem:
+            del out["problem"]  # the listing of a readable session is as it was
+        if not self.imported:
+            del out["imported"]
+        return out
+
+
+def _minute(iso: str) -> str:
+    """'2026-01-12 10:00' of a results CSV's start time (ISO 8601 local), "" if it is none."""
+    try:
+        return dt.datetime.fromisoformat(iso).strftime("%Y-%m-%d %H:%M")
+    except (TypeError, ValueError):
+        return ""

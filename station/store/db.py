@@ -26,6 +26,7 @@ from typing import Any
 import sqlalchemy as sa
 
 from station.errors import InputError
+from station.store import configured
 
 #: the store when none is given (beside the sessions ``station record`` makes)
 DEFAULT_STORE = os.path.join("sessions", "season.db")
@@ -72,7 +73,7 @@ class Store:
 def resolve(arg: str | None, config_store: str | None = None) -> str:
     """The store to use: ``--store``, else ``STATION_STORE``, else the config's ``store:``,
     else :data:`DEFAULT_STORE`."""
-    return arg or os.environ.get("STATION_STORE") or config_store or DEFAULT_STORE
+    return arg or configured(config_store) or DEFAULT_STORE
 
 
 def is_url(target: str) -> bool:

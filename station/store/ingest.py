@@ -99,9 +99,7 @@ def read(session: str, identity: Identity | None = None) -> SessionRecord:
     import time
 
     from station.files import MAX_OBSERVATIONS
-    from station.model.compare import CompareError, collect, item_of, joint_fit
     from station.session.recorded import RecordedSession, sha256_of
-    from station.session.records import annotation_to_json
 
     ident = identity or identify(session)
     rs = RecordedSession(session)
@@ -128,6 +126,17 @@ def read(session: str, identity: Identity | None = None) -> SessionRecord:
             "updated_t": now,
         },
     )
+    meta_of = _add_descents(rec, results)
+    _add_annotations(rec, rs.annotations())
+    _add_day_fits(rec, rs.track, results, meta_of)
+    return rec
+
+
+def _add_descents(rec: SessionRecord, results: list[Any]) -> dict[int, Any]:
+    """Each descent's row and its conditions; returns the metadata of each descent."""
+    from station.model.compare import item_of
+
+    sid = rec.identity.id
     meta_of = {}
     for r in results:
         row, fit = r.row, r.fit
@@ -137,7 +146,7 @@ def read(session: str, identity: Identity | None = None) -> SessionRecord:
         from_fit = {"v0_lo": v0_ci[0] if v0_ci else None, "v0_hi": v0_ci[1] if v0_ci else None}
         rec.descents.append(
             {
-                "session_id": ident.id,
+                "session_id": sid,
                 "number": row.descent,
                 "start_time": row.start_time,
                 "status": str(row.status),
@@ -154,25 +163,41 @@ def read(session: str, identity: Identity | None = None) -> SessionRecord:
         )
         cond: dict[str, Any] = {k: getattr(meta, k, None) for k in CONDITIONS}
         cond["wind_ms"] = row.wind_ms if meta.wind_ms is not None else None
-        rec.conditions.append({"session_id": ident.id, "descent": row.descent, **cond})
-    for seq, a in enumerate(rs.annotations(), start=1):
+        rec.conditions.append({"session_id": sid, "descent": row.descent, **cond})
+    return meta_of
+
+
+def _add_annotations(rec: SessionRecord, annotations: list[Any]) -> None:
+    """The annotation log, in order."""
+    from station.session.records import annotation_to_json
+
+    for seq, a in enumerate(annotations, start=1):
         js = annotation_to_json(a)
         rec.annotations.append(
             {
-                "session_id": ident.id,
+                "session_id": rec.identity.id,
                 "seq": seq,
                 "t": a.t,
                 "kind": str(js.get("type", "")),
                 "record": json.dumps(js, ensure_ascii=False, sort_keys=True),
             }
         )
+
+
+def _add_day_fits(
+    rec: SessionRecord, track: Any, results: list[Any], meta_of: dict[int, Any]
+) -> None:
+    """The day model fitted once per grouping of the descents (by item, ski, wax, grind): its
+    status, and its items' μ with their covariance (items with two descents or more)."""
+    from station.model.compare import CompareError, collect, joint_fit
+
     data, _excluded, _windy = collect(results)
     fitted: dict[tuple[int, ...], Any] = {}
     for grouping in GROUPINGS:
         labels = [_group_label(meta_of[d.number], grouping, d.item) for d in data]
         order: dict[str, int] = {}
         key = tuple(order.setdefault(x, len(order)) for x in labels)
-        base = {"session_id": ident.id, "grouping": grouping}
+        base = {"session_id": rec.identity.id, "grouping": grouping}
         if len(order) < 2:
             rec.day_fits.append({**base, "status": "one-item", "message":
                                  f"one {grouping} only: nothing to compare",
@@ -181,7 +206,7 @@ def read(session: str, identity: Identity | None = None) -> SessionRecord:
         if key not in fitted:
             grouped = [replace(d, item=f"#{key[k]}") for k, d in enumerate(data)]
             try:
-                fitted[key] = joint_fit(rs.track, grouped, drift="auto")
+                fitted[key] = joint_fit(track, grouped, drift="auto")
             except CompareError as exc:
                 fitted[key] = exc
         res = fitted[key]
@@ -203,4 +228,3 @@ def read(session: str, identity: Identity | None = None) -> SessionRecord:
             for pb in range(pa, len(keep)):
                 rec.covariances.append({**base, "a": pa, "b": pb,
                                         "cov": float(cov[ka][keep[pb]])})  # fmt: skip
-    return rec

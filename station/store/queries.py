@@ -8,7 +8,7 @@ import math
 import re
 from collections import Counter
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sqlalchemy as sa
@@ -16,6 +16,9 @@ import sqlalchemy as sa
 from station.errors import InputError
 from station.store import schema
 from station.store.db import Store
+
+if TYPE_CHECKING:
+    from station.model.season import SeasonDays
 
 _OPS = ("<=", ">=", "!=", "==", "=", "<", ">")
 _WHERE = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(<=|>=|!=|==|=|<|>)\s*(.+?)\s*$")
@@ -162,19 +165,24 @@ def export_frame(store: Store) -> Any:
     return frame[EXPORT_COLUMNS]
 
 
-def day_effects(
-    store: Store, by: str, where: list[Where] | None = None
-) -> tuple[list[Any], list[str], dict[str, dict[str, Any]]]:
-    """Each selected day's item effects for ``by`` (:class:`station.model.season.DayEffects`),
-    the days left out with why, and every day's conditions (by session name)."""
+@dataclass(frozen=True)
+class _DayFits:
+    """What the store holds of every day's fits for one grouping (``by``)."""
+
+    conditions: dict[str, dict[str, Any]]  # by session id
+    names: dict[str, str]  # session id -> name, oldest first
+    fits: dict[str, Any]
+    items: dict[str, list[Any]]
+    covariances: dict[str, list[Any]]
+    #: the items with a descent a day fit could take (valid, enough photocells), per day
+    tested: dict[str, set[str]]
+
+
+def _day_fits(store: Store, by: str) -> _DayFits:
     from station.model.compare import DAY_FIT_MIN_PHOTOCELLS, DAY_FIT_STATUSES
-    from station.model.season import DayEffects
 
     s, f, it, cv = schema.sessions, schema.day_fits, schema.items, schema.item_covariance
     d = schema.descents
-    left_out: list[str] = []
-    single: dict[str, list[str]] = {}  # item → the days it had one valid descent on
-    out: list[DayEffects] = []
     with store.reading() as conn:
         conds = day_conditions(conn)
         names = dict(
@@ -198,11 +206,23 @@ def day_effects(
         tested: dict[str, set[str]] = {}
         for r in conn.execute(valid):
             tested.setdefault(r.session_id, set()).add(r.label.strip() or f"(no {by})")
-    for sid, name in names.items():
-        cond = conds.get(sid, dict.fromkeys(schema.CONDITIONS))
+    return _DayFits(conds, names, fits, items, covs, tested)
+
+
+def day_effects(store: Store, by: str, where: list[Where] | None = None) -> SeasonDays:
+    """Each selected day's item effects for ``by`` (:class:`station.model.season.DayEffects`),
+    the days left out with why, and every day's conditions (by session name)."""
+    from station.model.season import DayEffects, SeasonDays
+
+    stored = _day_fits(store, by)
+    left_out: list[str] = []
+    single: dict[str, list[str]] = {}  # item → the days it had one valid descent on
+    out: list[DayEffects] = []
+    for sid, name in stored.names.items():
+        cond = stored.conditions.get(sid, dict.fromkeys(schema.CONDITIONS))
         if where and not all(w.holds(cond.get(w.key)) for w in where):
             continue
-        fit = fits.get(sid)
+        fit = stored.fits.get(sid)
         if fit is None:
             left_out.append(f"{name}: no day fit stored (station season add it again)")
             continue
@@ -212,14 +232,14 @@ def day_effects(
             left_out.append(f"{name}: its day fit is {fit.status}" + (
                 f" ({fit.message})" if fit.message else ""))  # fmt: skip
             continue
-        rows = items.get(sid, [])
-        for x in tested.get(sid, set()) - {r.item for r in rows}:
+        rows = stored.items.get(sid, [])
+        for x in stored.tested.get(sid, set()) - {r.item for r in rows}:
             single.setdefault(x, []).append(name)
         if len(rows) < 2:
             continue
         k = len(rows)
         cov = np.zeros((k, k))
-        for r in covs.get(sid, []):
+        for r in stored.covariances.get(sid, []):
             if r.a < k and r.b < k:
                 cov[r.a, r.b] = cov[r.b, r.a] = r.cov
         numeric = {key: cond[key] for key in schema.NUMERIC_CONDITIONS if cond.get(key) is not None}
@@ -241,5 +261,6 @@ def day_effects(
             f"{len(gone)} {by}(s) with one valid descent a day, too few to compare ({on}): "
             "one descent's glide cannot be told from its posture"
         )
-    named = {names[sid]: cond for sid, cond in conds.items() if sid in names}
-    return out, left_out, named
+    names = stored.names
+    named = {names[sid]: cond for sid, cond in stored.conditions.items() if sid in names}
+    return SeasonDays(out, left_out, named)

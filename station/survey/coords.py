@@ -47,19 +47,7 @@ def _number(text: str, decimal_comma: bool, path: str, line: int, column: str) -
 
 def read_points_csv(path: str, default_sigma_h: float) -> list[ReducedPoint]:
     """Read a coordinate list; ``default_sigma_h`` (m) where no ``sigma_h`` column is given."""
-    if os.path.isdir(path):
-        raise InputError("is a folder, not a coordinate file", path=path)
-    if os.path.exists(path) and not os.path.isfile(path):
-        raise InputError("not a regular file (a device or pipe?)", path=path)
-    try:
-        with open(path, encoding="utf-8-sig", newline="") as fh:
-            text = fh.read()
-    except IsADirectoryError:
-        raise InputError("is a folder, not a coordinate file", path=path) from None
-    except OSError as exc:
-        raise InputError(f"cannot read coordinate file: {exc.strerror}", path=path) from None
-    except UnicodeDecodeError:
-        raise InputError("not a UTF-8 text file", path=path) from None
+    text = _read_text(path)
     lines = text.splitlines()
     first = next((i for i, ln in enumerate(lines) if ln.strip()), None)
     if first is None:
@@ -70,21 +58,7 @@ def read_points_csv(path: str, default_sigma_h: float) -> list[ReducedPoint]:
     reader = csv.reader(io.StringIO(text), delimiter=delimiter)
     rows = list(reader)
     header = [h.strip().lower() for h in rows[first]]
-    missing = [c for c in REQUIRED if c not in header]
-    if missing:
-        raise InputError(
-            f"missing column(s) {', '.join(missing)}; the header must name id,e,n,h "
-            f"(optional sigma_h, sigma_xy), found {','.join(header)!r}",
-            path=path,
-            line=first + 1,
-        )
-    unknown = [c for c in header if c not in REQUIRED + OPTIONAL]
-    if unknown:
-        raise InputError(
-            f"unknown column(s) {', '.join(unknown)} (id, e, n, h, sigma_h, sigma_xy)",
-            path=path,
-            line=first + 1,
-        )
+    _check_header(header, path, first + 1)
     col = {c: header.index(c) for c in header}
     points: list[ReducedPoint] = []
     seen: dict[str, int] = {}
@@ -108,47 +82,90 @@ def read_points_csv(path: str, default_sigma_h: float) -> list[ReducedPoint]:
                 field="id",
             )
         seen[pid] = i
-        vals = {
-            c: _number(row[col[c]], decimal_comma, path, i, c)
-            for c in ("e", "n", "h", *OPTIONAL)
-            if c in col and (c in REQUIRED or row[col[c]].strip())
-        }
-        for c in ("e", "n"):
-            if abs(vals[c]) > MAX_COORD_M:
-                raise InputError(
-                    f"{vals[c]!r} m is not a grid coordinate", path=path, line=i, field=c
-                )
-        if not MIN_H_M <= vals["h"] <= MAX_H_M:
-            raise InputError(
-                f"height {vals['h']!r} m is not on the earth's surface "
-                f"({MIN_H_M:g} .. {MAX_H_M:g} m)",
-                path=path,
-                line=i,
-                field="h",
-            )
-        for c in OPTIONAL:
-            if c in vals and not 0.0 < vals[c] <= MAX_SIGMA_M:
-                raise InputError(
-                    f"a standard deviation in metres must lie in (0, {MAX_SIGMA_M:g}], "
-                    f"got {vals[c]!r}",
-                    path=path,
-                    line=i,
-                    field=c,
-                )
-        sigma_h = vals.get("sigma_h", default_sigma_h)
-        points.append(
-            ReducedPoint(
-                point=pid,
-                e=vals["e"],
-                n=vals["n"],
-                h=vals["h"],
-                sigma_h=sigma_h,
-                sigma_xy=vals.get("sigma_xy", sigma_h),
-                horizontal_distance=math.inf,  # no instrument distance: never "unobserved"
-                setup="coordinates",
-                line=i,
-            )
-        )
+        points.append(_point(pid, row, col, decimal_comma, default_sigma_h, path, i))
     if not points:
         raise InputError("no points below the header", path=path, line=first + 1)
     return points
+
+
+def _read_text(path: str) -> str:
+    """The coordinate file's text, or an InputError that says why it cannot be read."""
+    if os.path.isdir(path):
+        raise InputError("is a folder, not a coordinate file", path=path)
+    if os.path.exists(path) and not os.path.isfile(path):
+        raise InputError("not a regular file (a device or pipe?)", path=path)
+    try:
+        with open(path, encoding="utf-8-sig", newline="") as fh:
+            return fh.read()
+    except IsADirectoryError:
+        raise InputError("is a folder, not a coordinate file", path=path) from None
+    except OSError as exc:
+        raise InputError(f"cannot read coordinate file: {exc.strerror}", path=path) from None
+    except UnicodeDecodeError:
+        raise InputError("not a UTF-8 text file", path=path) from None
+
+
+def _check_header(header: list[str], path: str, line: int) -> None:
+    """The header names the required columns and no others."""
+    missing = [c for c in REQUIRED if c not in header]
+    if missing:
+        raise InputError(
+            f"missing column(s) {', '.join(missing)}; the header must name id,e,n,h "
+            f"(optional sigma_h, sigma_xy), found {','.join(header)!r}",
+            path=path,
+            line=line,
+        )
+    unknown = [c for c in header if c not in REQUIRED + OPTIONAL]
+    if unknown:
+        raise InputError(
+            f"unknown column(s) {', '.join(unknown)} (id, e, n, h, sigma_h, sigma_xy)",
+            path=path,
+            line=line,
+        )
+
+
+def _point(
+    pid: str,
+    row: list[str],
+    col: dict[str, int],
+    decimal_comma: bool,
+    default_sigma_h: float,
+    path: str,
+    i: int,
+) -> ReducedPoint:
+    """One row's point, its numbers checked (line ``i`` of the file)."""
+    vals = {
+        c: _number(row[col[c]], decimal_comma, path, i, c)
+        for c in ("e", "n", "h", *OPTIONAL)
+        if c in col and (c in REQUIRED or row[col[c]].strip())
+    }
+    for c in ("e", "n"):
+        if abs(vals[c]) > MAX_COORD_M:
+            raise InputError(f"{vals[c]!r} m is not a grid coordinate", path=path, line=i, field=c)
+    if not MIN_H_M <= vals["h"] <= MAX_H_M:
+        raise InputError(
+            f"height {vals['h']!r} m is not on the earth's surface ({MIN_H_M:g} .. {MAX_H_M:g} m)",
+            path=path,
+            line=i,
+            field="h",
+        )
+    for c in OPTIONAL:
+        if c in vals and not 0.0 < vals[c] <= MAX_SIGMA_M:
+            raise InputError(
+                f"a standard deviation in metres must lie in (0, {MAX_SIGMA_M:g}], got {vals[c]!r}",
+                path=path,
+                line=i,
+                field=c,
+            )
+    sigma_h = vals.get("sigma_h", default_sigma_h)
+    return ReducedPoint(
+        point=pid,
+        e=vals["e"],
+        n=vals["n"],
+        h=vals["h"],
+        sigma_h=sigma_h,
+        sigma_xy=vals.get("sigma_xy", sigma_h),
+        horizontal_distance=math.inf,  # no instrument distance: never "unobserved"
+        setup="coordinates",
+        line=i,
+    )

@@ -112,6 +112,47 @@ def _knots(x: Array) -> Array:
     return t
 
 
+def _lambda_by_reml(z: Array, d: Array, rss_perp: float, n: int, floor: float) -> float:
+    """The smoothing parameter λ at the minimum of the REML criterion: a grid in log λ over
+    the penalised directions' range, then a bounded search around its best point. ``z``, ``d``:
+    the data and the penalty in the orthonormal basis; ``floor``: the least residual variance
+    it takes (:data:`_TINY`)."""
+    zp, dp = z[PENALTY_ORDER:], d[PENALTY_ORDER:]
+    dof_reml = n - PENALTY_ORDER
+
+    def reml(log_lam: float) -> float:
+        ld = math.exp(log_lam) * dp
+        s2 = max((rss_perp + float(np.sum(zp * zp * ld / (1.0 + ld)))) / dof_reml, floor)
+        return dof_reml * math.log(s2) + float(np.sum(np.log1p(1.0 / np.maximum(ld, 1e-300))))
+
+    def reml_on(log_lams: Array) -> Array:
+        """reml at every point of a grid in one pass: the very numbers of reml(g) one by one
+        (the same operations, row by row); the whole fit takes 3 ms of CPU instead of 5."""
+        ld = np.array([math.exp(g) for g in log_lams])[:, None] * dp
+        fit = np.sum(zp * zp * ld / (1.0 + ld), axis=-1)
+        pen = np.sum(np.log1p(1.0 / np.maximum(ld, 1e-300)), axis=-1)
+        return np.array(
+            [
+                dof_reml * math.log(max((rss_perp + float(f)) / dof_reml, floor)) + float(q)
+                for f, q in zip(fit, pen, strict=True)
+            ]
+        )
+
+    pos = dp[dp > 0]
+    lo = -math.log(pos.max()) - 6.0 * math.log(10.0)
+    hi = -math.log(pos.min()) + 6.0 * math.log(10.0)
+    grid = np.linspace(lo, hi, 161)
+    vals = reml_on(grid)
+    i = int(np.argmin(vals))
+    a_, b_ = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+    log_lam = float(grid[i])
+    if a_ < b_:
+        best = minimize_scalar(reml, bounds=(a_, b_), method="bounded", options={"xatol": 1e-4})
+        if best.fun <= vals[i]:
+            log_lam = float(best.x)
+    return math.exp(log_lam)
+
+
 def fit_smoothing_spline(
     x: Array, y: Array, sigma: Array, lam: float | None = None
 ) -> SmoothingFit:
@@ -148,42 +189,8 @@ def fit_smoothing_spline(
     wy = sw * y0
     z = xt.T @ wy
     rss_perp = max(float(wy @ wy - z @ z), 0.0)
-    zp, dp = z[PENALTY_ORDER:], d[PENALTY_ORDER:]
-    dof_reml = n - PENALTY_ORDER
-    floor = _TINY * max(1.0, float(np.mean(y * y)))
-
-    def reml(log_lam: float) -> float:
-        ld = math.exp(log_lam) * dp
-        s2 = max((rss_perp + float(np.sum(zp * zp * ld / (1.0 + ld)))) / dof_reml, floor)
-        return dof_reml * math.log(s2) + float(np.sum(np.log1p(1.0 / np.maximum(ld, 1e-300))))
-
-    def reml_on(log_lams: Array) -> Array:
-        """reml at every point of a grid in one pass: the very numbers of reml(g) one by one
-        (the same operations, row by row); the whole fit takes 3 ms of CPU instead of 5."""
-        ld = np.array([math.exp(g) for g in log_lams])[:, None] * dp
-        fit = np.sum(zp * zp * ld / (1.0 + ld), axis=-1)
-        pen = np.sum(np.log1p(1.0 / np.maximum(ld, 1e-300)), axis=-1)
-        return np.array(
-            [
-                dof_reml * math.log(max((rss_perp + float(f)) / dof_reml, floor)) + float(q)
-                for f, q in zip(fit, pen, strict=True)
-            ]
-        )
-
     if lam is None:
-        pos = dp[dp > 0]
-        lo = -math.log(pos.max()) - 6.0 * math.log(10.0)
-        hi = -math.log(pos.min()) + 6.0 * math.log(10.0)
-        grid = np.linspace(lo, hi, 161)
-        vals = reml_on(grid)
-        i = int(np.argmin(vals))
-        a_, b_ = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
-        log_lam = float(grid[i])
-        if a_ < b_:
-            best = minimize_scalar(reml, bounds=(a_, b_), method="bounded", options={"xatol": 1e-4})
-            if best.fun <= vals[i]:
-                log_lam = float(best.x)
-        lam = math.exp(log_lam)
+        lam = _lambda_by_reml(z, d, rss_perp, n, floor=_TINY * max(1.0, float(np.mean(y * y))))
     shrink = 1.0 / (1.0 + lam * d)
     coef0 = basis @ (shrink * z)
     fitted0 = b @ coef0

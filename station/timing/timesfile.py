@@ -178,6 +178,13 @@ def read_times(path: str, photocell_order: list[str]) -> DescentTimes:
             path=path,
             line=numbered[-1][0],
         )
+    return _in_order(entries, path)
+
+
+def _in_order(entries: list[tuple[int, str, float, bool, int]], path: str) -> DescentTimes:
+    """The times in the survey's order of the photocells, midnight unwrapped, checked to
+    increase within one descent's span. ``entries``: (order, photocell, time, time of day,
+    line) as read."""
     kinds = {e[3] for e in entries}
     if len(kinds) > 1:
         raise InputError(

@@ -24,9 +24,11 @@ from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, RichLog, Static
 
 from station.model.estimate import Estimate
+from station.report.comparison_text import comparison_view, headline
 from station.report.text import count, local_time
 from station.session.acquisition import Acquisition
 from station.session.analysis import DescentResult
+from station.session.comparison import DayComparison
 from station.session.config import StationConfig
 from station.session.recorded import RecordedSession
 from station.session.records import (
@@ -44,7 +46,6 @@ from station.session.records import (
 from station.session.store import RESULTS, is_session
 from station.timing.impulses import format_tod
 from station.ui.collector import IdleCollector
-from station.ui.comparison import ComparisonProcess
 from station.ui.messages import (
     AcquisitionWarning,
     ComparisonUpdated,
@@ -215,6 +216,7 @@ class MainScreen(Screen):
     def compose(self) -> ComposeResult:
         yield Header(show_clock=False)
         yield Static("", id="status", markup=False)
+        yield Static(headline(None), id="answer", markup=False)  # the day's answer, always
         # markup=False: "[0.2238, 0.2249]", "x [m]" and a port name are text, not markup
         with Horizontal(id="top"):
             with Vertical(id="left"):
@@ -278,7 +280,6 @@ class StationApp(App):
         self.demo_skis = demo_skis or []
         self.config = config
         self.acq: Acquisition | None = None
-        self.comparer: ComparisonProcess | None = None
         self.collector = IdleCollector()
         self._fitted_at = 0.0  # time.monotonic() of the latest fit
         #: drawn with the fit that is due (HOLD_S): the log's lines, the progress's text
@@ -303,6 +304,7 @@ class StationApp(App):
         self._panel_of: DescentResult | None = None  # the snapshot the panel shows (or will)
         self._panel_due: DescentResult | None = None  # to show when the dialog on top closes
         self._comparison_due = False  # a comparison arrived as a fit was due: drawn after it
+        self.comparison: DayComparison | None = None  # the latest, rendered as comparison_text
         self.comparison_text = (
             "no comparison yet: it needs fitted descents with ski or wax entered (m)"
         )
@@ -332,22 +334,20 @@ class StationApp(App):
         self.collector.start()
         self.set_interval(COLLECT_EVERY_S, self._collect_if_quiet)
         if self.mode == "replay" and self.recorded is not None:
-            self.acq = self.recorded.start_replay(PostingListener(self), speed=self.speed)
-        else:
+            self.acq = self.recorded.start_replay(
+                PostingListener(self), speed=self.speed, compare=True
+            )
+        else:  # the comparison: the acquisition's, in a process of its own, while shown
             self.acq = Acquisition.open(
                 self.config,
                 PostingListener(self),
                 session_dir=self.session_dir,
                 date=self.date,
                 ski_rotation=self.demo_skis if self.mode == "demo" else (),
+                compare=True,
             )
         self.photocell_ids = tuple(self.acq.track.photocell_ids)
-        # the comparison: the UI's own, in a process of its own (station.ui.comparison)
-        self.comparer = ComparisonProcess(
-            self.acq.track,
-            post=lambda text: self.post_message(ComparisonUpdated(text)),
-            warn=lambda text: self.post_message(AcquisitionWarning(text)),
-        )
+        self.acq.show_comparison(True)  # the answer line shows it after every descent
         if self.session_dir is not None:
             self.sub_title = f"{self.mode} · {self.session_dir}"
         elif self.source is not None:  # a replay names what it replays: the session's name
@@ -507,9 +507,7 @@ class StationApp(App):
         n = res.number
         # its speed curve (12 kB) only while it is shown, its fit (4 kB) in the session's
         # fit store where it has one: read back, drawn again when selected (DescentResult.lean)
-        self.results[n] = stored = res.lean()
-        if self.comparer is not None:
-            self.comparer.update(stored)  # noted; sent to the comparison's process off this thread
+        self.results[n] = res.lean()
         table = self.main.query_one("#table", DataTable)
         key = str(n)
         values = self._cells(res)
@@ -557,7 +555,9 @@ class StationApp(App):
             self._show(self._panel_due)
 
     def on_comparison_updated(self, msg: ComparisonUpdated) -> None:
-        self.comparison_text = msg.text
+        self.comparison = msg.comparison
+        self.comparison_text = comparison_view(msg.comparison)
+        self.main.query_one("#answer", Static).update(headline(msg.comparison), layout=False)
         if self._fit_imminent():  # drawn after the fit: the long text's layout waits
             self._comparison_due = True
             return
@@ -598,22 +598,13 @@ class StationApp(App):
         self.notify(msg.text, title="the recording goes on", severity="error", timeout=10)
 
     def action_compare(self) -> None:
-        """The comparison is computed only while it is shown (at 2000 descents a joint fit
-        takes seconds of a 2-core laptop): shown, it is brought up to date, and kept so."""
-
-        def closed(_result: None) -> None:
-            if self.comparer is not None:
-                self.comparer.show(False)
-
-        self.push_screen(ComparisonScreen(self.comparison_text), closed)
-        if self.comparer is not None:
-            self.comparer.show(True)
+        """The whole comparison, kept up to date while shown (it is computed after every
+        descent, in a process of its own, for the answer line)."""
+        self.push_screen(ComparisonScreen(self.comparison_text))
 
     def on_source_ended(self, msg: SourceEnded) -> None:
         self.connection = "replay finished"
         self._update_status()
-        if self.comparer is not None:  # the whole day's comparison, shown or not
-            self.comparer.source_ended()
         self.notify(msg.summary, title="replay finished", timeout=10)
 
     def _show(self, res: DescentResult) -> None:
@@ -824,8 +815,6 @@ class StationApp(App):
                 self.sim.terminate()  # it ends while the day is closed, not after
             if self.acq is not None:
                 self.acq.close()
-        finally:  # the comparison's process and the simulator end whatever happened above
-            if self.comparer is not None:
-                self.comparer.close()
+        finally:  # the simulator ends whatever happened above
             if self.sim is not None:
                 self.sim.stop(timeout=0.05)

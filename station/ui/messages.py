@@ -9,6 +9,7 @@ from textual.message import Message
 from station.report.text import summary
 from station.session.acquisition import Listener
 from station.session.analysis import DescentResult
+from station.session.comparison import DayComparison
 from station.session.records import LineCounts, Progress
 from station.timing.assembly import ImpulseEvent
 
@@ -58,9 +59,9 @@ class SourceEnded(Message):
 class ComparisonUpdated(Message):
     """The test-day comparison, recomputed after a descent or an annotation."""
 
-    def __init__(self, text: str) -> None:
+    def __init__(self, comparison: DayComparison) -> None:
         super().__init__()
-        self.text = text
+        self.comparison = comparison
 
 
 class AcquisitionWarning(Message):
@@ -92,8 +93,8 @@ class PostingListener(Listener):
     def result(self, result: DescentResult) -> None:
         self.app.post_message(DescentFitted(result))
 
-    def comparison(self, text: str) -> None:
-        self.app.post_message(ComparisonUpdated(text))
+    def comparison(self, comparison: DayComparison) -> None:
+        self.app.post_message(ComparisonUpdated(comparison))
 
     def warning(self, text: str) -> None:
         self.app.post_message(AcquisitionWarning(text))

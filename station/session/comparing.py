@@ -1,16 +1,15 @@
-"""The UI's comparison of the day's items, computed in a process of its own.
+"""The one live comparison of the day's items, for the UI's panel and ``station record``'s
+console alike, computed in a process of its own.
 
 At 2000 descents the day's joint fit takes seconds of Python and numpy. On a thread of the
-UI's process it held the interpreter's lock against the next descent's fit and the UI's
-drawing of it: a descent that ended while the comparison ran reached the screen hundreds of
-milliseconds late (issue 19: ≤ 50 ms is the target). Here a process keeps the day's results
-(each sent once, when it is fitted or marked) and computes the comparison's text when asked;
-the UI's side is a thread that waits for it without the lock.
+recording's process it would hold the interpreter's lock against the next descent's fit and
+the UI's drawing of it. Here a process keeps the day's results (each sent once, when it is
+fitted or marked) and computes the :class:`DayComparison` when asked; this side is a thread
+that waits for it without the lock.
 
-Computed only while the comparison is shown (and once more when a replay ended, shown or not),
+Computed only while a view shows it (and once more when the source ended, shown or not),
 after the results have been quiet for ``QUIET_S`` (a replay: one comparison at the end, not one
-per descent), from the latest results whatever arrived while it ran. No Textual here: the
-process imports what the comparison needs, nothing of the UI.
+per descent), from the latest results whatever arrived while it ran.
 """
 
 from __future__ import annotations
@@ -27,29 +26,28 @@ from dataclasses import replace
 from typing import BinaryIO
 
 from station.session.analysis import DescentResult
+from station.session.comparison import DayComparison, compare_results
 from station.survey.track import Track
 
 #: the comparison waits until the results have not changed for this long (s)
 QUIET_S = 0.3
-#: pickles between the UI and the process (both the same Python)
+#: pickles between the recording and the process (both the same Python)
 PROTOCOL = pickle.HIGHEST_PROTOCOL
-#: how long closing waits for the process to end before it is killed (s): quitting the UI
+#: how long closing waits for the process to end before it is killed (s): quitting
 #: does not wait for a comparison under way
 STOP_WAIT_S = 0.2
 
 
 def serve(inp: BinaryIO, out: BinaryIO) -> None:
     """The comparison process: pickled requests in, pickled replies out. ``("track", t)``
-    first, then ``("put", results)`` and ``("text",)``, answered ``("ok", text)`` or
+    first, then ``("put", results)`` and ``("compare",)``, answered ``("ok", comparison)`` or
     ``("error", why)``; ``("stop",)`` or the end of its input ends it."""
-    from station.session.acquisition import comparison_text
-
     track: Track | None = None
     results: dict[int, DescentResult] = {}
     while True:
         try:
             msg = pickle.load(inp)
-        except (EOFError, OSError):  # the UI has gone
+        except (EOFError, OSError):  # the recording has gone
             return
         kind = msg[0]
         if kind == "track":
@@ -57,10 +55,10 @@ def serve(inp: BinaryIO, out: BinaryIO) -> None:
         elif kind == "put":
             for res in msg[1]:
                 results[res.number] = res
-        elif kind == "text":
+        elif kind == "compare":
             try:
                 assert track is not None, "no track"
-                reply = ("ok", comparison_text(track, [results[n] for n in sorted(results)]))
+                reply: tuple[str, object] = ("ok", live_comparison(track, results))
             except Exception as exc:  # noqa: BLE001 - the comparison is a view: said, not raised
                 reply = ("error", f"{type(exc).__name__}: {exc}")
             pickle.dump(reply, out, PROTOCOL)
@@ -69,9 +67,14 @@ def serve(inp: BinaryIO, out: BinaryIO) -> None:
             return
 
 
+def live_comparison(track: Track, results: dict[int, DescentResult]) -> DayComparison:
+    """The day's comparison as the live views show it: none before two fitted descents."""
+    return compare_results(track, [results[n] for n in sorted(results)], at_least=2)
+
+
 def main() -> None:
-    """``python -m station.ui.comparison``: stdin and stdout are the pipe to the UI; whatever
-    else would go to stdout (a library's print) goes to stderr."""
+    """``python -m station.session.comparing``: stdin and stdout are the pipe to the
+    recording; whatever else would go to stdout (a library's print) goes to stderr."""
     # the fit and the UI's drawing of it come first where the two share the cores
     with contextlib.suppress(OSError):
         os.nice(10)
@@ -89,17 +92,20 @@ def portable(res: DescentResult) -> DescentResult:
     return replace(res, kept_fit=res.fit, stored=None, handle=None, speed_x=None, speed_v=None)
 
 
-class ComparisonProcess:
-    """The day's comparison for the UI: ``update`` with each result the UI is given, ``show``
-    while the comparison is on the screen; ``post`` gets each new text, ``warn`` a failure.
+class Comparer:
+    """The day's comparison: ``update`` with each result fitted or marked, ``show`` while a
+    view shows it; ``post`` gets each new :class:`DayComparison`, ``warn`` a failure.
 
-    ``update`` and ``show`` only note what changed (the UI's handlers stay short); a thread of
-    this object sends the results and waits for the text."""
+    ``update`` and ``show`` only note what changed (the fit worker's and the UI's handlers
+    stay short); a thread of this object sends the results and waits for the comparison."""
+
+    #: the comparison's process (a test starts a slow one)
+    command: tuple[str, ...] = (sys.executable, "-m", "station.session.comparing")
 
     def __init__(
         self,
         track: Track,
-        post: Callable[[str], object],
+        post: Callable[[DayComparison], object],
         warn: Callable[[str], object],
         *,
         quiet_s: float = QUIET_S,
@@ -136,15 +142,22 @@ class ComparisonProcess:
             self._cond.notify_all()
 
     def source_ended(self) -> None:
-        """A replay ended: the whole day's comparison, shown or not (and from now on)."""
+        """The source ended: the whole day's comparison, shown or not (and from now on)."""
         with self._cond:
             self._ended = True
             self._dirty = True
             self._cond.notify_all()
 
-    def close(self) -> None:
-        """The process ends (a comparison under way is not waited for)."""
+    def close(self, wait_s: float = 0.0) -> None:
+        """The process ends. ``wait_s``: how long the comparison due (the source's end) may
+        take to be posted first; 0: one under way is not waited for (quitting the UI)."""
+        deadline = time.monotonic() + wait_s
         with self._cond:
+            while (self._dirty and (self._shown or self._ended)) or self.busy:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    break
+                self._cond.wait(left)
             self._closed = True
             self._cond.notify_all()
         self._drop_process(ask=True)
@@ -175,18 +188,21 @@ class ComparisonProcess:
                 if self.closed:  # closing ended it
                     return
                 self._drop_process()
-                self.warn(f"comparison failed: {type(exc).__name__}: {exc}")
-                continue
+                reply = ("error", f"{type(exc).__name__}: {exc}")
+            try:
+                kind, answer = reply
+                if kind == "ok" and isinstance(answer, DayComparison):
+                    self.post(answer)
+                else:
+                    self.warn(f"comparison failed: {answer}")
             finally:
-                self.busy = False
-            kind, text = reply
-            if kind == "ok":
-                self.post(text)
-            else:
-                self.warn(f"comparison failed: {text}")
+                with self._cond:  # posted: closing may go on
+                    self.busy = False
+                    self._cond.notify_all()
 
-    def _ask(self, batch: list[DescentResult]) -> tuple[str, str]:
-        """Send what changed, get the text: the thread waits on the pipe, not on the lock."""
+    def _ask(self, batch: list[DescentResult]) -> tuple[str, object]:
+        """Send what changed, get the comparison: the thread waits on the pipe, not on the
+        lock."""
         batch = [portable(res) for res in batch]
         for res in batch:
             self._sent[res.number] = res
@@ -197,17 +213,17 @@ class ComparisonProcess:
         assert proc.stdin is not None and proc.stdout is not None
         if batch:
             pickle.dump(("put", batch), proc.stdin, PROTOCOL)
-        pickle.dump(("text",), proc.stdin, PROTOCOL)
+        pickle.dump(("compare",), proc.stdin, PROTOCOL)
         proc.stdin.flush()
-        reply: tuple[str, str] = pickle.load(proc.stdout)
+        reply: tuple[str, object] = pickle.load(proc.stdout)
         return reply
 
     def _start(self) -> subprocess.Popen[bytes]:
-        # a process of its own started afresh (not a fork of the UI's, whose threads hold
-        # locks), as the simulated timer is: multiprocessing's start needs a real stderr,
-        # and Textual replaces it
+        # a process of its own started afresh (not a fork of the recording's, whose threads
+        # hold locks), as the simulated timer is: multiprocessing's start needs a real
+        # stderr, and the UI replaces it
         proc = subprocess.Popen(
-            [sys.executable, "-m", "station.ui.comparison"],
+            list(self.command),
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
         )
