@@ -17,7 +17,7 @@ import hashlib
 import json
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import IO, TYPE_CHECKING, Any
 
 from station.errors import InputError
@@ -210,11 +210,9 @@ class ResultsFile:
         if annotations_sha256 is None:
             return False
         assert self.path is not None and self.session is not None
-        head, lines = results.results_lines([csv_record(r) for r in rows], self.header())
-        encoded = [head.encode("utf-8")] + [x.encode("utf-8") for x in lines]
         try:
             data = read_bytes(self.path, MAX_RESULTS, "results CSV")
-            runs = runs_of([r.descent for r in rows])
+            encoded, layout = self._encoded(rows, hashlib.sha256(data).hexdigest())
         except (OSError, InputError, ValueError):
             return False
         if data != b"".join(encoded):
@@ -223,9 +221,16 @@ class ResultsFile:
             fits = _write_descents(self.session, fitted)
         except (OSError, ValueError, TypeError):
             return False
-        lengths = array.array("I", [len(row) for row in encoded[1:]])
-        layout = _Layout(hashlib.sha256(data).hexdigest(), len(encoded[0]), lengths, runs)
         return self._write_state(layout, annotations_sha256, _statuses(rows), None, fits)
+
+    def _encoded(self, rows: Sequence[ResultRow], sha256: str) -> tuple[list[bytes], _Layout]:
+        """The CSV of ``rows`` in pieces (its head, then each row) and where they are (the
+        SHA-256 ``sha256`` of the whole); ``ValueError`` for descents out of order."""
+        head, lines = results.results_lines([csv_record(r) for r in rows], self.header())
+        encoded = [head.encode("utf-8")] + [x.encode("utf-8") for x in lines]
+        lengths = array.array("I", [len(row) for row in encoded[1:]])
+        runs = runs_of([r.descent for r in rows])
+        return encoded, _Layout(sha256, len(encoded[0]), lengths, runs)
 
     # ------------------------------------------------------------------ a replay's
 
@@ -238,19 +243,15 @@ class ResultsFile:
         later refit of one. Returns the CSV's path. The CSV is written first: a state that
         cannot be written leaves the old one, which no longer matches the CSV."""
         assert self.path is not None and self.session is not None
-        head, lines = results.results_lines([csv_record(r) for r in rows], self.header())
-        encoded = [head.encode("utf-8")] + [x.encode("utf-8") for x in lines]
+        encoded, layout = self._encoded(rows, "")
         fits = None
         if fitted is not None:
             try:
                 fits = _write_descents(self.session, fitted)
             except (OSError, ValueError, TypeError):
                 fits = None  # refits replay the day
-        digest = write_atomic(self.path, encoded)
+        layout = replace(layout, sha256=write_atomic(self.path, encoded))
         if annotations_sha256 is not None:
-            lengths = array.array("I", [len(row) for row in encoded[1:]])
-            runs = runs_of([r.descent for r in rows])
-            layout = _Layout(digest, len(encoded[0]), lengths, runs)
             self._write_state(layout, annotations_sha256, _statuses(rows), None, fits)
         return self.path
 

@@ -1,17 +1,18 @@
 """What a session's results CSV was computed from (``SESSION/results.state.json``), so that
 ``station annotate`` can bring the CSV up to date without replaying the day when the
-annotation is all that changed.
+annotation is all that changed (:meth:`station.session.resultsfile.ResultsFile.edit`, the one
+writer of the CSV and of this state).
 
-An annotate used to replay the whole raw log and rewrite every row: 0.95 s at 200 descents,
-4.6–8.8 s at 2000 (issue 19). Most annotations change a column or two of a few rows: an
-invalid or valid mark the ``status`` and ``invalid_reason`` of one row; ski, wax, notes,
-skier or the snow temperature the metadata columns of the descents they are for. Those rows
-are changed in place and the file written once. An annotation that changes a fit (a model; a
-mass, air or wind for listed descents) fits those descents alone, with their crossing times
-from ``SESSION/results.descents.json`` (the replay's descents in the order it fitted them, and
-the survey covariance of each set of photocells, which no annotation moves:
-:class:`station.session.analysis.Analyser`); a change from descent N on is replayed as
-before (its fits from the fit store but those changed).
+A replay of the whole raw log costs about a second at 200 descents and several at 2000, and
+most annotations change a column or two of a few rows: an invalid or valid mark the
+``status`` and ``invalid_reason`` of one row; ski, wax, notes, skier or the snow temperature
+the metadata columns of the descents they are for. Those rows are changed in place and the
+file written once. An annotation that changes a fit (a model; a mass, air or wind for listed
+descents) fits those descents alone (:func:`refit`), with their crossing times from
+``SESSION/results.descents.json`` (the replay's descents in the order it fitted them, and the
+survey covariance of each set of photocells, which no annotation moves:
+:class:`station.session.analysis.Analyser`); a change from descent N on is replayed (its fits
+from the fit store but those changed).
 
 The state says, for one results CSV:
 
@@ -19,17 +20,17 @@ The state says, for one results CSV:
 - the raw log's SHA-256, size and modification time (read for its hash again only when the
   size or time changed), the SHA-256 of every other file of the session but the annotations
   and what is made from the others (config, survey, observations), and the code that
-  computes results (its files' sizes and times, and the version): results of another day,
-  setup or station are not taken for this one's;
+  computes results (:func:`station.session.codeversion.code_version`): results of another
+  day, setup or station are not taken for this one's;
 - the SHA-256 of the annotations file the CSV shows;
 - where its rows are (the bytes of its head, then of each row), the descent of each row, the
   status of the fit of each row marked invalid (the CSV says ``invalid`` there), and the
   SHA-256 of the descents file with the timer precision the fits were judged by.
 
 When any of it does not hold, or the state is missing or cannot be read, the day is replayed
-as before, and the state written anew with the CSV. The state is written by the replay that
-writes the CSV, and by a recording that ended cleanly (:func:`write_state_of_recording`)
-when what it recorded is what a replay gives: then the first annotate after it runs in place.
+and the state written anew with the CSV. The state is written by every replay that writes
+the session's CSV (``annotate``, ``import``), and by a recording that ended cleanly when what
+it recorded is what a replay gives: then the first annotate after either runs in place.
 
 The rows the fast path writes are those a replay writes, byte for byte: the metadata in force
 for a descent is found by the day's own rules (:class:`station.session.marks.Marks`, which
