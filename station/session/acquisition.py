@@ -46,6 +46,7 @@ from station.session.fitstore import FitStore
 from station.session.intake import AnnotationIntake
 from station.session.jobs import STOP, End, Fit, Job, WriteResults
 from station.session.listener import Listener
+from station.session.processor import Processor
 from station.session.rawlog import Chunk, RawLogWriter
 from station.session.records import (
     Annotation,
@@ -59,6 +60,7 @@ from station.session.records import (
 from station.session.replay import replay_chunks, write_events
 from station.session.resultsfile import ResultsFile
 from station.session.resultsstate import Fitted, fitted_of
+from station.session.watch import ConfigWatch
 from station.survey.load import load_survey
 from station.survey.track import Track, build_track
 from station.timing.assembly import TimedDescent
@@ -128,6 +130,9 @@ class Acquisition(AnnotationIntake):
         # the day's comparison, in a process of its own (never the fit worker's: at 2000
         # descents a joint fit takes seconds, and the next descent's fit would wait for it)
         self.comparer: Comparer | None = None
+        #: what the timer sends against what the config expects (a live source only)
+        self._watch: ConfigWatch | None = None
+        self._unparsed_seen = 0  # the processor's unparsed lines the watch has had
         if threaded:
             self._worker = threading.Thread(target=self._work, name="fit-worker", daemon=True)
             self._worker.start()
@@ -213,6 +218,7 @@ class Acquisition(AnnotationIntake):
         from station.session.serialport import SerialReader
 
         cfg = serial or self.config.serial
+        self._watch = ConfigWatch(cfg.protocol, self.config.channels)
 
         def on_chunk(t: float, data: bytes) -> None:
             self.receive(Chunk(t, data))
@@ -323,6 +329,8 @@ class Acquisition(AnnotationIntake):
                 self._tell(self.listener.impulses, new, proc.line_counts())
             if new or done:
                 self._tell(self.listener.progress, self.day.progress())
+        if self._watch is not None:
+            self._watch_config(proc, first_event)
         if not self.keep_events:
             # a recording hands each impulse's fate to the listener once and keeps none: a
             # replay of the raw log lists them all (--events); 1.5 kB a descent otherwise
@@ -334,6 +342,15 @@ class Acquisition(AnnotationIntake):
                 self.finished_descents += 1
             jobs.append(Fit(times))
         return jobs
+
+    def _watch_config(self, proc: Processor, first_event: int) -> None:
+        """With the lock held: what the timer sent, against what the config expects."""
+        assert self._watch is not None
+        texts = [text for _line, _why, text in proc.unparsed[self._unparsed_seen :]]
+        self._unparsed_seen = len(proc.unparsed)
+        events = proc.events[first_event:]
+        for text in self._watch.note(events, proc.line_counts(), texts, time.monotonic()):
+            self._tell(self.listener.warning, text)
 
     def _first_end(self, number: int) -> bool:
         """With the lock held: descent ``number`` ends (not aborted) for the first time. An
