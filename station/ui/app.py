@@ -15,31 +15,24 @@ import time
 from dataclasses import replace
 from typing import Any
 
-from textual.app import App
 from textual.binding import Binding
 from textual.widgets import DataTable, RichLog, Static
 
 from station import runtime
 from station.report.comparison_text import comparison_view, headline
-from station.report.text import count
 from station.session.acquisition import Acquisition
 from station.session.analysis import DescentResult
 from station.session.comparison import DayComparison
 from station.session.config import StationConfig
-from station.session.folder import RESULTS, is_session
+from station.session.folder import is_session
 from station.session.recorded_session import RecordedSession
 from station.session.records import (
     Annotation,
-    FitModel,
-    InvalidMark,
     LineCounts,
-    Metadata,
-    MetadataAnnotation,
-    ModelChange,
     Progress,
-    ValidMark,
 )
 from station.timing.impulses import format_tod
+from station.ui.actions import EngineerActions
 from station.ui.cells import Column, cell, justify, panel_text, table_columns
 from station.ui.messages import (
     AcquisitionWarning,
@@ -51,13 +44,11 @@ from station.ui.messages import (
     PostingListener,
     SourceEnded,
 )
-from station.ui.plots import residual_plot, speed_plot
+from station.ui.plots import residual_text, speed_text
 from station.ui.screens import (
     ComparisonScreen,
-    HelpScreen,
     MainScreen,
     MetadataScreen,
-    ReasonScreen,
 )
 from station.ui.simulator import SimulatedTimer, SimulatorError
 
@@ -77,7 +68,7 @@ COLLECT_EVERY_S = 5.0
 QUIET_S = 30.0
 
 
-class StationApp(App):
+class StationApp(EngineerActions):
     """One session at the trackside."""
 
     CSS_PATH = "station.tcss"
@@ -479,14 +470,8 @@ class StationApp(App):
         # the left panel: the terminal less the log of impulses (hidden when narrow)
         left = self.size.width - (0 if self.size.width < NARROW else 46)
         resid_width = 40  # the residual plot's min-width (station.tcss)
-        f = res.fit
-        if f is not None:
-            ids = list(f.residuals_s)
-            # wider bars in a wide terminal: the residual plot takes up to half the panel
-            bar = max(4, min(10, (left // 2 - 7) // max(len(ids), 1)))
-            res_ms = [r * 1000 for r in f.residuals_s.values()]
-            lines = residual_plot(ids, res_ms, height=rows, bar_width=bar)
-            text = "\n".join(lines) if ids else "no residuals: " + f.status
+        if res.fit is not None:
+            text = residual_text(res.fit, left, rows)
             resid_width = max(resid_width, *(len(line) for line in text.splitlines()))
             # its width follows its text: laid out again only when that changes
             box = self.main.query_one("#residuals", Static)
@@ -498,105 +483,8 @@ class StationApp(App):
             curve = self.acq.speed_curve(res)  # one model solve: kept while it is shown
             if curve is not None:
                 res = self._plotted = replace(res, speed_x=curve[0], speed_v=curve[1])
-        if res.speed_x is not None and res.speed_v is not None:
-            x, v = res.speed_x.tolist(), res.speed_v.tolist()
-            plot = speed_plot(x, v, width=width, height=rows - 1)
-        else:
-            plot = ["(no speed profile)"]
-        box.update("\n".join(plot), layout=False)  # the rest of the row: a fixed box
-
-    # ------------------------------------------------------------------ actions
-
-    def _selected(self) -> int | None:
-        """The descent ``i`` and ``v`` act on: the selected row, which the panel shows."""
-        n = self._cursor_number()
-        if n is None:
-            self.notify("no descent yet", severity="warning")
-        return n
-
-    def action_help(self) -> None:
-        self.push_screen(HelpScreen())
-
-    def action_metadata(self) -> None:
-        p = self.progress
-        nxt = p.next_number if p is not None else 1
-        current = p.next_metadata.values() if p is not None else {}
-
-        def done(values: dict[str, Any] | None) -> None:
-            if values is None or self.acq is None:
-                return
-            if not values:  # saved as it was: nothing to record, nothing to apply
-                self.notify("metadata unchanged: nothing saved")
-                return
-            stopped = ""
-            if "ski" in values and self.acq.ski_rotation:
-                # the engineer took over the skis: the demo's rotation would overwrite the
-                # typed ski when the next descent starts
-                self.acq.ski_rotation = ()
-                stopped = "; the demo's rotation of skis stops"
-            start = self.metadata_from = self.acq.add_metadata(values)
-            a = MetadataAnnotation(Metadata.from_values(values), from_descent=start, t=time.time())
-            self.notify(f"metadata applies from descent {start} on{self._keep(a)}{stopped}")
-
-        self.push_screen(MetadataScreen(current, nxt), done)
-
-    def action_invalid(self) -> None:
-        n = self._selected()
-        if n is None or self.acq is None:
-            return
-        res = self.results.get(n)
-        if res is not None and res.row.invalid:
-            self.acq.annotate(ValidMark(n))
-            self.notify(f"descent {n} valid again{self._keep(ValidMark(n))}")
-            return
-
-        def done(reason: str | None) -> None:
-            if reason is not None and self.acq is not None:
-                self.acq.annotate(InvalidMark(n, reason))
-                kept = self._keep(InvalidMark(n, reason))
-                self.notify(f"descent {n} marked invalid: {reason}{kept}")
-
-        self.push_screen(ReasonScreen(n), done)
-
-    def action_refit(self) -> None:
-        n = self._selected()
-        if n is None or self.acq is None:
-            return
-        res = self.results.get(n)
-        current = res.row.model if res is not None else FitModel(self.config.model)
-        model = FitModel.CONSTANT if current == FitModel.VELOCITY else FitModel.VELOCITY
-        self.acq.annotate(ModelChange(n, model))
-        kept = self._keep(ModelChange(n, model))
-        self.notify(f"refitting descent {n} with the {model} model{kept}")
-
-    def _keep(self, a: Annotation) -> str:
-        """A recording saves what the engineer enters as it goes; a replay records nothing, so
-        what is entered while replaying a session is kept and saved in that session when the
-        UI ends. A plain capture has no session to save it in: said at once, not lost silently.
-        Returns what the notification adds."""
-        if self.mode != "replay":
-            return ""
-        if self.recorded is not None:
-            self.kept.append(a if a.t is not None else replace(a, t=time.time()))
-            return " (saved in the session when you quit)"
-        return " (this replay only: a capture file has no session; e exports the results)"
-
-    def action_export(self) -> None:
-        if self.acq is None:
-            return
-        if self.session_dir is not None:
-            path = os.path.join(self.session_dir, RESULTS)
-        else:
-            base = os.path.splitext(os.path.basename(os.path.normpath(self.source or "replay")))[0]
-            path = os.path.abspath(f"{base}-results.csv")
-        try:
-            written = self.acq.write_csv(path)
-        except OSError as exc:
-            self.notify(f"{path} not written: {exc}", severity="error")
-            return
-        # the rows written, not the rows shown: a descent whose fit is still on its way to
-        # the table is in the file too
-        self.notify(f"{count(written, 'descent')} exported to {path}")
+        plot = speed_text(res, width, rows - 1)
+        box.update(plot, layout=False)  # the rest of the row: a fixed box
 
     def on_unmount(self) -> None:
         """Quitting ends the day as Ctrl-C ends ``station record``: the open descent is ended

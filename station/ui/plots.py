@@ -9,6 +9,9 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+from station.model.fit_result import FitResult
+from station.session.analysis import DescentResult
+
 BLOCKS = " ▁▂▃▄▅▆▇█"
 
 
@@ -87,3 +90,21 @@ def speed_plot(
         lines.append(f"{label:>5} " + "".join(_bar_cell(lv, row) for lv in levels))
     lines.append(f"{'':5} {x0:<8.0f}{'x [m]':^{max(width - 16, 1)}}{x1:>8.0f}")
     return lines
+
+
+def residual_text(fit: FitResult, left: int, rows: int) -> str:
+    """The residual plot of a fit in a panel ``left`` columns wide: wider bars in a wide
+    terminal (up to half the panel)."""
+    ids = list(fit.residuals_s)
+    bar = max(4, min(10, (left // 2 - 7) // max(len(ids), 1)))
+    res_ms = [r * 1000 for r in fit.residuals_s.values()]
+    lines = residual_plot(ids, res_ms, height=rows, bar_width=bar)
+    return "\n".join(lines) if ids else "no residuals: " + fit.status
+
+
+def speed_text(res: DescentResult, width: int, height: int) -> str:
+    """The fitted speed along the run of a result that carries its curve."""
+    if res.speed_x is None or res.speed_v is None:
+        return "(no speed profile)"
+    x, v = res.speed_x.tolist(), res.speed_v.tolist()
+    return "\n".join(speed_plot(x, v, width=width, height=height))
