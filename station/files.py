@@ -171,41 +171,31 @@ def check_output(arg: str, option: str) -> str:
     return arg
 
 
-def umask() -> int:
-    """The process's umask, read without changing it (``os.umask`` would, for a moment, for
-    every thread) where Linux tells it."""
-    try:
-        with open("/proc/self/status", encoding="ascii") as fh:
-            for line in fh:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    except (OSError, ValueError, IndexError):
-        pass
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
 def _temp_beside(path: str) -> str:
     """An empty temporary file in the folder of ``path`` (same file system: the rename is
-    atomic), its name beginning with a dot."""
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(path)}-", dir=folder)
-    os.close(fd)
-    return tmp
+    atomic), its name beginning with a dot, made with the mode ``open()`` gives a new file
+    (the umask applied by the system: no mkstemp 0600 to change, no umask to read)."""
+    folder, name = os.path.split(os.path.abspath(path))
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
+    for _ in range(100):
+        tmp = os.path.join(folder, f".{name}-{os.urandom(6).hex()}")
+        try:
+            os.close(os.open(tmp, flags, 0o666))
+        except FileExistsError:
+            continue
+        return tmp
+    raise FileExistsError(errno.EEXIST, "no free temporary name", folder)
 
 
 @contextlib.contextmanager
 def _renamed(tmp: str, path: str | None) -> Iterator[str]:
-    """Rename ``tmp`` over ``path`` (None: remove it) when the block ends, with the mode
-    ``open()`` would have given a new file (not mkstemp's 0600); remove it when the block
-    raises."""
+    """Rename ``tmp`` over ``path`` (None: remove it) when the block ends; remove it when the
+    block raises."""
     try:
         yield tmp
         if path is None:
             os.unlink(tmp)
             return
-        os.chmod(tmp, 0o666 & ~umask())
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):
