@@ -110,6 +110,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     session = RecordedSession(args.session)
     output_path(args.csv, "--csv")
+    if args.upto is not None:  # a look after a descent the day does not have is no look
+        session.check_descents([args.upto], field="--upto")
     results = replayed(session).results_upto(args.upto)  # the day as after descent K
     reference = reference_item(args.reference, results, args.wind_limit)
     day = session.analysis(

@@ -177,13 +177,24 @@ def cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _descent_count(text: str) -> int:
+    """``--max-descents``: a whole number of descents, at least one."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"at least 1 descent, got {text!r}")
+    return value
+
+
 def add_parsers(sub: Any) -> None:
     p = sub.add_parser("record", help="record a timer headless: raw log, descents, fits, CSV")
     p.add_argument("--config", required=True, help="station config YAML")
     p.add_argument("--session-dir", metavar="DIR", help="default: sessions/DATE_TIME")
     p.add_argument(
         "--max-descents",
-        type=int,
+        type=_descent_count,
         metavar="N",
         help="stop after N descents (aborted ones not counted)",
     )

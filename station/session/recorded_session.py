@@ -104,6 +104,8 @@ class RecordedSession:
     def __init__(
         self, path: str, config: StationConfig | None = None, *, speed_curves: bool = False
     ) -> None:
+        if not os.path.lexists(path):
+            raise InputError("no such session folder", path=path)
         if not sessions.is_session(path):
             raise InputError("not a session directory (no raw.jsonl)", path=path)
         self.path = path
