@@ -193,7 +193,7 @@ def test_annotate_errors(tmp_path, run_station, args, expect):
     r = run_station("annotate", session, *args)
     assert r.returncode == 2 and expect in r.stderr and len(r.stderr.strip().splitlines()) == 1
     r = run_station("compare", tmp_path / "nothing")
-    assert r.returncode == 2 and "not a session directory" in r.stderr
+    assert r.returncode == 2 and "no such session folder" in r.stderr
 
 
 def test_an_item_with_too_few_data_is_a_clear_error(tmp_path, run_station, demo_track):

@@ -127,7 +127,7 @@ def test_station_plan_prints_the_plan_and_its_json(run_station, tmp_path):
         (["--delta-mu", "0.001"], "(--posture-scatter) or a past session (--from)"),
         (["--posture-scatter", "0.01", "--delta-mu", "0.001", "--power", "1.5"], "between 0.5"),
         (["--posture-scatter", "0.01", "--delta-mu", "-1"], "--delta-mu"),
-        (["--from", "nowhere", "--delta-mu", "0.001"], "not a session directory"),
+        (["--from", "nowhere", "--delta-mu", "0.001"], "no such session folder"),
     ],
 )
 def test_station_plan_refuses_bad_input_in_one_line(run_station, args, expect):

@@ -107,7 +107,7 @@ def test_report_output_folder_errors(tmp_path, run_station):
         assert r.returncode == 2 and expect in r.stderr, r.stderr
         assert len(r.stderr.strip().splitlines()) == 1
     r = run_station("report", tmp_path / "nosession", "--out", tmp_path / "o")
-    assert r.returncode == 2 and "not a session directory" in r.stderr
+    assert r.returncode == 2 and "no such session folder" in r.stderr
 
 
 def test_the_command_line_does_not_load_matplotlib():
