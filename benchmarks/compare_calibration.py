@@ -12,13 +12,16 @@ Columns, per scatter level:
 - wrong: the interval excludes 0 and says B is faster (a 90 % two-sided interval allows 5 %);
 - holds: the interval holds the true Δμ = −0.001 (target 88–92 %);
 - posture: the median estimated posture scatter;
-- poor-fit: days the χ² test against the timer's precision flags (expected ~0.1 %).
+- poor-fit: days the χ² test against the timer's precision flags (expected ~0.1 %);
+- converged: days whose joint fit reached a verified minimum (``--model velocity``: the same
+  days fitted with μ + μ1·v per item, whose truth is μ1 = 0, as ``station compare --model
+  velocity`` fits them).
 
 The grid for smaller and larger days (2, 3, 4, 6 descents an item × 0.5, 1.5, 3 % scatter ×
 straight and bent drift, 200 days a cell, with the share warned, the wrong ski named at
 P ≥ 0.95 and P(A faster)'s tails): benchmarks/compare_small_days.py.
 
-Run: python benchmarks/compare_calibration.py [--days 200] [--jobs 2]
+Run: python benchmarks/compare_calibration.py [--days 200] [--jobs 2] [--model velocity]
 """
 
 from __future__ import annotations
@@ -60,8 +63,8 @@ def track():
     return _track
 
 
-def one_day(args: tuple[float, int]) -> tuple[float, float, float, float, str]:
-    scatter, seed = args
+def one_day(args: tuple[float, int, str]) -> tuple[float, float, float, float, str]:
+    scatter, seed, model = args
     tr = track()
     xs = np.array([pc.x for pc in tr.photocells])
     run = StraightRun(tr.profile, xs)
@@ -89,7 +92,7 @@ def one_day(args: tuple[float, int]) -> tuple[float, float, float, float, str]:
                 guess,
             )  # fmt: skip
         )
-    res = joint_fit(tr, data)
+    res = joint_fit(tr, data, model=model)
     c = res.comparisons[0]
     assert (c.a, c.b) == ("A", "B") and c.ci90 is not None
     return c.ci90[0], c.ci90[1], c.p_a_faster, res.posture_sd, res.status
@@ -99,15 +102,24 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--days", type=int, default=200, help="simulated days per scatter level")
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument(
+        "--model",
+        choices=("constant", "velocity"),
+        default="constant",
+        help="the joint fit's model of μ (the days are simulated with constant μ)",
+    )
     args = ap.parse_args()
-    print(f"machine: {os.cpu_count()} cores; {args.days} days per level, {args.jobs} processes")
+    print(f"machine: {os.cpu_count()} cores; {args.days} days per level, {args.jobs} processes, "
+          f"model {args.model}")  # fmt: skip
     print(f"{'CdA scatter':>11} | {'Δμ = 0.001 found, interval excludes 0':>37} | "
           f"{'wrong ski declared faster':>25} | {'Δμ interval holds the truth':>27} | "
-          f"{'posture (median)':>16} | {'poor-fit':>8} | {'s/day':>5}")  # fmt: skip
+          f"{'posture (median)':>16} | {'poor-fit':>8} | {'converged':>9} | "
+          f"{'s/day':>5}")  # fmt: skip
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
         for scatter in SCATTERS:
             t0 = time.perf_counter()
-            jobs = [(scatter, 1000 * int(scatter * 1000) + s) for s in range(args.days)]
+            jobs = [(scatter, 1000 * int(scatter * 1000) + s, args.model)
+                    for s in range(args.days)]  # fmt: skip
             out = list(pool.map(one_day, jobs, chunksize=8))
             secs = (time.perf_counter() - t0) * args.jobs / args.days
             lo = np.array([o[0] for o in out])
@@ -117,9 +129,10 @@ def main() -> int:
             holds = np.mean((lo <= TRUE_DELTA) & (hi >= TRUE_DELTA))
             posture = float(np.median([o[3] for o in out]))
             poor = np.mean([o[4] == "poor-fit" for o in out])
+            conv = np.mean([o[4] != "not-converged" for o in out])
             print(f"{scatter * 100:>10.1f}% | {found * 100:>36.1f}% | {wrong * 100:>24.1f}% | "
                   f"{holds * 100:>26.1f}% | {posture * 100:>15.2f}% | {poor * 100:>7.1f}% | "
-                  f"{secs:>5.2f}")  # fmt: skip
+                  f"{conv * 100:>8.1f}% | {secs:>5.2f}")  # fmt: skip
     print("binomial SD of a 90 % coverage over", args.days, "days:",
           f"{100 * np.sqrt(0.09 / args.days):.1f} %")  # fmt: skip
     return 0

@@ -3,6 +3,8 @@ wrong and exit status 2, not a silent answer to another question."""
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from tests.timing_helpers import write_config
@@ -41,3 +43,14 @@ def test_compare_of_a_folder_that_does_not_exist_says_so(run_station, tmp_path):
     r = run_station("compare", tmp_path / "nosuch")
     assert r.returncode == 2 and "no such session folder" in r.stderr
     assert "not a session directory" not in r.stderr
+
+
+def test_compare_with_the_velocity_model_converges_and_decides(run_station, day):
+    """μ + μ1·v per item: μ1 is a slope of either sign (it was held at ≥ 0 like μ, so the
+    joint fit never reached its minimum when the estimate was negative)."""
+    r = run_station("compare", day, "--model", "velocity", "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["status"] == "ok", out["message"]
+    assert all("mu1" in it for it in out["items"])
+    assert out["comparisons"][0]["decision"]["reason"] == ""

@@ -161,5 +161,5 @@ class DayModel:
         loc[:, 1] = [d.start_guess[2] for d in data]
         lower = np.full(lay.n_glob, -np.inf)
         lower[: lay.n_g] = 1e-3
-        lower[lay.i_mu : lay.i_drift] = 0.0
+        lower[lay.i_mu : lay.i_drift : lay.per_item] = 0.0  # μ ≥ 0; μ1, a slope, either sign
         return glob, loc, lower
