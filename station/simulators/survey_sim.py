@@ -23,6 +23,7 @@ import numpy as np
 EARTH_R = 6_371_000.0
 K_REFRACTION = 0.13
 GON = math.pi / 200.0
+SIGMA_ANGLE = 1.5 / 3600.0 * math.pi / 180.0  # a 1.5" instrument
 
 
 @dataclass(frozen=True)
@@ -113,6 +114,93 @@ def _word16(wi: str, info: str, value: int | str) -> str:
     return f"{wi}{info}{sign}{data}"
 
 
+Station = tuple[str, float, float, float, float]  # id, E, N, H, instrument height
+Target = tuple[str, float, float, float, float, float]  # id, x, E, N, H, reflector height
+
+
+class _FieldBook:
+    """The GSI-16 blocks in the order the instrument records them, with its noise."""
+
+    def __init__(self, rng: np.random.Generator, blunders: dict[str, float]) -> None:
+        self.rng = rng
+        self.blunders = blunders
+        self.lines: list[str] = []
+
+    def add(self, words: list[str]) -> None:
+        self.lines.append("*" + " ".join(words) + " ")
+
+    def setup(self, station: Station) -> None:
+        """A station setup: its known coordinates and instrument height."""
+        sid, se, sn, sh, hi = station
+        self.add(
+            [
+                _word16("11", f"{len(self.lines) + 1:04d}", sid),
+                _word16("84", "..46", round(se * 1e4)),
+                _word16("85", "..46", round(sn * 1e4)),
+                _word16("86", "..46", round(sh * 1e4)),
+                _word16("88", "..46", round(hi * 1e4)),
+            ]
+        )
+
+    def observe(
+        self, pid: str, e: float, n: float, h: float, st: tuple[float, float, float, float],
+        hr: float,
+    ) -> None:  # fmt: skip
+        """One target observed from setup ``st``: azimuth, zenith angle, slope distance."""
+        se, sn, sh, hi = st
+        de, dn = e - se, n - sn
+        hd = math.hypot(de, dn)
+        dh = h + hr - (sh + hi)
+        # what the instrument sees: the target lowered by curvature, raised by refraction
+        dh_seen = dh - (1.0 - K_REFRACTION) * hd * hd / (2.0 * EARTH_R)
+        sd = math.hypot(hd, dh_seen)
+        zen = math.atan2(hd, dh_seen)
+        az = math.atan2(de, dn) % (2 * math.pi)
+        sd += self.rng.normal(0.0, 1e-3 + 1.5e-6 * sd)
+        zen += self.rng.normal(0.0, SIGMA_ANGLE)
+        az += self.rng.normal(0.0, SIGMA_ANGLE)
+        self.add(
+            [
+                _word16("11", f"{len(self.lines):04d}", pid),
+                _word16("21", ".322", round((az % (2 * math.pi)) / GON * 1e5)),
+                _word16("22", ".322", round(zen / GON * 1e5)),
+                _word16("31", "..06", round(sd * 1e4)),
+                _word16("87", "..16", round((hr + self.blunders.get(pid, 0.0)) * 1e4)),
+            ]
+        )
+
+
+def _stations(run: TrueRun, station_x: list[float]) -> list[Station]:
+    """Instrument stations 28-35 m to the left of the fall line, known coordinates (GNSS)."""
+    stations = []
+    for i, sx in enumerate(station_x):
+        lat = -30.0 - 2.0 * i
+        e, n = run.to_en(np.array([sx]), np.array([lat]))
+        h = float(run.h(np.array([sx]))[0]) + 1.0  # a small mound beside the run
+        stations.append((f"ST{i + 1}", float(e[0]), float(n[0]), h, 1.55 + 0.05 * i))
+    return stations
+
+
+def _targets(
+    run: TrueRun, rng: np.random.Generator, cell_ids: list[str], spacing: float,
+    roughness: float, post_sd: float,
+) -> list[Target]:  # fmt: skip
+    """The true points, placed once: centre-line points with lateral jitter and snow roughness,
+    and both posts of each photocell, ±4 m beside the track with a beam across the run."""
+    profile_x = np.arange(0.0, run.x_end + 1e-9, spacing)
+    targets: list[Target] = []
+    for j, px in enumerate(profile_x):
+        e, n = run.to_en(np.array([px]), np.array([rng.normal(0.0, 0.3)]))
+        h = float(run.h(np.array([px]))[0]) + rng.normal(0.0, roughness)
+        targets.append((f"P{j:03d}", float(px), float(e[0]), float(n[0]), h, 2.0))
+    for cid, cx in zip(cell_ids, run.cell_x, strict=True):
+        for side, lat in (("L", 4.0), ("R", -4.0)):
+            e, n = run.to_en(np.array([cx + rng.normal(0, post_sd)]), np.array([lat]))
+            h = float(run.h(np.array([cx]))[0]) + rng.normal(0.0, 0.02)
+            targets.append((f"{cid}{side}", float(cx), float(e[0]), float(n[0]), h, 1.3))
+    return targets
+
+
 def simulate_survey(
     run: TrueRun,
     seed: int = 7,
@@ -129,80 +217,19 @@ def simulate_survey(
     so that point comes out e too low; ``post_sd``: standard deviation (m) of each photocell
     post's position along the run about the beam's true x.
     """
-    blunders = blunders or {}
     rng = np.random.default_rng(seed)
-    sigma_angle = 1.5 / 3600.0 * math.pi / 180.0  # 1.5" instrument
-    lines: list[str] = []
-    block = [0]
-
-    def add(words: list[str]) -> None:
-        block[0] += 1
-        lines.append("*" + " ".join(words) + " ")
-
-    def obs(
-        pid: str, e: float, n: float, h: float, st: tuple[float, float, float, float], hr: float
-    ):  # fmt: skip
-        se, sn, sh, hi = st
-        de, dn = e - se, n - sn
-        hd = math.hypot(de, dn)
-        dh = h + hr - (sh + hi)
-        # what the instrument sees: the target lowered by curvature, raised by refraction
-        dh_seen = dh - (1.0 - K_REFRACTION) * hd * hd / (2.0 * EARTH_R)
-        sd = math.hypot(hd, dh_seen)
-        zen = math.atan2(hd, dh_seen)
-        az = math.atan2(de, dn) % (2 * math.pi)
-        sd += rng.normal(0.0, 1e-3 + 1.5e-6 * sd)
-        zen += rng.normal(0.0, sigma_angle)
-        az += rng.normal(0.0, sigma_angle)
-        add(
-            [
-                _word16("11", f"{block[0]:04d}", pid),
-                _word16("21", ".322", round((az % (2 * math.pi)) / GON * 1e5)),
-                _word16("22", ".322", round(zen / GON * 1e5)),
-                _word16("31", "..06", round(sd * 1e4)),
-                _word16("87", "..16", round((hr + blunders.get(pid, 0.0)) * 1e4)),
-            ]
-        )
-
-    # instrument stations 28-35 m to the left of the fall line, known coordinates (GNSS)
+    book = _FieldBook(rng, blunders or {})
     station_x = [60.0, 200.0, 340.0]
-    stations = []
-    for i, sx in enumerate(station_x):
-        lat = -30.0 - 2.0 * i
-        e, n = run.to_en(np.array([sx]), np.array([lat]))
-        h = float(run.h(np.array([sx]))[0]) + 1.0  # a small mound beside the run
-        stations.append((f"ST{i + 1}", float(e[0]), float(n[0]), h, 1.55 + 0.05 * i))
-
-    # the true points, placed once: centre-line points with lateral jitter and snow roughness,
-    # and both posts of each photocell, ±4 m beside the track with a beam across the run
-    profile_x = np.arange(0.0, run.x_end + 1e-9, spacing)
+    stations = _stations(run, station_x)
     cell_ids = [f"PC{i + 1}" for i in range(run.n_cells)]
-    targets: list[tuple[str, float, float, float, float, float]] = []  # id, x, E, N, H, hr
-    for j, px in enumerate(profile_x):
-        e, n = run.to_en(np.array([px]), np.array([rng.normal(0.0, 0.3)]))
-        h = float(run.h(np.array([px]))[0]) + rng.normal(0.0, roughness)
-        targets.append((f"P{j:03d}", float(px), float(e[0]), float(n[0]), h, 2.0))
-    for cid, cx in zip(cell_ids, run.cell_x, strict=True):
-        for side, lat in (("L", 4.0), ("R", -4.0)):
-            e, n = run.to_en(np.array([cx + rng.normal(0, post_sd)]), np.array([lat]))
-            h = float(run.h(np.array([cx]))[0]) + rng.normal(0.0, 0.02)
-            targets.append((f"{cid}{side}", float(cx), float(e[0]), float(n[0]), h, 1.3))
-    for sid, se, sn, sh, hi in stations:
-        add(
-            [
-                _word16("11", f"{block[0] + 1:04d}", sid),
-                _word16("84", "..46", round(se * 1e4)),
-                _word16("85", "..46", round(sn * 1e4)),
-                _word16("86", "..46", round(sh * 1e4)),
-                _word16("88", "..46", round(hi * 1e4)),
-            ]
-        )
-        st = (se, sn, sh, hi)
-        sx = station_x[int(sid[2:]) - 1]
+    targets = _targets(run, rng, cell_ids, spacing, roughness, post_sd)
+    for station, sx in zip(stations, station_x, strict=True):
+        book.setup(station)
+        st = station[1:]
         for pid, tx, e, n, h, hr in targets:
             if abs(tx - sx) <= 80.0:  # each setup covers the run 80 m either side
-                obs(pid, e, n, h, st, hr)
-    return "\r\n".join(lines) + "\r\n", cell_ids
+                book.observe(pid, e, n, h, st, hr)
+    return "\r\n".join(book.lines) + "\r\n", cell_ids
 
 
 SURVEY_YAML = """\

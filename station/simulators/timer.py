@@ -29,13 +29,13 @@ import tempfile
 import termios
 import time
 import tty
-from dataclasses import dataclass, field
-from typing import Any
+from typing import TextIO
 
 import numpy as np
 
 from station import __version__
-from station.model.physics import Conditions, Params, StraightRun
+from station.model.physics import StraightRun
+from station.simulators.descents import Planned, Planner
 from station.survey.load import load_survey
 from station.survey.track import build_track
 from station.timing.impulses import format_tod
@@ -204,30 +204,150 @@ class Timer:
         self.port.write(data)
 
 
-@dataclass(order=True)
-class Planned:
-    """One line the timer will send: at ``tod`` (device time), for descent ``k``."""
+def _channels(args: argparse.Namespace, n: int) -> list[str] | None:
+    """The channel names of the n photocells, or None (after saying why) if they do not fit."""
+    channels = args.channels.split(",") if args.channels else default_channels(args.protocol, n)
+    if len(channels) != n:
+        print(
+            f"station-sim: error: {len(channels)} channels for {n} photocells",
+            file=sys.stderr,
+        )
+        return None
+    return channels
 
-    tod: int
-    seq: int
-    channel: str = field(compare=False)
-    # impulse | double | walkthrough | false-start | clear@TOD | insert@TOD (the time edited)
-    kind: str = field(compare=False)
-    k: int = field(compare=False)
-    bib: str = field(compare=False, default="")
+
+class Day:
+    """The timer's day on the port: each planned line sent when due, with the quirks of the
+    line (running time, garbage) and of the cable (unplugged after or during a descent)."""
+
+    def __init__(
+        self, args: argparse.Namespace, port: PtyPort, timer: Timer, sim: StraightRun,
+        ids: list[str], channels: list[str],
+    ) -> None:  # fmt: skip
+        self.args = args
+        self.port = port
+        self.timer = timer
+        self.stop = False
+        signal.signal(signal.SIGTERM, self.on_signal)
+        signal.signal(signal.SIGINT, self.on_signal)
+        self.planner = Planner(args, sim, ids, channels, timer.rng, timer.tod_us())
+        self.last_running = timer.tod_us() // 1_000_000 * 1_000_000
+        self.unplugged_after: set[int] = set()
+        # --unplug-during K:P: the cable comes out after descent K's P-th impulse and goes
+        # back in --disconnect-s later, while the timer goes on timing into its memory
+        self.during = (
+            tuple(int(v) for v in args.unplug_during.split(":")) if args.unplug_during else None
+        )
+        self.sent: dict[int, int] = {}  # impulses sent per descent
+        self.replug_at: float | None = None
+
+    def on_signal(self, *_: object) -> None:
+        self.stop = True
+
+    def send_all(self, truth: TextIO | None) -> None:
+        """Send every planned line when its time comes; write each descent's truth to
+        ``truth`` (a file or None) once its last line is sent."""
+        planner = self.planner
+        while not self.stop:
+            planner.plan_due()
+            if not planner.heap:
+                break
+            ev = heapq.heappop(planner.heap)
+            self._running_time(ev.tod)
+            self._replug_before(ev.tod)
+            self.timer.wait_until(ev.tod)
+            self._garbage()
+            self._send(ev)
+            done = planner.line_sent(ev.k)
+            if done is not None:
+                if truth is not None:
+                    truth.write(json.dumps(done) + "\n")
+                    truth.flush()
+                self._disconnect_after(ev.k)
+
+    def _running_time(self, tod: int) -> None:
+        """Running-time lines at every full second of the device clock (ALGE EMU1)."""
+        if not (self.args.running_time and self.args.protocol == "alge"):
+            return
+        while self.last_running + 1_000_000 < tod and not self.stop:
+            self.last_running += 1_000_000
+            self.timer.wait_until(self.last_running)
+            self.timer.send(format_tod(self.last_running, 1).encode() + b"\r")
+
+    def _replug_before(self, tod: int) -> None:
+        """Back in when due, not only at the next impulse."""
+        if self.replug_at is None:
+            return
+        due_in = (tod - self.timer.tod_us()) / 1e6 / self.args.speed
+        if self.replug_at <= time.monotonic() + due_in:
+            time.sleep(max(self.replug_at - time.monotonic(), 0.0))
+            self.port.plug()
+            self.replug_at = None
+            print("station-sim: plugged in again", file=sys.stderr, flush=True)
+
+    def _garbage(self) -> None:
+        """Garbage bytes on the line before a line, by chance (a noisy cable)."""
+        rng = self.timer.rng
+        if self.args.garbage and rng.random() < self.args.garbage:
+            junk = bytes(rng.integers(0, 256, int(rng.integers(3, 20)), dtype=np.uint8))
+            self.timer.send(junk.replace(b"\r", b"").replace(b"\n", b"") + b"\r")
+
+    def _send(self, ev: Planned) -> None:
+        """Send one planned line: an operator's edit or an impulse, which may pull the cable."""
+        timer = self.timer
+        if ev.kind.startswith("clear@"):
+            timer.send(timer.line(ev.channel, int(ev.kind[6:]), ev.bib, "clear"))
+            return
+        if ev.kind.startswith("insert@"):
+            timer.send(timer.line(ev.channel, int(ev.kind[7:]), ev.bib, "insert"))
+            return
+        timer.send(timer.line(ev.channel, ev.tod, ev.bib))
+        self.sent[ev.k] = self.sent.get(ev.k, 0) + 1
+        if self.during is not None and (ev.k + 1, self.sent[ev.k]) == self.during:
+            self.port.drain()  # what was written is read before the cable comes out
+            self.port.unplug()
+            self.replug_at = time.monotonic() + self.args.disconnect_s
+            print(f"station-sim: unplugged during descent {ev.k + 1}", file=sys.stderr, flush=True)
+
+    def _disconnect_after(self, k: int) -> None:
+        """Pull the cable after descent k if told to, and plug it in again --disconnect-s on."""
+        args = self.args
+        due = (args.disconnect_after and k + 1 == args.disconnect_after) or (
+            args.disconnect_every and (k + 1) % args.disconnect_every == 0
+        )
+        if not due or k in self.unplugged_after:
+            return
+        self.unplugged_after.add(k)
+        self.port.drain()  # what was written is read before the cable comes out
+        self.port.unplug()
+        print(f"station-sim: unplugged after descent {k + 1}", file=sys.stderr, flush=True)
+        time.sleep(args.disconnect_s)
+        self.port.plug()
+        print("station-sim: plugged in again", file=sys.stderr, flush=True)
+
+    def end(self) -> None:
+        """The end of the day: the cable back in, the memory downloaded, the port held."""
+        args, port, timer = self.args, self.port, self.timer
+        if self.replug_at is not None:
+            port.plug()  # back in for the end of the day
+        if args.download_to and args.protocol in ("tag", "alge"):
+            # the timer's memory saved by its own download program, for `station import`
+            with open(args.download_to, "wb") as fh:
+                fh.write(timer.download())
+        if args.download and args.protocol == "tag" and not self.stop:
+            timer.send(timer.download())
+        # leave the port open a moment so the last bytes are read, unless told to hold it
+        port.drain(timeout_s=max(args.hold, 0.5))
+        end_t = time.monotonic() + args.hold
+        while time.monotonic() < end_t and not self.stop:
+            time.sleep(0.05)
 
 
 def run(args: argparse.Namespace) -> int:
     track = build_track(load_survey(args.survey))
     ids = track.photocell_ids
-    channels = (
-        args.channels.split(",") if args.channels else default_channels(args.protocol, len(ids))
-    )
-    if len(channels) != len(ids):
-        print(
-            f"station-sim: error: {len(channels)} channels for {len(ids)} photocells",
-            file=sys.stderr,
-        )
+    channels = _channels(args, len(ids))
+    if channels is None:
         return 2
     if args.protocol == "microgate" and (args.clear or args.insert):
         print("station-sim: a Racetime2 sends no edits; --clear/--insert ignored", file=sys.stderr)
@@ -239,190 +359,10 @@ def run(args: argparse.Namespace) -> int:
         print("station-sim: nobody opened the port; starting anyway", file=sys.stderr, flush=True)
     timer = Timer(args, port)
     truth = open(args.truth, "a", encoding="utf-8") if args.truth else None  # noqa: SIM115
-    stop = {"now": False}
-
-    def on_signal(*_):
-        stop["now"] = True
-
-    signal.signal(signal.SIGTERM, on_signal)
-    signal.signal(signal.SIGINT, on_signal)
-    rng = timer.rng
-    skis = [float(v) for v in args.skis.split(",")] if args.skis else []
-    interval = args.overlap if args.overlap else args.interval
-    first_start = timer.tod_us() + int(args.first_after * args.speed * 1e6)
-    first_start = -(-first_start // 1_000_000) * 1_000_000  # whole seconds: reproducible
-    edits = args.protocol != "microgate"
-    # counters the planning closures share (prev_end is None before the first descent)
-    state: dict[str, Any] = {"next_start": first_start, "prev_end": None, "k": 0, "seq": 0}
-    heap: list[Planned] = []
-    truths: dict[int, dict] = {}
-    remaining: dict[int, int] = {}
-
-    def params(k: int, start: int) -> Params:
-        drift = args.mu_drift_per_hour * (start - first_start) / 3.6e9
-        if skis and args.order:
-            # a test design: pairs in the given order, one tuck (CdA) for the skier, the
-            # track drifting; only v0 varies from descent to descent
-            pair = ord(args.order[k % len(args.order)].upper()) - ord("A")
-            return Params(cda=args.cda, mu=skis[pair] + drift, v0=float(rng.uniform(2.5, 4.5)))
-        if skis:
-            # pairs of skis in rotation, each with its own friction; the skier varies a little
-            return Params(
-                cda=float(rng.normal(0.22, 0.01)),
-                mu=skis[k % len(skis)] * float(rng.normal(1.0, 0.03)) + drift,
-                v0=float(rng.uniform(2.5, 4.5)),
-            )
-        if args.vary:
-            return Params(
-                cda=float(rng.uniform(0.18, 0.30)),
-                mu=float(rng.uniform(0.006, 0.030)),
-                v0=float(rng.uniform(2.0, 6.0)),
-            )
-        return Params(args.cda, args.mu, args.v0, args.mu1)
-
-    def push(tod: int, channel: str, kind: str, k: int, bib: str) -> None:
-        state["seq"] += 1
-        heapq.heappush(heap, Planned(tod, state["seq"], channel, kind, k, bib))
-        remaining[k] = remaining.get(k, 0) + 1
-
-    def plan_next() -> None:
-        """Plan the next descent: its lines go on the heap, its truth is kept until sent."""
-        k = state["k"]
-        state["k"] += 1
-        start = -(-state["next_start"] // 1_000_000) * 1_000_000  # on a whole second
-        p = params(k, start)
-        d = sim.solve(p, Conditions(args.mass, args.air_density), sensitivities=False)
-        if d.stopped_x is not None:
-            print(f"station-sim: descent {k + 1} would stop; skipped", file=sys.stderr)
-            state["next_start"] = start + int(interval * 1e6)
-            return
-        t = d.t + np.concatenate([[0.0], rng.normal(0.0, args.noise_ms * 1e-3, len(d.t) - 1)])
-        bib = str((k % 9999) + 1) if args.bibs else ""
-        sent_ids = []
-        inserted = None
-        if edits and args.insert and rng.random() < args.insert and len(ids) > 2:
-            inserted = int(rng.integers(1, len(ids) - 1))
-        end = start
-        for i, (ch, ti) in enumerate(zip(channels, t, strict=True)):
-            tod = start + int(round(ti * 1e6))
-            end = max(end, tod)
-            if i == inserted:
-                sent_ids.append(ids[i])
-                continue  # the timer missed it; the operator types it in below
-            if 0 < i < len(ids) - 1 and rng.random() < args.miss:
-                continue
-            push(tod, ch, "impulse", k, bib)
-            sent_ids.append(ids[i])
-            if rng.random() < args.double_trigger:
-                push(tod + int(rng.uniform(0.02, 0.15) * 1e6), ch, "double", k, bib)
-        if inserted is not None:
-            tod = start + int(round(t[inserted] * 1e6))
-            push(end + 1_000_000, channels[inserted], f"insert@{tod}", k, bib)
-        prev_end = state["prev_end"]
-        if args.walkthrough and rng.random() < args.walkthrough and prev_end is not None:
-            # someone walks through the start beam between two descents
-            push((prev_end + start) // 2, channels[0], "walkthrough", k, "")
-        cleared = False
-        if edits and args.clear and rng.random() < args.clear:
-            # a false start, cleared by the operator before the real one
-            fs = start - int(rng.uniform(2.0, 4.0) * 1e6)
-            push(fs, channels[0], "false-start", k, bib)
-            push(fs + 500_000, channels[0], f"clear@{fs}", k, bib)
-            cleared = True
-        truths[k] = {
-            "descent": k + 1,
-            "bib": bib,
-            "cda": p.cda,
-            "mu": p.mu,
-            "v0": p.v0,
-            "mu1": p.mu1,
-            "pair": args.order[k % len(args.order)] if args.order else None,
-            "start_tod_us": start,
-            "photocells": sent_ids,
-            "t": [float(x) for x in t],
-            "inserted": ids[inserted] if inserted is not None else None,
-            "false_start_cleared": cleared,
-        }
-        state["prev_end"] = end
-        nxt = start + int(interval * 1e6)
-        if not args.overlap:
-            nxt = max(nxt, end + 1_000_000)  # one skier at a time
-        state["next_start"] = nxt
-
-    last_running = timer.tod_us() // 1_000_000 * 1_000_000
-    unplugged_after: set[int] = set()
-    # --unplug-during K:P: the cable comes out after descent K's P-th impulse and goes back
-    # in --disconnect-s later, while the timer goes on timing into its memory
-    during = tuple(int(v) for v in args.unplug_during.split(":")) if args.unplug_during else None
-    sent: dict[int, int] = {}  # impulses sent per descent
-    replug_at: float | None = None
+    day = Day(args, port, timer, sim, ids, channels)
     try:
-        while not stop["now"]:
-            while state["k"] < args.descents and (not heap or state["next_start"] <= heap[0].tod):
-                plan_next()
-            if not heap:
-                break
-            ev = heapq.heappop(heap)
-            if args.running_time and args.protocol == "alge":
-                # running-time lines at every full second of the device clock (ALGE EMU1)
-                while last_running + 1_000_000 < ev.tod and not stop["now"]:
-                    last_running += 1_000_000
-                    timer.wait_until(last_running)
-                    timer.send(format_tod(last_running, 1).encode() + b"\r")
-            if replug_at is not None:  # back in when due, not only at the next impulse
-                due_in = (ev.tod - timer.tod_us()) / 1e6 / args.speed
-                if replug_at <= time.monotonic() + due_in:
-                    time.sleep(max(replug_at - time.monotonic(), 0.0))
-                    port.plug()
-                    replug_at = None
-                    print("station-sim: plugged in again", file=sys.stderr, flush=True)
-            timer.wait_until(ev.tod)
-            if args.garbage and rng.random() < args.garbage:
-                junk = bytes(rng.integers(0, 256, int(rng.integers(3, 20)), dtype=np.uint8))
-                timer.send(junk.replace(b"\r", b"").replace(b"\n", b"") + b"\r")
-            if ev.kind.startswith("clear@"):
-                timer.send(timer.line(ev.channel, int(ev.kind[6:]), ev.bib, "clear"))
-            elif ev.kind.startswith("insert@"):
-                timer.send(timer.line(ev.channel, int(ev.kind[7:]), ev.bib, "insert"))
-            else:
-                timer.send(timer.line(ev.channel, ev.tod, ev.bib))
-                sent[ev.k] = sent.get(ev.k, 0) + 1
-                if during is not None and (ev.k + 1, sent[ev.k]) == during:
-                    port.drain()  # what was written is read before the cable comes out
-                    port.unplug()
-                    replug_at = time.monotonic() + args.disconnect_s
-                    print(f"station-sim: unplugged during descent {ev.k + 1}", file=sys.stderr,
-                          flush=True)  # fmt: skip
-            remaining[ev.k] -= 1
-            if remaining[ev.k] == 0:
-                if truth is not None:
-                    truth.write(json.dumps(truths.pop(ev.k)) + "\n")
-                    truth.flush()
-                due = (args.disconnect_after and ev.k + 1 == args.disconnect_after) or (
-                    args.disconnect_every and (ev.k + 1) % args.disconnect_every == 0
-                )
-                if due and ev.k not in unplugged_after:
-                    unplugged_after.add(ev.k)
-                    port.drain()  # what was written is read before the cable comes out
-                    port.unplug()
-                    print(f"station-sim: unplugged after descent {ev.k + 1}", file=sys.stderr,
-                          flush=True)  # fmt: skip
-                    time.sleep(args.disconnect_s)
-                    port.plug()
-                    print("station-sim: plugged in again", file=sys.stderr, flush=True)
-        if replug_at is not None:
-            port.plug()  # back in for the end of the day
-        if args.download_to and args.protocol in ("tag", "alge"):
-            # the timer's memory saved by its own download program, for `station import`
-            with open(args.download_to, "wb") as fh:
-                fh.write(timer.download())
-        if args.download and args.protocol == "tag" and not stop["now"]:
-            timer.send(timer.download())
-        # leave the port open a moment so the last bytes are read, unless told to hold it
-        port.drain(timeout_s=max(args.hold, 0.5))
-        end_t = time.monotonic() + args.hold
-        while time.monotonic() < end_t and not stop["now"]:
-            time.sleep(0.05)
+        day.send_all(truth)
+        day.end()
     finally:
         if truth is not None:
             truth.close()
@@ -434,6 +374,15 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="station-sim", description=__doc__.splitlines()[0].replace("``", "")
     )  # no reST markup on screen
+    _timer_options(ap)
+    _descent_options(ap)
+    _quirk_options(ap)
+    _port_options(ap)
+    return ap
+
+
+def _timer_options(ap: argparse.ArgumentParser) -> None:
+    """The timer, its protocol and its clock."""
     ap.add_argument("--version", action="version", version=f"station-sim {__version__}")
     ap.add_argument("--survey", default=DEFAULT_SURVEY, help="survey YAML (default: the demo run)")
     ap.add_argument("--protocol", choices=["alge", "tag", "microgate"], default="alge")
@@ -446,6 +395,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ap.add_argument("--speed", type=float, default=1.0, help="device clock runs this much faster")
     ap.add_argument("--start-tod", help="device time of day at start, HH:MM:SS (default: now)")
+
+
+def _descent_options(ap: argparse.ArgumentParser) -> None:
+    """The skiers' physics, their skis and the timing noise."""
     ap.add_argument("--mass", type=float, default=88.0)
     ap.add_argument("--air-density", type=float, default=1.079)
     ap.add_argument("--cda", type=float, default=0.22)
@@ -458,6 +411,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--mu-drift-per-hour", type=float, default=0.0, help="μ drift of the track")
     ap.add_argument("--noise-ms", type=float, default=0.3)
     ap.add_argument("--seed", type=int, default=1)
+
+
+def _quirk_options(ap: argparse.ArgumentParser) -> None:
+    """The field quirks: photocells, the line, bibs, overlapping skiers, operator edits."""
     ap.add_argument("--double-trigger", type=float, default=0.0, metavar="P")
     ap.add_argument("--miss", type=float, default=0.0, metavar="P", help="miss a middle photocell")
     ap.add_argument(
@@ -494,6 +451,10 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="P",
         help="a middle photocell missed and typed in (ALGE i, TAG T+), per descent",
     )
+
+
+def _port_options(ap: argparse.ArgumentParser) -> None:
+    """The memory download, the port and its cable, the truth file."""
     ap.add_argument(
         "--download",
         action="store_true",
@@ -533,7 +494,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ap.add_argument("--link", help="path of the symlink to the pty (default: a temp dir)")
     ap.add_argument("--truth", help="append each descent's truth as JSON lines to this file")
-    return ap
 
 
 def main(argv: list[str] | None = None) -> int:
