@@ -65,7 +65,7 @@ from station.timing.descent import (
 )
 from station.timing.device_clock import HOST_TOLERANCE_US, SEEN_RECENT, DeviceClock
 from station.timing.edits import ENTERING, REMOVING, Edits
-from station.timing.impulses import DAMAGED_FLAG, Impulse
+from station.timing.impulses import DAMAGED_FLAG, DAY_US, Impulse
 from station.timing.memory import MAX_ORPHANS, MemoryJoins
 from station.timing.pairing import SPEED_RATIO, Pairing
 from station.timing.recovery import Recovery
@@ -221,7 +221,9 @@ class DescentAssembler(Edits, MemoryJoins, Recovery, Pairing, DeviceClock):
         says where the memory's times begin, as the flags do); at the last photocell ``d``
         ends, and any other open descent past its time-out too."""
         self._join(d, pc, k, t, ch)
-        self._move_clock(t)
+        self._clock, self._day_offset = t, t // DAY_US  # (_move_clock, no line damaged)
+        if self._damaged:
+            self._move_clock(t)
         flag = imp.flag
         self.events.append(
             new_event(ImpulseEvent, (line, ch, pc, imp.tod_us, flag, True, joined, d.number))
