@@ -3,7 +3,7 @@
 A descent starts with an impulse at the first photocell and ends at the last one, or when the
 skier can no longer be on the run: ``timeout_s`` after the last impulse, or by default the
 distance to the photocell after next at the slowest plausible speed. Then it is fitted with
-the photocells it has and flagged. Several skiers may be on the run at once (issue 11):
+the photocells it has and flagged. Several skiers may be on the run at once:
 
 - **pairing** ``bib``: the number on a start and on later impulses pairs them, one open descent
   per bib; impulses without a valid bib (``?``, blank, zero) join descents without one.
@@ -16,9 +16,9 @@ the photocells it has and flagged. Several skiers may be on the run at once (iss
   rejected with the reason. A rejected impulse changes nothing: no clock, no time-out.
 - **the device clock** (for the midnight wrap) moves only with impulses that were kept. An
   impulse more than ``jump_s`` away from it is held until the next impulse says whether the
-  clock really jumped (a long break, the timer's clock set) or this one time is corrupted
-  (issue 9: one flipped hour digit lost 18 165 impulses); the host clock confirms it at once
-  where the caller knows the device time (``now_us``).
+  clock really jumped (a long break, the timer's clock set) or this one time is corrupted (one
+  flipped hour digit would otherwise lose the day's later impulses); the host clock confirms
+  it at once where the caller knows the device time (``now_us``).
 - double triggers (legs, poles) at one photocell within ``debounce_s`` collapse to the first;
 - a missed photocell leaves a gap: the descent goes on and is flagged;
 - a lone start impulse that nothing follows (someone walking through the beam) is *aborted*;
@@ -28,15 +28,15 @@ the photocells it has and flagged. Several skiers may be on the run at once (iss
 - an impulse repeated from the timer's memory (TAG ``AN``, ALGE ``m``) that is already kept
   (same channel, same time) is not doubled; one that is not is an impulse like any other;
 - a disconnect is written on the open descents' flags;
-- **a damaged start line** (issue 9): the caller says which lines it could not parse or whose
+- **a damaged start line**: the caller says which lines it could not parse or whose
   checksum failed (``note_damaged``). An impulse at a later photocell that no open descent can
   take starts a descent only when such a line came at a time that skier's start could have
   been (between the kept impulses around it, within the time to its photocell at the
   plausible speeds and the earlier descents' typical time), with bibs only for a bib with no
   open descent, and not at the last photocell (one time is nothing to fit). That descent is
   flagged, ``incomplete``, and fitted from the photocells it has; each damaged line starts at
-  most one. Without a damaged line a stray impulse (someone walking through PC3) is rejected
-  as before: one bit flipped in a start line no longer loses the skier's whole descent.
+  most one. Without a damaged line a stray impulse (someone walking through PC3) is
+  rejected: one bit flipped in a start line does not lose the skier's whole descent.
 
 Every impulse and edit comes out once in ``events`` with whether it was kept and why not.
 
