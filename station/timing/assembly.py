@@ -58,6 +58,7 @@ from station.timing.descent import (
     REOPENED,
     ImpulseEvent,
     TimedDescent,
+    bib_of,
     flag_damaged,
     is_joined,
     new_event,
@@ -114,15 +115,14 @@ class DescentAssembler(Edits, MemoryJoins, Recovery, Pairing, DeviceClock):
         started: Callable[[TimedDescent], None] | None, at: tuple[int, int | None] | None,
         stop_unsure: bool = False,
     ) -> tuple[int, list[TimedDescent], int]:  # fmt: skip
-        """The one path: each impulse of ``items[start:]`` unwrapped, screened (not a
-        photocell, a repeat, a time to confirm) and accepted: a double trigger collapsed, a
-        start, a join, or rejected. ``at``: (time, previous number) of ``items[start]``,
-        screened already (held for confirmation). The common case stays in this loop, the
-        state at hand; the rare ones are methods."""
+        """The one path: each impulse of ``items[start:]`` screened (not a photocell, a repeat, a
+        time to confirm; ``at``: (time, previous number) of one held and screened already) and
+        accepted, the common case in this loop (the state at hand), the rare ones methods."""
         done: list[TimedDescent] = []
         kept_at, i = -1, start
         channels, seen_map, open_ = self._fast_channels, self._seen, self.open
-        jump, debounce = self.jump_us, self.debounce_us
+        jump, debounce, last_k = self.jump_us, self.debounce_us, self._last_k
+        time_of, why_not, events = self._time, self._why_not, self.events  # (once a run)
         for i in range(start, len(items)):  # noqa: B007 (the index it stopped at)
             imp = items[i]
             if type(imp) is not Impulse:
@@ -132,7 +132,7 @@ class DescentAssembler(Edits, MemoryJoins, Recovery, Pairing, DeviceClock):
             if at is None:
                 prev = self._number(bib) if self.mode is None else None
                 fast = channels.get(ch)
-                t = self._time(tod, day)
+                t = time_of(tod, day)
                 if (
                     fast is None
                     or t in seen_map.get(fast[0], ())
@@ -154,34 +154,37 @@ class DescentAssembler(Edits, MemoryJoins, Recovery, Pairing, DeviceClock):
             else:
                 (t, prev), at = at, None
                 ch, pc, k, _step = channels[ch]
-            for twin in (*open_, self._last_done):  # a double trigger (of the one that ended too)
-                if (
-                    twin
-                    and twin.photocells
-                    and twin.photocells[-1] == pc
-                    and (0 <= t - twin.times_us[-1] <= debounce)
-                ):
+            last_done = self._last_done
+            for twin in (*open_, last_done) if last_done else open_:  # a double trigger (of
+                ph = twin.photocells  # the one that ended too)
+                if ph and ph[-1] == pc and 0 <= t - twin.times_us[-1] <= debounce:
                     self._collapse(twin, imp, ln, pc, t)
                     break
             else:
-                bib = "" if flag == "?" else bib.strip().lstrip("0")
-                if self.mode is None:
-                    self._decide_mode(k, bib, prev)
-                mode = self.mode
-                if k == 0:
-                    self._begin(imp, ln, ch, pc, t, bib, done, started)
-                elif (
-                    len(open_) == 1
-                    and (mode == "order" or (bib and open_[0].bib == bib))
-                    and not self.from_memory
-                ):  # one candidate (:meth:`_choose`'s answer): it takes it when it can
-                    why = self._why_not(open_[0], pc, k, t, mode == "order")
-                    if why is None:
-                        self._take(open_[0], imp, ln, ch, pc, k, t, "", done)
-                    else:
-                        self._unjoined(imp, ln, ch, pc, k, t, bib, why, done, started)
-                else:
-                    self._choose_and_take(imp, ln, ch, pc, k, t, bib, done, started)
+                mode = self.mode  # one candidate (:meth:`_choose`'s answer) takes it if it can
+                d = open_[0] if k and mode and len(open_) == 1 and not self.from_memory else None
+                if (
+                    d is not None
+                    and (mode == "order" or ((b := bib_of(imp)) and d.bib == b))
+                    and why_not(d, pc, k, t, mode == "order") is None
+                ):
+                    joined = ""
+                else:  # a start, several candidates, a rejection
+                    d, joined = self._pair(imp, ln, ch, pc, k, t, prev, done, started)
+                if d is not None:  # d takes it: its time joined, the clock moved, its event
+                    self._join(d, pc, k, t, ch)
+                    self._clock, self._day_offset = t, t // DAY_US  # (_move_clock's common case)
+                    if self._damaged:
+                        self._move_clock(t)
+                    events.append(
+                        new_event(ImpulseEvent, (ln, ch, pc, tod, flag, True, joined, d.number))
+                    )
+                    if flag == DAMAGED_FLAG:
+                        flag_damaged(d, imp, ln)
+                    if k == last_k:
+                        done.append(self._complete(d))
+                    if open_ and (len(open_) > 1 or open_[0] is not d):  # (d was updated now)
+                        done += self._expire(t)
             if self._clock == t:
                 kept_at = i
         else:
@@ -197,48 +200,41 @@ class DescentAssembler(Edits, MemoryJoins, Recovery, Pairing, DeviceClock):
         else:
             self._event(imp, line, fast[1], False, REPEATED)
 
-    def _choose_and_take(
-        self, imp: Impulse, line: int, ch: str, pc: str, k: int, t: int, bib: str,
+    def _pair(
+        self, imp: Impulse, line: int, ch: str, pc: str, k: int, t: int, prev: int | None,
         done: list[TimedDescent], started: Callable[[TimedDescent], None] | None,
-    ) -> None:  # fmt: skip
-        """An impulse at a later photocell with several descents open (or from the timer's
-        memory, or without the bib of the one): the one :meth:`_choose` chooses takes it, or
-        one the memory continues; else it is rejected, or starts a recovered descent."""
-        chosen, reason = self._choose(pc, k, t, bib)
+    ) -> tuple[TimedDescent | None, str]:  # fmt: skip
+        """What is not the common case of an impulse no double trigger: the pairing decided
+        (``auto``), a start, the one candidate rejecting it, several candidates (or an
+        impulse from the timer's memory): the descent that takes it and the flag that says a
+        memory impulse continued one recorded live (\"\"), or None: it started a descent, was
+        rejected or started a recovered one. The bib read where pairing by order ignores it."""
+        bib = bib_of(imp)
+        if self.mode is None:
+            self._decide_mode(k, bib, prev)
+        mode, open_ = self.mode, self.open
+        if k == 0:
+            self._begin(imp, line, ch, pc, t, "" if mode == "order" else bib, done, started)
+            return None, ""
+        reason = ""
+        if (
+            len(open_) == 1
+            and (mode == "order" or (bib and open_[0].bib == bib))
+            and not self.from_memory
+        ):
+            chosen = open_[0]
+            why = self._why_not(chosen, pc, k, t, mode == "order")
+            if why is None:
+                return chosen, ""
+            chosen, reason = None, why
+        else:
+            chosen, reason = self._choose(pc, k, t, bib)
         joined = ""  # the flag of a descent recorded live that this memory impulse continues
         if self.from_memory:
             chosen, joined = self._memory_join(chosen, pc, k, t, bib)
         if chosen is None:
             self._unjoined(imp, line, ch, pc, k, t, bib, reason, done, started)
-        else:
-            self._take(chosen, imp, line, ch, pc, k, t, joined, done)
-
-    def _take(
-        self, d: TimedDescent, imp: Impulse, line: int, ch: str, pc: str, k: int, t: int,
-        joined: str, done: list[TimedDescent],
-    ) -> None:  # fmt: skip
-        """Descent ``d`` takes the impulse: its time joined, the clock moved, its event (that
-        says where the memory's times begin, as the flags do); at the last photocell ``d``
-        ends, and any other open descent past its time-out too."""
-        self._join(d, pc, k, t, ch)
-        self._clock, self._day_offset = t, t // DAY_US  # (_move_clock, no line damaged)
-        if self._damaged:
-            self._move_clock(t)
-        flag = imp.flag
-        self.events.append(
-            new_event(ImpulseEvent, (line, ch, pc, imp.tod_us, flag, True, joined, d.number))
-        )
-        if flag == DAMAGED_FLAG:
-            flag_damaged(d, imp, line)
-        open_ = self.open
-        if k == self._last_k:
-            open_.remove(d)
-            # a descent recovered without its start is short of the first photocell
-            d.status = "complete" if d.photocells[0] == self.photocells[0] else "incomplete"
-            self._done(d)
-            done.append(d)
-        if open_ and (len(open_) > 1 or open_[0] is not d):  # (d itself was updated now)
-            done += self._expire(t)
+        return chosen, joined
 
     def _unsure(
         self, imp: Impulse, line: int, t: int, now_us: int | None, done: list[TimedDescent]
@@ -409,6 +405,14 @@ class DescentAssembler(Edits, MemoryJoins, Recovery, Pairing, DeviceClock):
         for d in self.open:
             if flag not in d.flags:
                 d.flags.append(flag)
+
+    def _complete(self, d: TimedDescent) -> TimedDescent:
+        """``d`` took the last photocell: it ends (one recovered without its start is short
+        of the first)."""
+        self.open.remove(d)
+        d.status = "complete" if d.photocells[0] == self.photocells[0] else "incomplete"
+        self._done(d)
+        return d
 
     def _done(self, d: TimedDescent) -> None:
         self.finished.append(d)
