@@ -115,14 +115,13 @@ class DescentAssembler(Edits, MemoryJoins, Recovery, Pairing, DeviceClock):
         started: Callable[[TimedDescent], None] | None, at: tuple[int, int | None] | None,
         stop_unsure: bool = False,
     ) -> tuple[int, list[TimedDescent], int]:  # fmt: skip
-        """The one path: each impulse of ``items[start:]`` screened (not a photocell, a repeat, a
-        time to confirm; ``at``: (time, previous number) of one held and screened already) and
-        accepted, the common case in this loop (the state at hand), the rare ones methods."""
+        """The one path: each impulse of ``items[start:]`` screened and accepted (``at``: time and
+        previous number of one held, screened already); the common case here, the rare methods."""
         done: list[TimedDescent] = []
         kept_at, i = -1, start
         channels, seen_map, open_ = self._fast_channels, self._seen, self.open
-        jump, debounce, last_k = self.jump_us, self.debounce_us, self._last_k
-        time_of, why_not, events = self._time, self._why_not, self.events  # (once a run)
+        jump, debounce, last_k, event = self.jump_us, self.debounce_us, self._last_k, ImpulseEvent
+        time_of, why_not, add_event = self._time, self._why_not, self.events.append
         for i in range(start, len(items)):  # noqa: B007 (the index it stopped at)
             imp = items[i]
             if type(imp) is not Impulse:
@@ -142,51 +141,52 @@ class DescentAssembler(Edits, MemoryJoins, Recovery, Pairing, DeviceClock):
                     kept_at = i if t == self._clock else kept_at  # (any line of its time)
                     continue
                 ch, pc, k, _step = fast
-                clock = self._clock
-                if self._pending is not None or (clock is not None and abs(t - clock) > jump):
+                if (
+                    self._pending is not None
+                    or (c := self._clock) is not None
+                    and abs(t - c) > jump
+                ):
                     if stop_unsure:  # (the caller feeds it with the host clock's time)
                         self._prev_number = prev if self.mode is None else self._prev_number
                         break
-                    sure = self._unsure(imp, ln, t, now_us, done)
-                    if sure is None:
+                    if (sure := self._unsure(imp, ln, t, now_us, done)) is None:
                         continue
                     t = sure
             else:
-                (t, prev), at = at, None
-                ch, pc, k, _step = channels[ch]
-            last_done = self._last_done
-            for twin in (*open_, last_done) if last_done else open_:  # a double trigger (of
-                ph = twin.photocells  # the one that ended too)
-                if ph and ph[-1] == pc and 0 <= t - twin.times_us[-1] <= debounce:
+                (t, prev), at, (ch, pc, k, _step) = at, None, channels[ch]
+            last = self._last_done  # a double trigger (of the one that ended too)
+            for twin in (open_[0], last) if len(open_) == 1 else (*open_, last):
+                if twin and (ph := twin.photocells) and ph[-1] == pc and (
+                        0 <= t - twin.times_us[-1] <= debounce):  # fmt: skip
                     self._collapse(twin, imp, ln, pc, t)
                     break
             else:
-                mode = self.mode  # one candidate (:meth:`_choose`'s answer) takes it if it can
-                d = open_[0] if k and mode and len(open_) == 1 and not self.from_memory else None
-                if (
-                    d is not None
+                mode = self.mode if self.mode is not None else self._decide_mode(k, imp, prev)
+                d = open_[0] if k and len(open_) == 1 and not self.from_memory else None
+                if k == 0:  # (the bib read where pairing by order does not ignore it)
+                    b = "" if mode == "order" else bib_of(imp)
+                    d, joined = self._begin(imp, ln, ch, pc, t, b, done, started)
+                elif (
+                    d is not None  # one candidate (:meth:`_choose`'s answer) takes it if it can
                     and (mode == "order" or ((b := bib_of(imp)) and d.bib == b))
                     and why_not(d, pc, k, t, mode == "order") is None
                 ):
                     joined = ""
-                else:  # a start, several candidates, a rejection
-                    d, joined = self._pair(imp, ln, ch, pc, k, t, prev, done, started)
+                else:  # several candidates, a rejection
+                    d, joined = self._pair(imp, ln, ch, pc, k, t, done, started)
                 if d is not None:  # d takes it: its time joined, the clock moved, its event
                     self._join(d, pc, k, t, ch)
                     self._clock, self._day_offset = t, t // DAY_US  # (_move_clock's common case)
                     if self._damaged:
                         self._move_clock(t)
-                    events.append(
-                        new_event(ImpulseEvent, (ln, ch, pc, tod, flag, True, joined, d.number))
-                    )
+                    add_event(new_event(event, (ln, ch, pc, tod, flag, True, joined, d.number)))
                     if flag == DAMAGED_FLAG:
                         flag_damaged(d, imp, ln)
                     if k == last_k:
                         done.append(self._complete(d))
                     if open_ and (len(open_) > 1 or open_[0] is not d):  # (d was updated now)
                         done += self._expire(t)
-            if self._clock == t:
-                kept_at = i
+            kept_at = i if self._clock == t else kept_at
         else:
             i = len(items)
         return i, done, kept_at
@@ -201,21 +201,15 @@ class DescentAssembler(Edits, MemoryJoins, Recovery, Pairing, DeviceClock):
             self._event(imp, line, fast[1], False, REPEATED)
 
     def _pair(
-        self, imp: Impulse, line: int, ch: str, pc: str, k: int, t: int, prev: int | None,
+        self, imp: Impulse, line: int, ch: str, pc: str, k: int, t: int,
         done: list[TimedDescent], started: Callable[[TimedDescent], None] | None,
     ) -> tuple[TimedDescent | None, str]:  # fmt: skip
-        """What is not the common case of an impulse no double trigger: the pairing decided
-        (``auto``), a start, the one candidate rejecting it, several candidates (or an
-        impulse from the timer's memory): the descent that takes it and the flag that says a
-        memory impulse continued one recorded live (\"\"), or None: it started a descent, was
-        rejected or started a recovered one. The bib read where pairing by order ignores it."""
+        """An impulse at a later photocell that is not the one candidate's to take: the one
+        candidate rejecting it, several candidates (or an impulse from the timer's memory):
+        the descent that takes it and the flag that says a memory impulse continued one
+        recorded live (\"\"), or None: rejected, or it started a recovered descent."""
         bib = bib_of(imp)
-        if self.mode is None:
-            self._decide_mode(k, bib, prev)
         mode, open_ = self.mode, self.open
-        if k == 0:
-            self._begin(imp, line, ch, pc, t, "" if mode == "order" else bib, done, started)
-            return None, ""
         reason = ""
         if (
             len(open_) == 1
@@ -285,7 +279,7 @@ class DescentAssembler(Edits, MemoryJoins, Recovery, Pairing, DeviceClock):
     def _begin(
         self, imp: Impulse, line: int, ch: str, pc: str, t: int, bib: str,
         done: list[TimedDescent], started: Callable[[TimedDescent], None] | None,
-    ) -> None:  # fmt: skip
+    ) -> tuple[None, str]:  # fmt: skip
         """A start (to ``started``): a descent of the same bib still open ends (a start ends
         no descent by time: it may itself be a corrupted time; the next impulse that joins a
         descent, physics checked, a tick or the end will)."""
@@ -302,10 +296,14 @@ class DescentAssembler(Edits, MemoryJoins, Recovery, Pairing, DeviceClock):
         self.open.append(d)
         self._move_clock(t)
         self._keep(ch, t)
-        self._event(imp, line, pc, True, "", d.number)
-        flag_damaged(d, imp, line)
+        self.events.append(
+            new_event(ImpulseEvent, (line, ch, pc, imp.tod_us, imp.flag, True, "", d.number))
+        )
+        if imp.flag == DAMAGED_FLAG:
+            flag_damaged(d, imp, line)
         if started is not None:
             started(d)
+        return None, ""  # (nothing for the loop to take)
 
     def _unjoined(
         self, imp: Impulse, line: int, ch: str, pc: str, k: int, t: int, bib: str,
@@ -342,12 +340,13 @@ class DescentAssembler(Edits, MemoryJoins, Recovery, Pairing, DeviceClock):
         One method for a live impulse joining its descent and a live one taken into a
         descent begun in the timer's memory (:meth:`_adopt`): a descent's missed photocells
         read the same either way."""
-        j = self.order[d.photocells[-1]]
+        photocells = d.photocells
+        j = self.order[photocells[-1]]
         if k > j + 1:
             skipped = self.photocells[j + 1 : k]
             d.flags.append(f"missed {', '.join(skipped)}")
             d.missing += skipped
-        d.photocells.append(pc)
+        photocells.append(pc)
         d.times_us.append(t)
         d.channels.append(ch)
         seen = self._seen.get(ch)  # (as _keep, on a replay's every impulse)

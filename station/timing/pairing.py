@@ -7,7 +7,8 @@ from __future__ import annotations
 from collections import deque
 
 from station.timing.assembler_base import AssemblerBase
-from station.timing.descent import TimedDescent
+from station.timing.descent import TimedDescent, bib_of
+from station.timing.impulses import Impulse
 
 #: a speed between two photocells may be this factor off the speed before (order pairing)
 SPEED_RATIO = 2.5
@@ -24,9 +25,11 @@ def _median(values: list[int]) -> float:
 class Pairing(AssemblerBase):
     """The pairing rules over :class:`AssemblerBase`'s open descents."""
 
-    def _decide_mode(self, k: int, bib: str, prev_number: int | None) -> None:
+    def _decide_mode(self, k: int, imp: Impulse, prev_number: int | None) -> str | None:
         """``auto`` decides at the first impulse after a start: the same number as an open
-        descent's start means bibs, the previous impulse's number + 1 means a counter."""
+        descent's start means bibs, the previous impulse's number + 1 means a counter. The
+        pairing then (None: still undecided)."""
+        bib = bib_of(imp)
         if k > 0 and bib and self.open:
             if any(d.bib == bib for d in self.open):
                 self.mode = "bib"
@@ -34,6 +37,7 @@ class Pairing(AssemblerBase):
                 self.mode = "order"  # an impulse counter, not a bib
                 for d in self.open:
                     d.bib = ""
+        return self.mode
 
     def _near(self, bib: str) -> int | None:
         """The descent an impulse was nearest to joining, for the events list."""
@@ -44,30 +48,32 @@ class Pairing(AssemblerBase):
 
     def _why_not(self, d: TimedDescent, pc: str, k: int, t: int, by_order: bool) -> str | None:
         """Why descent ``d`` cannot take an impulse at photocell ``pc`` at ``t`` (None: it can)."""
-        j = self.order[d.photocells[-1]]
-        last = d.times_us[-1]
+        photocells, times = d.photocells, d.times_us  # (every impulse of a replay: at hand)
+        order = self.order
+        j = order[photocells[-1]]
+        last = times[-1]
         if k < j:
-            return f"out of order: {pc} after {d.photocells[-1]}"
+            return f"out of order: {pc} after {photocells[-1]}"
         if k == j:
             return f"second impulse at {pc}, {(t - last) / 1e6:.3f} s after the first"
         if t <= last:
-            return f"out of order: {(last - t) / 1e6:.4f} s earlier than {d.photocells[-1]}"
+            return f"out of order: {(last - t) / 1e6:.4f} s earlier than {photocells[-1]}"
         if t - last > self.timeout_us[j]:
-            return f"no impulse for {(t - last) / 1e6:.1f} s after {d.photocells[-1]}"
-        if self.positions is None:
-            return None
+            return f"no impulse for {(t - last) / 1e6:.1f} s after {photocells[-1]}"
         pos = self.positions
+        if pos is None:
+            return None
         v = (pos[k] - pos[j]) / ((t - last) / 1e6)
         if v > self.max_speed:
-            return (f"implausible: {v:.1f} m/s from {d.photocells[-1]} "
+            return (f"implausible: {v:.1f} m/s from {photocells[-1]} "
                     f"(at most {self.max_speed:g} m/s)")  # fmt: skip
-        if by_order and len(d.photocells) >= 2:
-            i = self.order[d.photocells[-2]]
-            dt = (last - d.times_us[-2]) / 1e6
+        if by_order and len(photocells) >= 2:
+            i = order[photocells[-2]]
+            dt = (last - times[-2]) / 1e6
             if dt > 0:
                 v_before = (pos[j] - pos[i]) / dt
                 if not v_before / SPEED_RATIO <= v <= v_before * SPEED_RATIO:
-                    return (f"implausible: {v:.1f} m/s from {d.photocells[-1]} after "
+                    return (f"implausible: {v:.1f} m/s from {photocells[-1]} after "
                             f"{v_before:.1f} m/s before it")  # fmt: skip
         return None
 
