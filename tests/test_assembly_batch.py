@@ -1,14 +1,14 @@
-"""The assembler's batch (``DescentAssembler.feed_run``, which the processor hands a plain
-capture's chunk to) decides as the general path, impulse by impulse: the same event for every
-impulse and edit, the same descents out of every chunk, the same descents, counts, start dates
-and flags at the end, and the same ``station replay --no-fit`` output. On the real captures
-(ALGE TdC 8001 days with clears, edits and bibs; the classement print-out; TAG CP540 with its
-memory download), on simulated days (overlapping skiers, counters and bibs, double triggers,
-missed photocells, running-time lines, midnight) and on those days mutated at random
-(hypothesis: lines deleted, repeated, swapped, their flag, channel, bib or time changed,
-garbage between them). Three ways are compared: as shipped (the batch), without the batch
-(the per-impulse fast paths of today), and the general path alone (every fast path of the
-parser and the assembler off)."""
+"""The processor hands a capture's or a session's impulses to the assembler in runs
+(``DescentAssembler.feed_run``, ``Processor.feed_chunks``) and a recording's one at a time
+(``feed``): the runs decide as one impulse at a time, the processor's bookkeeping around them
+included (the clock's offset from the host's, each start's host time and judgement). The
+same event for every impulse and edit, the same descents out of every chunk, the same
+descents, counts, start dates and flags at the end, and the same ``station replay --no-fit``
+output. On the real captures (ALGE TdC 8001 days with clears, edits and bibs; the classement
+print-out; TAG CP540 with its memory download), on simulated days (overlapping skiers,
+counters and bibs, double triggers, missed photocells, running-time lines, midnight) and on
+those days mutated at random (hypothesis: lines deleted, repeated, swapped, their flag,
+channel, bib or time changed, garbage between them)."""
 
 from __future__ import annotations
 
@@ -30,33 +30,24 @@ from station.session.rawlog import Chunk
 from station.timing.assembly import DescentAssembler
 from station.timing.framing import LineFramer
 from station.timing.impulses import DAY_US, format_tod
-from station.timing.wireformats import AlgeParser, TagParser, format_alge, tag_cs16
+from station.timing.wireformats import AlgeParser, format_alge, tag_cs16
 from tests.timing_helpers import write_config
 
-WAYS = ("batch", "no batch", "general")
+WAYS = ("batch", "one at a time")
 ALGE_2 = {"C0": "PC1", "C1": "PC9"}  # the real ALGE days: start and finish
 
 
-def _no_run(_self, _items, start, _line):
-    return start, [], []
-
-
-def _general_lines(self, lines):
-    return [self.parse_general(line) for line in lines]
+def _no_run(_self, _items, start, _line, _started=None):
+    return start, [], -1
 
 
 @contextlib.contextmanager
 def way(name: str):
-    """The processor and assembler as shipped, without the batch, or the general path only."""
+    """The processor and assembler as shipped, or with the batch taking no impulse (each
+    one fed on its own, as a recording's)."""
     with pytest.MonkeyPatch.context() as m:
         if name != "batch":
             m.setattr(DescentAssembler, "feed_run", _no_run)
-        if name == "general":
-            m.setattr(DescentAssembler, "_next_photocell", lambda *_a: None)
-            m.setattr(DescentAssembler, "_start", lambda *_a: False)
-            for cls in (AlgeParser, TagParser):
-                m.setattr(cls, "parse", cls.parse_general)
-                m.setattr(cls, "parse_lines", _general_lines)
         yield
 
 
@@ -104,8 +95,7 @@ def assert_same(a: dict, b: dict, what: str) -> None:
 
 def all_ways(cfg, track, data: bytes, cuts: list[int]) -> dict:
     got = {name: replayed(cfg, track, data, cuts, name) for name in WAYS}
-    assert_same(got["batch"], got["general"], "batch against the general path")
-    assert_same(got["batch"], got["no batch"], "batch against the per-impulse fast paths")
+    assert_same(got["batch"], got["one at a time"], "batch against one impulse at a time")
     return got["batch"]
 
 
@@ -170,10 +160,10 @@ def batch_taken(monkeypatch):
     taken: list[int] = []
     real_run = DescentAssembler.feed_run
 
-    def counted(self, items, start, line):
-        stop, done, started = real_run(self, items, start, line)
+    def counted(self, items, start, line, started=None):
+        stop, done, kept = real_run(self, items, start, line, started)
         taken.append(stop - start)
-        return stop, done, started
+        return stop, done, kept
 
     monkeypatch.setattr(DescentAssembler, "feed_run", counted)
     return taken
@@ -186,10 +176,8 @@ def clean_day(run_times):
 
 
 def test_a_clean_day_goes_through_the_batch(configs, demo_track, run_times, batch_taken):
-    """Not correct and useless: on a day of one skier at a time every impulse but the first
-    (it states the timer's resolution) and the second (it decides the pairing) is taken by the
-    batch. (The real ALGE days have two or three skiers on the run at once most of the time:
-    the general path's.)"""
+    """On a day of one skier at a time every impulse but the first (it states the timer's
+    resolution) is taken by the batch."""
     taken = batch_taken
     lines = clean_day(run_times)
     proc = Processor(configs("alge"), demo_track)
@@ -198,7 +186,7 @@ def test_a_clean_day_goes_through_the_batch(configs, demo_track, run_times, batc
     for k in range(0, len(data), 4096):
         done += proc.feed(Chunk(None, data[k : k + 4096]))  # type: ignore[arg-type]
     assert len(done) == 50 and all(d.status == "complete" for d in done)
-    assert proc.impulses == 450 and sum(taken) == 448
+    assert proc.impulses == 450 and sum(taken) == 449
 
 
 # ----------------------------------------------------------------------------- simulated days
@@ -294,11 +282,10 @@ def _clean(run_times, k: int, start_s: float, numbering: str) -> list[tuple]:
 
 
 def _case(run_times, name: str) -> tuple[list[tuple], str, dict | None]:
-    """A stream where the batch must stop and leave an impulse to the general path, for each
-    condition the batch checks (that the general path decides otherwise there): its impulses,
-    the pairing, the channels (None: the nine photocells)."""
+    """A stream with an edge of the common case (where an impulse is not simply kept by the
+    one open descent): its impulses, the pairing, the channels (None: the nine photocells)."""
     t0 = 36_000.0
-    first = _clean(run_times, 0, t0, "bib")  # decides the pairing (the general path)
+    first = _clean(run_times, 0, t0, "bib")  # decides the pairing
     if name == "damaged flag":
         second = _clean(run_times, 1, t0 + 60, "bib")
         second[4] = (*second[4][:3], "!")
@@ -337,29 +324,29 @@ def _case(run_times, name: str) -> tuple[list[tuple], str, dict | None]:
                                   "a start repeated", "too slow after the speed before",
                                   "after the time-out", "a bib of another descent",
                                   "without a number"])  # fmt: skip
-def test_the_batch_leaves_each_edge_to_the_general_path(configs, demo_track, run_times, name):
-    """Each condition of the batch's, met where the general path decides otherwise (a flag on
-    the descent, a double trigger collapsed, a repeat not doubled, an impulse rejected): the
-    same every way, and that impulse's event is not a plain kept one."""
+def test_each_edge_the_same_in_a_run(configs, demo_track, run_times, name):
+    """Each edge of the common case (a flag on the descent, a double trigger collapsed, a
+    repeat not doubled, an impulse rejected): the same in a run as one at a time, and that
+    impulse's event is not a plain kept one."""
     stream, pairing, channels = _case(run_times, name)
     lines = [format_alge(c, round(s * 1e6) % DAY_US, n, f) for c, s, n, f in stream]
     data = ("\r".join(lines) + "\r").encode()
     got = all_ways(configs("alge", channels, pairing), demo_track, data, [])
     plain = [e for e in got["events"] if e[5] and not e[6]]
     flagged = [d for d in got["finished"] if d[4]]
-    assert len(plain) < len(stream) or flagged, "the case is no edge: the general path agrees"
+    assert len(plain) < len(stream) or flagged, "the case is no edge"
 
 
 def test_over_midnight_in_the_batch(configs, demo_track, run_times):
     """A day of one skier at a time over midnight, in one chunk: the batch moves the clock's
-    day as the general path does (a later time of day unwraps on it)."""
+    day as one impulse at a time does (a later time of day unwraps on it)."""
     stream = [x for k in range(12) for x in _clean(run_times, k, 86_100 + 30 * k, "counter")]
     lines = [format_alge(c, round(s * 1e6) % DAY_US, n, f) for c, s, n, f in stream]
     data = ("\r".join(lines) + "\r").encode()
     got = all_ways(configs("alge", None, "order"), demo_track, data, [])
     assert got["clock"][1] == 1 and len(got["finished"]) == 12
     # the chunk ends within a descent just past midnight; the next begins with a time from
-    # before midnight at a later photocell (the general path's): unwrapped on the clock's day
+    # before midnight at a later photocell: unwrapped on the clock's day
     descent = _clean(run_times, 0, 86_395, "counter")
     stray = ("C5", 86_398, 99, " ")
     lines = [format_alge(c, round(s * 1e6) % DAY_US, n, f)
@@ -439,11 +426,10 @@ def session_chunks(lines: list[str], seed: int) -> list[Chunk]:
     0.3 s after the one before); now and then two lines in one read, a line split over two
     reads, a time-out event, a disconnect."""
     rng = random.Random(seed)
-    parser = AlgeParser()
     chunks: list[Chunk] = []
     host = 1_767_600_000.0
     for line in lines:
-        tod = getattr(parser.parse_general(line), "tod_us", None)
+        tod = getattr(AlgeParser().parse(line), "tod_us", None)
         guess = 1_767_600_000.0 + (tod or 0) / 1e6 + rng.uniform(0, 0.05)
         while guess < host - 43_200:
             guess += 86_400
@@ -492,8 +478,7 @@ def replayed_session(cfg, track, chunks: list[Chunk], name: str) -> dict:
 
 def all_ways_session(cfg, track, chunks: list[Chunk]) -> dict:
     got = {name: replayed_session(cfg, track, chunks, name) for name in WAYS}
-    assert_same(got["batch"], got["general"], "session: batch against the general path")
-    assert_same(got["batch"], got["no batch"], "session: batch against chunk by chunk")
+    assert_same(got["batch"], got["one at a time"], "session: batch against chunk by chunk")
     return got["batch"]
 
 
@@ -523,9 +508,9 @@ def test_simulated_sessions_the_same_every_way(configs, demo_track, run_times, s
 def test_sessions_with_the_memory_from_mid_descent_the_same_every_way(
     configs, demo_track, run_times, seed, numbering
 ):
-    """An ``import`` event mid-day (what follows is the timer's memory): the batch and the
-    per-impulse fast paths start its descents as from the memory, and leave an impulse of it
-    that continues a descent recorded live to the general path, which flags the join."""
+    """An ``import`` event mid-day (what follows is the timer's memory): its descents start
+    as from the memory, and an impulse of it that continues a descent recorded live is
+    flagged as joined, in runs as one at a time."""
     lines = simulated_alge(run_times, seed, numbering)
     chunks = [c for c in session_chunks(lines, seed) if c.event != "disconnected"]
     # after a PC4 crossing a third into the day: a descent is open, the memory continues it
@@ -563,7 +548,7 @@ def test_a_clean_session_goes_through_the_batch(configs, demo_track, run_times, 
     proc = Processor(configs("alge"), demo_track)
     done = proc.feed_chunks(chunks)
     assert len(done) == 50 and all(d.status == "complete" for d in done)
-    assert proc.impulses == 450 and sum(taken) == 448
+    assert proc.impulses == 450 and sum(taken) == 449
     assert proc.start_host.get(50) == chunks[49 * 9].t
 
 
@@ -585,5 +570,5 @@ def test_replay_no_fit_prints_the_same_every_way(real, configs, tmp_path):
                               "--date", "2020-02-02", "--events", str(events)])  # fmt: skip
         assert status == 0, err.getvalue()
         outputs.append((out.getvalue(), err.getvalue(), events.read_text()))
-    assert outputs[0] == outputs[1] == outputs[2]
+    assert outputs[0] == outputs[1]
     assert "descent 1 " in outputs[0][0] and "cleared" in outputs[0][2]

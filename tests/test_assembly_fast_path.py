@@ -1,10 +1,8 @@
-"""The assembler's fast paths (the one open descent reaching its next photocell; the next
-start with no descent open) decide exactly as the general path: the same events, the same
-descents, on random days full of what the general path is for (several skiers on the run, bibs
-and counters, double triggers, missed photocells, repeats from the timer's memory, corrupted
-times, midnight) and on the real captures, where the parsers' fast paths are compared with
-their general paths too. ``_next_photocell`` returning None and ``_start`` returning False
-send every impulse down the general path."""
+"""The assembler decides alike whether its impulses come in runs (``feed_run``, cut
+anywhere) or one at a time (``feed``): the same events, the same descents, on random days full
+of what is not the common case (several skiers on the run, bibs and counters, double
+triggers, missed photocells, repeats from the timer's memory, corrupted times, midnight) and
+on the real captures, chunked in any way. (``random_day`` serves other tests too.)"""
 
 from __future__ import annotations
 
@@ -21,7 +19,6 @@ from station.survey.load import load_survey
 from station.survey.track import build_track
 from station.timing.assembly import DescentAssembler
 from station.timing.impulses import DAY_US, Impulse
-from station.timing.wireformats import AlgeParser
 from tests.timing_helpers import write_config
 
 PCS = ["PC1", "PC2", "PC3", "PC4", "PC5", "PC6"]
@@ -62,22 +59,28 @@ def random_day(rng: np.random.Generator, numbering: str, n: int = 60) -> list[Im
     return impulses + impulses[-8:]
 
 
-def general_only(m: pytest.MonkeyPatch) -> None:
-    """Every impulse down the assembler's general path."""
-    m.setattr(DescentAssembler, "_next_photocell", lambda *_a: None)
-    m.setattr(DescentAssembler, "_start", lambda *_a: False)
-
-
-def assemble(impulses: list[Impulse], pairing: str, fast: bool, monkeypatch) -> DescentAssembler:
-    with monkeypatch.context() as m:
-        if not fast:
-            general_only(m)
-        asm = DescentAssembler(PCS, CHANNELS, positions_m=POS, pairing=pairing)
+def assemble(impulses: list[Impulse], pairing: str, runs: int | None) -> DescentAssembler:
+    """The assembler after ``impulses``: one at a time (``runs`` None), or in runs cut at
+    random (seeded by ``runs``), each impulse a run of its own where the run stops."""
+    asm = DescentAssembler(PCS, CHANNELS, positions_m=POS, pairing=pairing)
+    if runs is None:
         for i, imp in enumerate(impulses, start=1):
             asm.feed(imp, i)
             if i % 50 == 0:
                 asm.note_damaged(i)  # a line that could not be read
-        asm.close()
+    else:
+        rng = np.random.default_rng(runs)
+        i = 0
+        while i < len(impulses):
+            end = min(len(impulses), (i // 50 + 1) * 50, i + int(rng.integers(1, 40)))
+            stop = asm.feed_run(impulses[:end], i, i + 1)[0]
+            if stop == i:  # a time the next impulse must confirm: on its own
+                asm.feed(impulses[i], i + 1)
+                stop += 1
+            i = stop
+            if i % 50 == 0:
+                asm.note_damaged(i)
+    asm.close()
     return asm
 
 
@@ -94,50 +97,32 @@ def state(asm: DescentAssembler) -> tuple:
 @pytest.mark.parametrize(("numbering", "pairing"),
                          [("bib", "auto"), ("counter", "auto"), ("bib", "bib"),
                           ("counter", "order")])  # fmt: skip
-def test_the_fast_path_decides_as_the_general_path(seed, numbering, pairing, monkeypatch):
+def test_runs_decide_as_one_impulse_at_a_time(seed, numbering, pairing):
     impulses = random_day(np.random.default_rng(seed), numbering)
-    fast = assemble(impulses, pairing, True, monkeypatch)
-    general = assemble(impulses, pairing, False, monkeypatch)
-    assert state(fast) == state(general)
-    assert len(fast.finished) > 20  # the day was assembled, not rejected wholesale
+    one = assemble(impulses, pairing, None)
+    assert state(assemble(impulses, pairing, seed)) == state(one)
+    assert len(one.finished) > 20  # the day was assembled, not rejected wholesale
 
 
-def test_the_fast_path_takes_the_common_case(monkeypatch):
-    """On a clean day every impulse goes the fast way, but the first start and the impulse
-    that decides the pairing."""
-    calls = {"fast": 0, "start": 0}
-    real, real_start = DescentAssembler._next_photocell, DescentAssembler._start
-
-    def counted(self, *args):
-        done = real(self, *args)
-        calls["fast"] += done is not None
-        return done
-
-    def counted_start(self, *args):
-        started = real_start(self, *args)
-        calls["start"] += started
-        return started
-
-    monkeypatch.setattr(DescentAssembler, "_next_photocell", counted)
-    monkeypatch.setattr(DescentAssembler, "_start", counted_start)
+def test_a_clean_day_is_one_run():
+    """A clean day of one skier at a time goes through in one run, the first start and the
+    impulse that decides the pairing too."""
     asm = DescentAssembler(PCS, CHANNELS, positions_m=POS, pairing="auto")
-    n = 0
-    for k in range(20):
-        for i, x in enumerate(POS):
-            n += 1
-            asm.feed(Impulse(f"C{i}", 36_000_000_000 + k * 60_000_000 + int(x / 15 * 1e6), 100,
-                             "", str(n)), n)  # fmt: skip
-    assert len(asm.finished) == 20 and all(d.status == "complete" for d in asm.finished)
-    # the first descent's second impulse decides the pairing (a counter) the general way
-    assert calls["fast"] == 20 * (len(POS) - 1) - 1
-    assert calls["start"] == 20 - 1
+    items = [Impulse(f"C{i}", 36_000_000_000 + k * 60_000_000 + int(x / 15 * 1e6), 100, "",
+                     str(9 * k + i + 1)) for k in range(20) for i, x in enumerate(POS)]  # fmt: skip
+    starts: list[int] = []
+    stop, done, kept = asm.feed_run(items, 0, 1, lambda d: starts.append(d.number))
+    assert stop == len(items) and kept == len(items) - 1
+    assert len(done) == 20 and all(d.status == "complete" for d in done)
+    assert starts == list(range(1, 21)) and asm.mode == "order"
 
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "fixtures" / "real" / "alge"
 
 
 @pytest.mark.parametrize("name", ["ALGETdC8001-202002020841.dump", "ALGETdC8001-202002021133.dump"])
-def test_the_real_captures_give_the_same_either_way(tmp_path, name, monkeypatch):
+def test_the_real_captures_the_same_however_chunked(tmp_path, name):
+    """The real days in chunks of 512 bytes (runs) and a line a chunk (one at a time)."""
     path = Path("/work/shared/fixtures/real/alge") / name
     if not path.exists():
         path = REAL / name
@@ -145,17 +130,12 @@ def test_the_real_captures_give_the_same_either_way(tmp_path, name, monkeypatch)
     cfg = load_config(str(write_config(tmp_path, "loop://")))
     track = build_track(load_survey(cfg.survey_path))
     results = []
-    for fast in (True, False):
-        with monkeypatch.context() as m:
-            if not fast:  # the parser's general path too, for every line
-                general_only(m)
-                m.setattr(AlgeParser, "parse", AlgeParser.parse_general)
-                m.setattr(AlgeParser, "parse_lines",
-                          lambda self, lines: [self.parse_general(s) for s in lines])  # fmt: skip
-            proc = Processor(cfg, track)
-            for k in range(0, len(data), 512):
-                proc.feed(Chunk(None, data[k : k + 512]))  # type: ignore[arg-type]
-            proc.finish()
-            results.append(state(proc.assembler))
+    for cuts in (range(0, len(data), 512), [0, *(k + 1 for k, b in enumerate(data) if b == 13)]):
+        proc = Processor(cfg, track)
+        edges = [*cuts, len(data)]
+        for a, b in zip(edges, edges[1:], strict=False):
+            proc.feed(Chunk(None, data[a:b]))  # type: ignore[arg-type]
+        proc.finish()
+        results.append(state(proc.assembler))
     assert results[0] == results[1]
     assert results[0][0]  # events were made

@@ -245,7 +245,7 @@ def test_settled_descents_and_sorted_kept_times_decide_as_before(seed, monkeypat
     of times from any earlier descent."""
     import dataclasses
 
-    import station.timing.assembly as assembly
+    import station.timing.device_clock as assembly  # (SEEN_RECENT is read there)
     from station.session.records import DescentTimes
     from station.timing.assembly import DescentAssembler
     from station.timing.impulses import DAY_US, Edit

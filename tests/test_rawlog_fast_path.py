@@ -159,7 +159,6 @@ def test_a_session_of_a_real_capture_replays_the_same_all_fast_or_all_general(
     from station.session.replay import replay_chunks
     from station.survey.load import load_survey
     from station.survey.track import build_track
-    from station.timing.assembly import DescentAssembler
     from station.timing.wireformats import AlgeParser
     from tests.timing_helpers import write_config
 
@@ -180,8 +179,6 @@ def test_a_session_of_a_real_capture_replays_the_same_all_fast_or_all_general(
                 m.setattr(rawlog, "_COMMON", lambda _raw: None)
                 m.setattr(rawlog, "_ONE_LINE", lambda _raw: None)
                 m.setattr(AlgeParser, "parse", AlgeParser.parse_general)
-                m.setattr(DescentAssembler, "_next_photocell", lambda *_a: None)
-                m.setattr(DescentAssembler, "_start", lambda *_a: False)
             proc = Processor(cfg, track)
             for chunk in replay_chunks(str(session)):
                 proc.feed(chunk)

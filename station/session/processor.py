@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from array import array
 from collections import Counter, deque
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 from station.errors import InputError
 from station.session.config import StationConfig
@@ -175,37 +175,38 @@ class Processor:
         return done
 
     def _capture_lines(self, lines: list[str]) -> list[TimedDescent]:
-        """:meth:`_line` for each line of a plain capture's chunk (no host clock), its common
-        impulse handled here: a replay of a capture is a hundred thousand of them."""
+        """:meth:`_line` for each line of a plain capture's chunk (no host clock), its runs of
+        impulses in the assembler's batch: a replay of a capture is a hundred thousand of them."""
         done: list[TimedDescent] = []
         parsed_lines = self.parser.parse_lines(lines)  # (the parser's state is its own)
         asm = self.assembler
         feed, feed_run = asm.feed, asm.feed_run
-        start_host, started_judged = self.start_host, self._started
+        start_host, judge = self.start_host, self._started
+
+        def undated(d: TimedDescent) -> None:  # no host clock: each start undated, judged
+            start_host[d.number] = None
+            judge(d)
+
         i, n = 0, len(lines)
-        stopped = -1  # the impulse the batch stopped at: the general path's
+        stopped = -1  # the impulse the batch stopped at: fed on its own
         while i < n:
             parsed = parsed_lines[i]
-            # (while a download is on the line each impulse the general way: a live one
-            # ends it, :meth:`_live_after_download`)
+            # (while a download is on the line each impulse on its own: a live one ends it,
+            # :meth:`_live_after_download`)
             if (
                 type(parsed) is Impulse
                 and self.resolution_us is not None
                 and self.download_line is None
             ):
                 if i != stopped:
-                    # the common impulses from here in one run of the assembler's
-                    stop, ended, started = feed_run(parsed_lines, i, self.lines + 1)
+                    stop, ended, _kept = feed_run(parsed_lines, i, self.lines + 1, undated)
                     if stop > i:
                         self.lines += stop - i
                         self._count_impulses(stop - i)
-                        for d in started:  # no host clock: each start undated, judged
-                            start_host[d.number] = None
-                            started_judged(d)
                         done += ended
                         i = stopped = stop
                         continue
-                # one the batch does not take, the general way
+                # one whose time the next impulse must confirm, on its own
                 self.lines += 1
                 self._count_impulses(1)
                 before = asm.count
@@ -287,16 +288,16 @@ class Processor:
 
     def _session_lines(self, lines: list[str], hosts: list[float]) -> list[TimedDescent]:
         """:meth:`_parsed` for each line, ``hosts`` its host time (a number), with runs of
-        common impulses in the assembler's batch. What ``_parsed`` leaves for each impulse the
-        batch took is left for the run: the offset of the device clock from the host's
-        (after the run's last impulse: the fast paths read no host time), the recent lines,
-        each start dated by its own line's host time and judged against the timer's clock."""
+        impulses in the assembler's batch. What ``_parsed`` leaves for each impulse is left
+        for the run: the offset of the device clock from the host's (by the last impulse the
+        clock stood at), the recent lines, each start dated by its own line's host time and
+        judged against the timer's clock."""
         done: list[TimedDescent] = []
         parsed_lines = self.parser.parse_lines(lines)
         asm = self.assembler
         feed_run, recent = asm.feed_run, self._recent
         i, n = 0, len(lines)
-        stopped = -1  # the impulse the batch stopped at: the general path's
+        stopped = -1  # the impulse the batch stopped at: fed on its own
         while i < n:
             if (
                 i != stopped
@@ -305,22 +306,15 @@ class Processor:
                 and self.download_line is None  # (see _capture_lines)
             ):
                 first = self.lines + 1  # the line number of parsed_lines[i]
-                stop, ended, started = feed_run(parsed_lines, i, first)
+                stop, ended, kept = feed_run(parsed_lines, i, first, self._dated(hosts, i - first))
                 if stop > i:
                     self.lines += stop - i
                     self._count_impulses(stop - i)
-                    clock = asm.clock
-                    assert clock is not None  # (the batch keeps impulses only with a clock)
-                    if asm.from_memory:  # (the memory's times are not the timer's now)
-                        self.memory_offset_us = clock - round(hosts[stop - 1] * 1e6)
-                    else:
-                        self.offset_us = clock - round(hosts[stop - 1] * 1e6)
+                    if kept >= 0:
+                        self._pair_clock(round(hosts[kept] * 1e6))
                     tail = max(i, stop - RECENT_LINES)
                     recent.extend(zip(range(first + tail - i, self.lines + 1),
                                       hosts[tail:stop], strict=True))  # fmt: skip
-                    for d in started:
-                        self.start_host[d.number] = hosts[i + d.first_line - first]
-                        self._started(d)
                     done += ended
                     i = stopped = stop
                     continue
@@ -329,6 +323,28 @@ class Processor:
                 done += ended
             i += 1
         return done
+
+    def _dated(self, hosts: list[float], shift: int) -> Callable[[TimedDescent], None]:
+        """What a start in the batch leaves: the host time of its line (``hosts[first_line +
+        shift]``), and the start judged against the timer's clock."""
+        start_host, judge = self.start_host, self._started
+
+        def dated(d: TimedDescent) -> None:
+            start_host[d.number] = hosts[d.first_line + shift]
+            judge(d)
+
+        return dated
+
+    def _pair_clock(self, host_us: int) -> None:
+        """The device clock stands at the time of the impulse that came at ``host_us``: their
+        difference is the offset (the memory's own while the timer's memory comes: its
+        times are not the timer's now)."""
+        clock = self.assembler.clock
+        assert clock is not None
+        if self.assembler.from_memory:
+            self.memory_offset_us = clock - host_us
+        else:
+            self.offset_us = clock - host_us
 
     def _line(self, line: str, t: float | None) -> list[TimedDescent]:
         return self._parsed(line, self.parser.parse(line), t)
@@ -360,10 +376,7 @@ class Processor:
                 # far from the clock held for confirmation, time-outs late). The memory's kept
                 # impulses have their own (they moved the live one to their old times likewise)
                 if clock is not None and clock == asm.unwrap(parsed):
-                    if asm.from_memory:
-                        self.memory_offset_us = clock - host_us
-                    else:
-                        self.offset_us = clock - host_us
+                    self._pair_clock(host_us)
             self._recent.append((self.lines, t))
             if asm.count > before:
                 self._new_descents(before, done, t, judge=True)
