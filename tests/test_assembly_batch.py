@@ -30,7 +30,7 @@ from station.session.rawlog import Chunk
 from station.timing.assembly import DescentAssembler
 from station.timing.framing import LineFramer
 from station.timing.impulses import DAY_US, format_tod
-from station.timing.wireformats import AlgeParser, TagParser, format_alge, tag_cs16
+from station.timing.wireformats import AlgeParser, format_alge, tag_cs16
 from tests.timing_helpers import write_config
 
 WAYS = ("batch", "no batch", "general")
@@ -39,10 +39,6 @@ ALGE_2 = {"C0": "PC1", "C1": "PC9"}  # the real ALGE days: start and finish
 
 def _no_run(_self, _items, start, _line):
     return start, [], []
-
-
-def _general_lines(self, lines):
-    return [self.parse_general(line) for line in lines]
 
 
 @contextlib.contextmanager
@@ -54,9 +50,6 @@ def way(name: str):
         if name == "general":
             m.setattr(DescentAssembler, "_next_photocell", lambda *_a: None)
             m.setattr(DescentAssembler, "_start", lambda *_a: False)
-            for cls in (AlgeParser, TagParser):
-                m.setattr(cls, "parse", cls.parse_general)
-                m.setattr(cls, "parse_lines", _general_lines)
         yield
 
 

@@ -21,7 +21,6 @@ from station.survey.load import load_survey
 from station.survey.track import build_track
 from station.timing.assembly import DescentAssembler
 from station.timing.impulses import DAY_US, Impulse
-from station.timing.wireformats import AlgeParser
 from tests.timing_helpers import write_config
 
 PCS = ["PC1", "PC2", "PC3", "PC4", "PC5", "PC6"]
@@ -149,9 +148,6 @@ def test_the_real_captures_give_the_same_either_way(tmp_path, name, monkeypatch)
         with monkeypatch.context() as m:
             if not fast:  # the parser's general path too, for every line
                 general_only(m)
-                m.setattr(AlgeParser, "parse", AlgeParser.parse_general)
-                m.setattr(AlgeParser, "parse_lines",
-                          lambda self, lines: [self.parse_general(s) for s in lines])  # fmt: skip
             proc = Processor(cfg, track)
             for k in range(0, len(data), 512):
                 proc.feed(Chunk(None, data[k : k + 512]))  # type: ignore[arg-type]
