@@ -170,7 +170,7 @@ class AlgeParser(_Parser):
             s = line
             if self.in_printout or len(s) == 28 or not s or s.isspace():
                 opened = self._opening(line)
-                if type(opened) is not str:
+                if not isinstance(opened, str):
                     add(opened)
                     continue
                 s = opened
