@@ -436,7 +436,7 @@ def session_chunks(lines: list[str], seed: int) -> list[Chunk]:
     chunks: list[Chunk] = []
     host = 1_767_600_000.0
     for line in lines:
-        tod = getattr(parser.parse_general(line), "tod_us", None)
+        tod = getattr(parser.parse(line), "tod_us", None)
         guess = 1_767_600_000.0 + (tod or 0) / 1e6 + rng.uniform(0, 0.05)
         while guess < host - 43_200:
             guess += 86_400

@@ -1,10 +1,8 @@
-"""Reading a session's raw log and framing its chunks: the fast paths for the common record and
-the common chunk (one whole line) give exactly what the general paths give, and are taken.
-
-``read_rawlog`` reads a record of the writer's own shape (a plain decimal host time, printable
-ASCII and the escapes of CR, LF and TAB) without the JSON decoder; every other record goes the
-general way, with its checks and warnings. ``LineFramer.feed`` answers a chunk that is one
-whole line ending in CR at once."""
+"""Reading a session's raw log a block at a time by the typed decoder gives exactly what reading
+every line on its own by the standard library's decoder and the record rule gives: the writer's
+every byte value, and records near a record's shape (other numbers, escapes, spacing, fields,
+two records on a line, one over two lines), each good or named alike; and the typed decoding
+is what reads a clean log. Framing a chunk does not depend on how the bytes arrive."""
 
 from __future__ import annotations
 
@@ -19,16 +17,20 @@ from station.session.rawlog import RawLogWriter, read_rawlog
 from station.timing.framing import LineFramer
 
 
+def _careful_only(_block):
+    raise rawlog._Careful
+
+
 def both_ways(path, monkeypatch) -> tuple[list, list[str], list, list[str]]:
-    """The chunks and warnings of ``path`` read as it is, and with the fast path off."""
-    fast_w: list[str] = []
-    fast = list(read_rawlog(str(path), fast_w))
+    """The chunks and warnings of ``path`` read as shipped, and a line at a time by the
+    standard library's decoder and the rule (the typed decoding switched off)."""
+    typed_w: list[str] = []
+    typed = list(read_rawlog(str(path), typed_w))
     with monkeypatch.context() as m:
-        m.setattr(rawlog, "_COMMON", lambda _raw: None)
-        m.setattr(rawlog, "_ONE_LINE", lambda _raw: None)
-        general_w: list[str] = []
-        general = list(read_rawlog(str(path), general_w))
-    return fast, fast_w, general, general_w
+        m.setattr(rawlog, "_typed", _careful_only)
+        careful_w: list[str] = []
+        careful = list(read_rawlog(str(path), careful_w))
+    return typed, typed_w, careful, careful_w
 
 
 def test_written_records_read_the_same_both_ways(tmp_path, monkeypatch):
@@ -53,35 +55,24 @@ def test_written_records_read_the_same_both_ways(tmp_path, monkeypatch):
         if i % 97 == 0:
             w.event(1_767_600_000.0 + i, "disconnected", "EIO")
     w.close()
-    fast, fast_w, general, general_w = both_ways(path, monkeypatch)
-    assert fast == general and fast_w == general_w
-    assert [c.data for c in fast if not c.event] == payloads
-    assert all(type(c) is rawlog.Chunk and type(c.t) is float for c in fast)
+    typed, typed_w, careful, careful_w = both_ways(path, monkeypatch)
+    assert typed == careful and typed_w == careful_w
+    assert [c.data for c in typed if not c.event] == payloads
+    assert all(type(c) is rawlog.Chunk and type(c.t) is float for c in typed)
 
 
-def test_the_fast_path_reads_the_common_records(tmp_path, monkeypatch):
+def test_a_clean_log_is_read_by_the_typed_decoder(tmp_path, monkeypatch):
     path = tmp_path / "raw.jsonl"
     w = RawLogWriter(str(path), header={"port": "loop://"})
     for i in range(200):
         w.write(1_767_600_000.0 + i * 0.3, b" 0001 C0  10:00:00.0000 00\r")
-    w.close()
-    w = RawLogWriter(str(path))
     for i in range(50):  # a TAG line (CR LF), a line with a TAB
         w.write(1_767_600_100.0 + i, b"TN  1 \t00AB\r\n")
+    w.event(1_767_600_200.0, "disconnected", "EIO")
     w.close()
-    taken: dict[str, list[bool]] = {"_ONE_LINE": [], "_COMMON": []}
-    for name in taken:
-        real = getattr(rawlog, name)
-
-        def counted(raw: bytes, real=real, name=name):
-            m = real(raw)
-            taken[name].append(m is not None)
-            return m
-
-        monkeypatch.setattr(rawlog, name, counted)
+    monkeypatch.setattr(rawlog, "_decode", None)  # (the careful way never taken)
     chunks = list(read_rawlog(str(path)))
-    assert len(chunks) == 251  # all but the session header the fast way:
-    assert sum(taken["_ONE_LINE"]) == 200 and sum(taken["_COMMON"]) == 50
+    assert len(chunks) == 252 and chunks[-1].event == "disconnected"
 
 
 NEAR_MISSES = [
@@ -105,16 +96,42 @@ NEAR_MISSES = [
     '{"t":1,"rx":"a"',
     '{"t":1,"rx":"a\\r\\n\\t"}',
     '{"t":1.5,"rx":""}',
+    '{"t":1,"rx":"a"}{"t":2,"rx":"b"}',  # two records on a line
+    '{"t":1,"rx":"a"} {"t":2,"rx":"b"}',
+    '{"t":1,\n"rx":"a"}',  # one over two lines
+    '{"t":1,"rx":"a"}\n\n{"t":2,"rx":"b"}',  # a blank line between
+    '{"t":NaN,"rx":"a"}',
+    '{"t":1e999,"rx":"a"}',
+    '{"t":123456789012345678901234567890,"rx":"a"}',
+    '{"t":true,"rx":"a"}',
+    '{"t":1,"t":2,"rx":"a"}',
+    '{"t":"x","t":2,"rx":"a"}',
+    '{"t":1,"rx":"a","rx":null}',
+    '{"t":1,"rx":"\\ud800"}',  # a lone surrogate
+    '{"t":1,"rx":"\\u0100"}',
+    '{"t":1,"rx":"a","event":5}',
+    '{"t":1,"rx":"a","detail":[1]}',
+    '{"t":1}',
+    '[{"t":1,"rx":"a"}]',
+    '{"t":1,"event":"x","detail":{"a":1E400}}',
+    '{"t":1,"event":"x","detail":{"a":123456789012345678901234567890,"b":-0.0,"a":2}}',
+    '{"t":1,"event":"x","detail":' + '{"a":' * 9 + "1" + "}" * 9 + "}",
+    '{"t":1,"event":"x","detail":null}',
+    '{"t":1,"event":"x"}',
+    '{"t":1,"event":5}',
+    '\xef\xbb\xbf{"t":1,"rx":"a"}',  # a byte order mark
+    '{"t":1,"rx":"a\xe9"}',  # a raw byte beyond ASCII
+    '{"t":1,"event":"\xe9"}',
 ]
 
 
 @pytest.mark.parametrize("record", NEAR_MISSES)
-def test_records_near_the_common_shape_read_the_same_both_ways(tmp_path, monkeypatch, record):
+def test_records_near_a_records_shape_read_the_same_both_ways(tmp_path, monkeypatch, record):
     path = tmp_path / "raw.jsonl"
     good = '{"t":2,"rx":"b\\r"}\n'
     path.write_bytes((good + record + "\n" + good + record).encode("latin-1"))  # torn at the end
-    fast, fast_w, general, general_w = both_ways(path, monkeypatch)
-    assert fast == general and fast_w == general_w
+    typed, typed_w, careful, careful_w = both_ways(path, monkeypatch)
+    assert typed == careful and typed_w == careful_w
 
 
 def frame(chunks: list[bytes]) -> list[str]:
@@ -130,7 +147,7 @@ def frame(chunks: list[bytes]) -> list[str]:
     st.lists(st.integers(1, 40), max_size=20),
 )
 def test_framing_does_not_depend_on_how_the_bytes_arrive(lines, ends, cuts):
-    """Line by line (a live recording's reads, the fast path), cut anywhere, or all at once:
+    """Line by line (a live recording's reads), cut anywhere, or all at once:
     the same lines."""
     data = "".join(s + e for s, e in zip(lines, ends, strict=False)).encode("latin-1")
     whole = frame([data])
@@ -143,54 +160,3 @@ def test_framing_does_not_depend_on_how_the_bytes_arrive(lines, ends, cuts):
     assert per_line == whole == frame(pieces)
     assert whole == [s for s in data.decode().replace("\r\n", "\n").replace("\r", "\n").split("\n")
                      ][: len(whole)]  # fmt: skip
-
-
-@pytest.mark.parametrize("name", ["ALGETdC8001-202002020841.dump", "ALGETdC8001-202002021133.dump"])
-def test_a_session_of_a_real_capture_replays_the_same_all_fast_or_all_general(
-    real, tmp_path, monkeypatch, name
-):
-    """The real capture's lines recorded one record each (as a recording writes them), then
-    replayed with every fast path (raw log, framing, parser, assembler) and with none: the
-    same events, descents and counts."""
-    import dataclasses
-
-    from station.session.config import load_config
-    from station.session.processor import Processor
-    from station.session.replay import replay_chunks
-    from station.survey.load import load_survey
-    from station.survey.track import build_track
-    from station.timing.assembly import DescentAssembler
-    from station.timing.wireformats import AlgeParser
-    from tests.timing_helpers import write_config
-
-    framer = LineFramer()
-    lines = framer.feed((real / "alge" / name).read_bytes()) + framer.flush()
-    session = tmp_path / "session"
-    session.mkdir()
-    w = RawLogWriter(str(session / "raw.jsonl"), header={"port": "loop://"})
-    for k, line in enumerate(lines):
-        w.write(1_580_630_000.0 + 0.25 * k, (line + "\r").encode("latin-1"))
-    w.close()
-    cfg = load_config(str(write_config(tmp_path, "loop://")))
-    track = build_track(load_survey(cfg.survey_path))
-    states = []
-    for fast in (True, False):
-        with monkeypatch.context() as m:
-            if not fast:
-                m.setattr(rawlog, "_COMMON", lambda _raw: None)
-                m.setattr(rawlog, "_ONE_LINE", lambda _raw: None)
-                m.setattr(AlgeParser, "parse", AlgeParser.parse_general)
-                m.setattr(DescentAssembler, "_next_photocell", lambda *_a: None)
-                m.setattr(DescentAssembler, "_start", lambda *_a: False)
-            proc = Processor(cfg, track)
-            for chunk in replay_chunks(str(session)):
-                proc.feed(chunk)
-            proc.finish()
-            asm = proc.assembler
-            states.append((
-                [tuple(e) for e in asm.events], [dataclasses.astuple(d) for d in asm.finished],
-                proc.unparsed, proc.line_counts(), proc.offset_us,
-                [proc.start_host.get(n) for n in range(1, asm.count + 1)],
-            ))  # fmt: skip
-    assert states[0] == states[1]
-    assert len(states[0][1]) > 20
