@@ -13,7 +13,7 @@ uses them, and the tests use them for round trips.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from station.timing.impulses import (
     DAMAGED_FLAG,
@@ -156,31 +156,36 @@ class AlgeParser(_Parser):
 
     def parse(self, line: str) -> Parsed:
         """Any line, however damaged: what it is, or why it is nothing (a chunk of one)."""
-        return self.parse_lines([line])[0]
+        return self.parse_lines((line,))[0]
 
-    def parse_lines(self, lines: list[str]) -> list[Parsed]:
+    def parse_lines(self, lines: Sequence[str]) -> list[Parsed]:
         """Each line in order, however damaged: what it is, or why it is nothing. The line of
         an impulse's columns (the flag, number, channel and time of day, with or without its
-        checksum) is read here; what comes before it and the other lines, by the two steps
-        below. One loop for a chunk: a replay's impulses without a call a line."""
+        checksum) is read here; a line within a print-out, one with its checksum and the
+        other lines, by the two steps below (a blank one where it is first told apart). One
+        loop for a chunk: a replay's impulses without a call a line."""
         out: list[Parsed] = []
         add = out.append
         channels, tod, digits, new = _ALGE_CHANNEL, _tod, _digits, _new
         for line in lines:
             s = line
-            if self.in_printout or len(s) == 28 or not s or s.isspace():
+            n = len(s)
+            if n == 28 or self.in_printout:
                 opened = self._opening(line)
                 if not isinstance(opened, str):
                     add(opened)
                     continue
                 s = opened
-            if not (len(s) >= 26 and s[9] == " " and s[23] == " "):
+                n = len(s)
+            if not (n >= 26 and s[9] == " " and s[23] == " "):
                 add(self._not_columns(s, line))
                 continue
             chan = s[6:9]
             channel = channels.get(chan)
             if channel is None:
-                if chan[0] in "cC" and digits(chan[1]) or chan[:2] not in ALGE_COMPUTED:
+                if line.isspace():
+                    add(Skip("blank line", line))
+                elif chan[0] in "cC" and digits(chan[1]) or chan[:2] not in ALGE_COMPUTED:
                     add(Unparsed(f"unknown channel {chan!r}", line))
                 else:
                     add(Skip(f"computed time ({chan.strip()})", line))
@@ -195,8 +200,10 @@ class AlgeParser(_Parser):
                 add(Unparsed(f"start number {raw_bib!r} is not a number", line))
                 continue
             flag = s[0]
-            if flag == " " or flag == "?":
-                add(new(Impulse, (channel, t[0], t[1], flag.strip(), bib, None, line)))
+            if flag == " ":
+                add(new(Impulse, (channel, t[0], t[1], "", bib, None, line)))
+            elif flag == "?":
+                add(new(Impulse, (channel, t[0], t[1], "?", bib, None, line)))
             elif flag in ALGE_EDIT_FLAGS:
                 add(Edit(ALGE_EDIT_FLAGS[flag], channel, t[0], flag, bib, line))
             else:
@@ -208,8 +215,8 @@ class AlgeParser(_Parser):
         return out
 
     def _opening(self, line: str) -> Parsed | str:
-        """A line within a print-out, a blank one, or one with its checksum: what it is, or
-        the text to read on (the line, its checksum checked and cut off)."""
+        """A line within a print-out or one with its checksum: what it is, or the text to read
+        on (the line, its checksum checked and cut off)."""
         s = line
         n = len(s)
         if self.in_printout:
@@ -232,6 +239,8 @@ class AlgeParser(_Parser):
 
     def _not_columns(self, s: str, line: str) -> Parsed:
         """A line (``s``, its checksum cut off) that is not laid out as an impulse's."""
+        if not line or line.isspace():
+            return Skip("blank line", line)
         n = len(s)
         if n in (5, 6) and s[0] in "ns" and _digits(s[1:5]):
             return Skip("start number shown", line)
