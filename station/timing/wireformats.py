@@ -84,6 +84,9 @@ def _digits(text: str) -> bool:
 #: tuple's cost (one per line of a replay)
 _new = tuple.__new__
 
+#: a number of four digits, which :func:`_digits` takes and ``strip`` leaves as it is
+_FOUR_DIGITS = frozenset(f"{i:04d}" for i in range(10_000))
+
 #: ALGE channel columns (``C1 ``, ``c1 ``, ``C1M``, ``C1m``…) -> the channel's name
 _ALGE_CHANNEL = {
     c + d + x: "C" + d + ("M" if x != " " else "")
@@ -194,11 +197,12 @@ class AlgeParser(_Parser):
             if t is None:
                 add(Unparsed(f"time {s[10:23]!r} is not HH:MM:SS.ffff", line))
                 continue
-            raw_bib = s[1:5]
-            bib = raw_bib.strip()
-            if bib and not digits(bib):
-                add(Unparsed(f"start number {raw_bib!r} is not a number", line))
-                continue
+            bib = raw_bib = s[1:5]
+            if bib not in _FOUR_DIGITS:  # (the common number: a look-up)
+                bib = raw_bib.strip()
+                if bib and not digits(bib):
+                    add(Unparsed(f"start number {raw_bib!r} is not a number", line))
+                    continue
             flag = s[0]
             if flag == " ":
                 add(new(Impulse, (channel, t[0], t[1], "", bib, None, line)))
