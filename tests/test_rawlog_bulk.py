@@ -1,15 +1,15 @@
-"""The bulk reading of a session's raw log (``read_rawlog_bulk``, what ``station replay SESSION
---no-fit`` reads) gives what the careful reader (``read_rawlog``) gives, record by record: the
-same chunks (runs of common records expanded back into their chunks), the same warnings, the
-same error at the same point; and a replay fed either way leaves the same descents, events,
-counts, host times of starts and ``--no-fit`` output.
+"""The raw log read as a replay reads it (``read_rawlog_bulk``: runs of reads as ``Lines``, what
+``station replay SESSION --no-fit`` reads) gives, record by record, what reading every line on
+its own by the standard library's decoder and the record rule gives: the same chunks, the same
+warnings, the same error at the same point; and a replay fed either way (runs, or a chunk a
+record) leaves the same descents, events, counts, host times of starts and ``--no-fit`` output.
 
 The logs: written by the writer (common ALGE and Microgate lines, TAG lines with CR LF, events,
 reads of several lines or half a line, every byte value), then mutated by hypothesis (bytes
 flipped to anything, line ends and quotes among them; ranges deleted or repeated; garbage
 inserted; cut anywhere, a torn last record), read in blocks of a few bytes up to many records
-so that records are cut by a block's end everywhere, with a long-line bound small enough that
-lines are read from the file too, and with the log's limit reached while read."""
+so that records are cut by a block's end everywhere, and with the log's limit reached while
+read."""
 
 from __future__ import annotations
 
@@ -58,26 +58,31 @@ def expand(items: list) -> list[Chunk]:
     return out
 
 
-def read_both(path, block: int | None = None, long: int | None = None, m=None):
-    """(careful chunks, warnings, error), (bulk chunks, warnings, error), the bulk items."""
+def _careful_only(_block):
+    raise rawlog._Careful
+
+
+def read_both(path, block: int | None = None):
+    """(chunks, warnings, error) read a line at a time by the standard library's decoder and
+    the rule (the typed decoding of blocks switched off), and as shipped, in blocks of
+    ``block`` bytes, runs expanded (checked to fit :class:`Lines`); the items as shipped."""
     got = []
     items: list = []
-    with contextlib.ExitStack() as stack:
-        mp = stack.enter_context(pytest.MonkeyPatch.context()) if m is None else m
-        if block is not None:
-            mp.setattr(rawlog, "BULK_BLOCK", block)
-        if long is not None:
-            mp.setattr(rawlog, "BULK_LONG", long)
-        for bulk in (False, True):
+    for shipped in (False, True):
+        with pytest.MonkeyPatch.context() as mp:
+            if shipped and block is not None:
+                mp.setattr(rawlog, "BLOCK", block)
+            if not shipped:
+                mp.setattr(rawlog, "_typed", _careful_only)
             warnings: list[str] = []
             chunks: list = []
             error = None
             try:
-                for c in (read_rawlog_bulk if bulk else read_rawlog)(str(path), warnings):
+                for c in (read_rawlog_bulk if shipped else read_rawlog)(str(path), warnings):
                     chunks.append(c)
             except InputError as exc:
                 error = str(exc)
-            if bulk:
+            if shipped:
                 items = chunks
                 chunks = expand(chunks)
             got.append((chunks, warnings, error))
@@ -178,12 +183,11 @@ def test_a_log_of_other_records_reads_the_same_and_comes_back_to_runs(tmp_path):
     ),
     cut=st.one_of(st.none(), st.integers(0, 10**6)),
     block=st.integers(1, 600),
-    long=st.one_of(st.none(), st.integers(1, 300)),
 )
-def test_mutated_logs_read_the_same_both_ways(tmp_path_factory, seed, ops, cut, block, long):
+def test_mutated_logs_read_the_same_both_ways(tmp_path_factory, seed, ops, cut, block):
     """Bytes flipped, ranges deleted, repeated, garbage or line ends inserted, the log cut
     anywhere (a torn last record); read in blocks of 1 to 600 bytes (records cut by a block's
-    end everywhere), lines past ``long`` read from the file."""
+    end everywhere)."""
     path = tmp_path_factory.mktemp("bulk") / "raw.jsonl"
     writer_log(path, seed, n=40)
     data = bytearray(path.read_bytes())
@@ -204,13 +208,13 @@ def test_mutated_logs_read_the_same_both_ways(tmp_path_factory, seed, ops, cut, 
     if cut is not None:
         del data[cut % (len(data) + 1) :]
     path.write_bytes(bytes(data))
-    assert_same_reads(path, block=block, long=long)
+    assert_same_reads(path, block=block)
 
 
 @pytest.mark.parametrize("block", [5, 100, 4096])
 def test_long_and_overlong_records_the_same(tmp_path, monkeypatch, block):
-    """A record longer than the block, than the long-line bound (read from the file), and one
-    longer than ``MAX_RECORD`` (passed over unread), ended or at the end."""
+    """A record longer than the block, and one longer than ``MAX_RECORD`` (passed over
+    unread), ended or at the end."""
     monkeypatch.setattr(rawlog, "MAX_RECORD", 300)
     good = '{"t":2,"rx":"b\\r"}\n'
     long_rec = '{"t":3,"rx":"' + "x" * 250 + '\\r"}\n'
@@ -218,13 +222,12 @@ def test_long_and_overlong_records_the_same(tmp_path, monkeypatch, block):
     for tail in ("", over[:-1], over[:200], long_rec[:-1]):
         path = tmp_path / "raw.jsonl"
         path.write_text(good * 3 + long_rec + good + over + good * 2 + over + tail)
-        for long in (None, 40, 280):
-            assert_same_reads(path, block=block, long=long, m=monkeypatch)
+        assert_same_reads(path, block=block)
 
 
 def test_a_hostile_log_reads_the_same(tmp_path):
     """benchmarks/hostile_rawlog.py's session, smaller: a record of 600 kB of garbage without
-    a line end among a day's records (past ``BULK_LONG``: read from the file), then bad
+    a line end among a day's records, then bad
     records (more than are named), a blank line and a torn last one."""
     rec = '{{"t":{},"rx":" {:04d} C{}  10:00:00.{:04d} 00\\r"}}\n'
     day = [rec.format(1_770_000_000 + i, i, i % 9, i) for i in range(200)]
@@ -238,7 +241,7 @@ def test_a_hostile_log_reads_the_same(tmp_path):
         + "".join(day[:50])
         + '{"t":1770000400,"rx":" 0001 C'
     )  # fmt: skip
-    items = assert_same_reads(path, long=128 * 1024)
+    items = assert_same_reads(path)
     assert sum(len(i.t) for i in items if type(i) is Lines) >= 399
 
 
@@ -251,7 +254,7 @@ def test_the_log_grown_past_its_limit_stops_both_at_the_same_line(tmp_path, monk
     )
     monkeypatch.setattr(rawlog, "open_regular", lambda p, _m, _w: open(p, "rb"))  # noqa: SIM115
     monkeypatch.setattr(rawlog, "MAX_RAWLOG", limit)
-    careful, bulk, _ = read_both(path, block=64, m=monkeypatch)
+    careful, bulk, _ = read_both(path, block=64)
     assert careful == bulk and careful[2] is not None and "larger than" in careful[2]
 
 
@@ -323,7 +326,7 @@ def replayed(cfg, track, path, bulk: bool) -> dict:
 
 
 def assert_same_replays(cfg, track, path, monkeypatch, block: int, run: int) -> dict:
-    monkeypatch.setattr(rawlog, "BULK_BLOCK", block)
+    monkeypatch.setattr(rawlog, "BLOCK", block)
     monkeypatch.setattr("station.session.processor.SESSION_RUN", run)
     careful = replayed(cfg, track, path, bulk=False)
     bulk = replayed(cfg, track, path, bulk=True)

@@ -2,14 +2,10 @@
 
 Parsers are small classes with a ``parse(line)`` method. ALGE's is stateful: a classement
 print-out spans several lines that are skipped as a block. Parsing is by fixed columns, as the
-devices send them (timing-protocols.md §1.2, §2.1, §3.1), and it is written for speed:
-replaying a day means hundreds of thousands of lines. Each parser has two paths: ``parse``
-first tries one precompiled pattern for the common well-formed impulse line of its protocol
-and builds the impulse from fixed columns; every other line (edits, status lines, damaged
-bytes, decimal commas, blank-padded fields, checksums that fail…) goes to ``parse_general``,
-the careful path, which alone decides what a line that is not the common shape is. The fast
-path returns exactly what the general path returns for the lines it takes
-(tests/test_wireformats_fast_path.py checks it on the real captures and on mutated lines).
+devices send them (timing-protocols.md §1.2, §2.1, §3.1). Each protocol has one rule,
+``parse``, which decides what any line is, however damaged; it is written so that the common
+well-formed impulse line costs a few look-ups in tables (replaying a day means hundreds of
+thousands of lines), and ``parse_lines`` is that rule over a chunk's lines, in order.
 
 The ``format_*`` functions write lines byte for byte like the hardware. The simulated timer
 uses them, and the tests use them for round trips.
@@ -17,8 +13,7 @@ uses them, and the tests use them for round trips.
 
 from __future__ import annotations
 
-import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from station.timing.impulses import (
     DAMAGED_FLAG,
@@ -36,27 +31,36 @@ from station.timing.impulses import (
 
 _TWO = {f"{i:02d}": i for i in range(100)}
 _TWO.update({f" {i}": i for i in range(10)})  # a blank-padded hour (TAG)
+#: ``HH:MM`` -> µs since midnight (the hour zero- or blank-padded, the minute two digits), and
+#: ``SS`` -> µs (zero- or blank-padded): a time of day's fields checked and converted in two
+#: look-ups (a replay's every line)
+_HH_MM_US = {
+    f"{hh}:{m:02d}": (_TWO[hh] * 60 + m) * 60_000_000
+    for hh in _TWO
+    if _TWO[hh] < 24
+    for m in range(60)
+}
+_SS_US = {ss: s * 1_000_000 for ss, s in _TWO.items() if s < 60}
+_POW = [10**i for i in range(7)]
 
 
 def _tod(text: str) -> tuple[int, int] | None:
-    """``HH:MM:SS[.,:]f…`` (fraction right-padded with blanks, hour may be blank-padded)
-    -> (µs since midnight, resolution µs), or None. Two-digit fields are looked up in a
-    table, which checks and converts them at once (this runs for every line of a replay)."""
+    """``HH:MM:SS[.,:]f…`` (fraction right-padded with blanks, hour and second may be
+    blank-padded) -> (µs since midnight, resolution µs), or None."""
     n = len(text)
-    if n < 8 or text[2] != ":" or text[5] != ":":
+    if n < 8 or text[5] != ":":
         return None
-    h = _TWO.get(text[0:2])
-    m = _TWO.get(text[3:5])
-    s = _TWO.get(text[6:8])
-    if h is None or m is None or s is None or h > 23 or m > 59 or s > 59 or text[3] == " ":
+    hm = _HH_MM_US.get(text[0:5])
+    ss = _SS_US.get(text[6:8])
+    if hm is None or ss is None:
         return None
-    base = ((h * 60 + m) * 60 + s) * 1_000_000
+    base = hm + ss
     if n == 8:
         return base, 1_000_000
     if text[8] not in ".,:":
         return None
     frac = text[9:]
-    if not _digits(frac):
+    if not (frac.isascii() and frac.isdigit()):
         frac = frac.rstrip()
         if not frac:
             return base, 1_000_000
@@ -69,13 +73,6 @@ def _tod(text: str) -> tuple[int, int] | None:
     return base + int(frac) * res, res
 
 
-_POW = [10**i for i in range(7)]
-#: ``HH:MM`` -> µs since midnight, and ``SS`` -> µs: a time of day in two look-ups (ALGE's
-#: common line; a replay's every line)
-_HH_MM_US = {f"{h:02d}:{m:02d}": (h * 60 + m) * 60_000_000 for h in range(24) for m in range(60)}
-_SS_US = {f"{s:02d}": s * 1_000_000 for s in range(60)}
-
-
 def _digits(text: str) -> bool:
     """ASCII digits only. ``str.isdigit`` also accepts the Latin-1 superscripts ``²³¹`` (bytes
     0xB2, 0xB3, 0xB9, which a bit flip makes of ``2``, ``3``, ``9``), which ``int`` refuses:
@@ -86,6 +83,9 @@ def _digits(text: str) -> bool:
 #: an Impulse made without the NamedTuple's Python-level ``__new__``: the same record at a plain
 #: tuple's cost (one per line of a replay)
 _new = tuple.__new__
+
+#: a number of four digits, which :func:`_digits` takes and ``strip`` leaves as it is
+_FOUR_DIGITS = frozenset(f"{i:04d}" for i in range(10_000))
 
 #: ALGE channel columns (``C1 ``, ``c1 ``, ``C1M``, ``C1m``…) -> the channel's name
 _ALGE_CHANNEL = {
@@ -100,18 +100,16 @@ def _frac(tod_us: int, decimals: int) -> str:
     return format_tod(tod_us, decimals)
 
 
-class _ParseEach:
-    """``parse_lines`` for a parser whose chunk is read a line at a time through its own
-    ``parse`` (TAG's and Racetime's; ALGE's has a loop of its own). Why a base: the two
-    parsers had the same method word for word, and a replay and the live path must read a
-    chunk alike for every protocol, so it is written once."""
+class _Parser:
+    """A protocol's parser: :meth:`parse` is its rule for one line; ``parse_lines`` is that
+    rule over a chunk's lines in order (a replay's, with the parser's state carried from line
+    to line as it is by single calls)."""
 
     parse: Callable[[str], Parsed]
 
     def parse_lines(self, lines: list[str]) -> list[Parsed]:
         """:meth:`parse` of each line, in order."""
-        parse = self.parse
-        return [parse(line) for line in lines]
+        return list(map(self.parse, lines))
 
 
 # ----------------------------------------------------------------------------- ALGE
@@ -147,7 +145,7 @@ def alge_checksum(line26: str) -> str:
     return chr(0x30 + (total >> 4)) + chr(0x30 + (total & 0xF))
 
 
-class AlgeParser:
+class AlgeParser(_Parser):
     """ALGE Timy / TdC 8000/8001 PC output: ``yNNNNxCCCxHH:MM:SS.zhtqxGG``.
 
     A classement print-out (``CLASSEMENT:`` … footer) is skipped as a block. It ends at its
@@ -159,49 +157,70 @@ class AlgeParser:
     def __init__(self) -> None:
         self.in_printout = False
 
-    #: the common line: flag blank or ``?``, four-digit number, a photocell or keypad channel,
-    #: ``HH:MM:SS.ffff`` (the columns the general path reads; the group column is not read).
-    #: Its groups are the columns the impulse is made of, cut out in one call
-    _FAST = re.compile(
-        r"([ ?])([0-9]{4}) ([cC][0-9][ mM]) ((?:[01][0-9]|2[0-3]):[0-5][0-9]):([0-5][0-9])"
-        r"\.([0-9]{4}) [\s\S]{2}"
-    ).fullmatch
+    def parse(self, line: str) -> Parsed:
+        """Any line, however damaged: what it is, or why it is nothing (a chunk of one)."""
+        return self.parse_lines((line,))[0]
 
-    def parse(self, s: str) -> Parsed:
-        """One line; the common impulse line by fixed columns, every other by
-        :meth:`parse_general`."""
-        if len(s) == 26 and not self.in_printout:
-            m = self._FAST(s)
-            if m is not None:
-                flag, bib, chan, hh_mm, ss, frac = m.groups()
-                return _new(Impulse, (
-                    _ALGE_CHANNEL[chan], _HH_MM_US[hh_mm] + _SS_US[ss] + int(frac) * 100, 100,
-                    "" if flag == " " else "?", bib, None, s,
-                ))  # fmt: skip
-        return self.parse_general(s)
-
-    def parse_lines(self, lines: list[str]) -> list[Parsed]:
-        """:meth:`parse` of each line, in order, in one loop: a replay's chunk of lines
-        without a call per line (the same records, ``parse``'s own steps)."""
-        fast, general, channels, new = self._FAST, self.parse_general, _ALGE_CHANNEL, _new
-        hh_mm_us, ss_us = _HH_MM_US, _SS_US
+    def parse_lines(self, lines: Sequence[str]) -> list[Parsed]:
+        """Each line in order, however damaged: what it is, or why it is nothing. The line of
+        an impulse's columns (the flag, number, channel and time of day, with or without its
+        checksum) is read here; a line within a print-out, one with its checksum and the
+        other lines, by the two steps below (a blank one where it is first told apart). One
+        loop for a chunk: a replay's impulses without a call a line."""
         out: list[Parsed] = []
         add = out.append
-        for s in lines:
-            if len(s) == 26 and not self.in_printout:
-                m = fast(s)
-                if m is not None:
-                    flag, bib, chan, hh_mm, ss, frac = m.groups()
-                    add(new(Impulse, (
-                        channels[chan], hh_mm_us[hh_mm] + ss_us[ss] + int(frac) * 100, 100,
-                        "" if flag == " " else "?", bib, None, s,
-                    )))  # fmt: skip
+        channels, tod, digits, new = _ALGE_CHANNEL, _tod, _digits, _new
+        for line in lines:
+            s = line
+            n = len(s)
+            if n == 28 or self.in_printout:
+                opened = self._opening(line)
+                if not isinstance(opened, str):
+                    add(opened)
                     continue
-            add(general(s))
+                s = opened
+                n = len(s)
+            if not (n >= 26 and s[9] == " " and s[23] == " "):
+                add(self._not_columns(s, line))
+                continue
+            chan = s[6:9]
+            channel = channels.get(chan)
+            if channel is None:
+                if line.isspace():
+                    add(Skip("blank line", line))
+                elif chan[0] in "cC" and digits(chan[1]) or chan[:2] not in ALGE_COMPUTED:
+                    add(Unparsed(f"unknown channel {chan!r}", line))
+                else:
+                    add(Skip(f"computed time ({chan.strip()})", line))
+                continue
+            t = tod(s[10:23])
+            if t is None:
+                add(Unparsed(f"time {s[10:23]!r} is not HH:MM:SS.ffff", line))
+                continue
+            bib = raw_bib = s[1:5]
+            if bib not in _FOUR_DIGITS:  # (the common number: a look-up)
+                bib = raw_bib.strip()
+                if bib and not digits(bib):
+                    add(Unparsed(f"start number {raw_bib!r} is not a number", line))
+                    continue
+            flag = s[0]
+            if flag == " ":
+                add(new(Impulse, (channel, t[0], t[1], "", bib, None, line)))
+            elif flag == "?":
+                add(new(Impulse, (channel, t[0], t[1], "?", bib, None, line)))
+            elif flag in ALGE_EDIT_FLAGS:
+                add(Edit(ALGE_EDIT_FLAGS[flag], channel, t[0], flag, bib, line))
+            else:
+                # an unknown flag on a line whose channel, time and number read is a damaged
+                # byte (one flipped bit of " " or "?"), not a foreign line: skipping it lost
+                # the skier's start (issue 18). Kept, flagged; a repeat of a kept impulse (a
+                # damaged "c" or "m" line) is not doubled by the assembler.
+                add(Impulse(channel, t[0], t[1], DAMAGED_FLAG, bib, None, line))
         return out
 
-    def parse_general(self, line: str) -> Parsed:
-        """Any line, however damaged: what it is, or why it is nothing."""
+    def _opening(self, line: str) -> Parsed | str:
+        """A line within a print-out or one with its checksum: what it is, or the text to read
+        on (the line, its checksum checked and cut off)."""
         s = line
         n = len(s)
         if self.in_printout:
@@ -219,36 +238,14 @@ class AlgeParser:
                 return Unparsed(
                     f"checksum {s[26:28]!r} does not match {alge_checksum(body)!r}", line
                 )
-            s, n = body, 26
-        if n >= 26 and s[9] == " " and s[23] == " ":
-            flag = s[0]
-            chan = s[6:9]
-            c0 = chan[0]
-            if c0 in "cC" and _digits(chan[1]):
-                channel = "C" + chan[1] + ("M" if chan[2] in "mM" else "")
-                if chan[2] not in " mM":
-                    return Unparsed(f"unknown channel {chan!r}", line)
-            elif chan[:2] in ALGE_COMPUTED:
-                return Skip(f"computed time ({chan.strip()})", line)
-            else:
-                return Unparsed(f"unknown channel {chan!r}", line)
-            t = _tod(s[10:23])
-            if t is None:
-                return Unparsed(f"time {s[10:23]!r} is not HH:MM:SS.ffff", line)
-            raw_bib = s[1:5]
-            bib = raw_bib.strip()
-            if bib and not _digits(bib):
-                return Unparsed(f"start number {raw_bib!r} is not a number", line)
-            if flag == " " or flag == "?":
-                return Impulse(channel, t[0], t[1], flag.strip(), bib, None, line)
-            kind = ALGE_EDIT_FLAGS.get(flag)
-            if kind is not None:
-                return Edit(kind, channel, t[0], flag, bib, line)
-            # an unknown flag on a line whose channel, time and number read is a damaged
-            # byte (one flipped bit of " " or "?"), not a foreign line: skipping it lost the
-            # skier's start (issue 18). Kept, flagged; a repeat of a kept impulse (a damaged
-            # "c" or "m" line) is not doubled by the assembler.
-            return Impulse(channel, t[0], t[1], DAMAGED_FLAG, bib, None, line)
+            return body
+        return s
+
+    def _not_columns(self, s: str, line: str) -> Parsed:
+        """A line (``s``, its checksum cut off) that is not laid out as an impulse's."""
+        if not line or line.isspace():
+            return Skip("blank line", line)
+        n = len(s)
         if n in (5, 6) and s[0] in "ns" and _digits(s[1:5]):
             return Skip("start number shown", line)
         if n == 10 and _tod(s) is not None:
@@ -320,11 +317,7 @@ TAG_STATUS = {
 TAG_IMPULSES = {"TN": "", "AN": "from memory"}
 
 
-#: four columns of a right-aligned number: digits after blanks, or all blank
-_N4 = r"(?: {4}| {3}[0-9]| {2}[0-9]{2}| [0-9]{3}|[0-9]{4})"
-
-
-class TagParser(_ParseEach):
+class TagParser(_Parser):
     """TAG Heuer THCOM08 (CP540/545, HL440/940/975): ``Tx NNNN SSSS CC HH:MM:SS.FFFFF DDDDD``.
 
     ``AN`` lines of a memory download (``DS`` … ``DE``) are impulses with their bib, laid out
@@ -332,39 +325,13 @@ class TagParser(_ParseEach):
 
     name = "tag"
 
-    #: the common time message (``TN`` live, ``AN`` from memory): number and sequence
-    #: right-aligned digits or blank, a two-character channel (one blank-padded), the hour
-    #: blank- or zero-padded, five decimals, the day counter or nothing
-    _FAST = re.compile(
-        rf"[TA]N {_N4} {_N4} ( [0-9A-Za-z]|[0-9A-Za-z]{{2}}) "
-        r"(?:[ 01][0-9]|2[0-3]):[0-5][0-9]:[0-5][0-9]\.[0-9]{5}(?: +([0-9]{1,5}))? *"
-    ).fullmatch
-
     def parse(self, line: str) -> Parsed:
-        """One line; the common time message by fixed columns, every other by
-        :meth:`parse_general`."""
-        data, tab, cs = line.partition("\t")
-        m = self._FAST(data)
-        if m is not None:
-            if tab:
-                c = cs.strip()
-                if c and c != f"{sum(map(ord, data)) & 0xFFFF:04X}":
-                    return self.parse_general(line)
-            bib = data[3:7].lstrip()
-            day = m[2]
-            return _new(Impulse, (
-                m[1].lstrip(),
-                ((_TWO[data[16:18]] * 60 + _TWO[data[19:21]]) * 60 + _TWO[data[22:24]])
-                * 1_000_000 + int(data[25:30]) * 10,
-                10, "" if bib else "?", bib, None if day is None else int(day), line,
-            ))  # fmt: skip
-        return self.parse_general(line)
-
-    def parse_general(self, line: str) -> Parsed:
         """Any line, however damaged: what it is, or why it is nothing."""
         data, tab, cs = line.partition("\t")
-        if tab and cs.strip() and cs.strip() != tag_cs16(data):
-            return Unparsed(f"checksum {cs.strip()!r} does not match {tag_cs16(data)!r}", line)
+        if tab:
+            cs = cs.strip()
+            if cs and cs != tag_cs16(data):
+                return Unparsed(f"checksum {cs!r} does not match {tag_cs16(data)!r}", line)
         s = data.lstrip("#")
         if not s.strip():
             return Skip("blank line", line)
@@ -392,7 +359,7 @@ class TagParser(_ParseEach):
                 day = int(rest[0])
             if kind in TAG_EDITS:
                 return Edit(TAG_EDITS[kind], channel, t[0], kind, bib, line, day)
-            return Impulse(channel, t[0], t[1], "" if bib else "?", bib, day, line)
+            return _new(Impulse, (channel, t[0], t[1], "" if bib else "?", bib, day, line))
         what = TAG_STATUS.get(kind)
         if what is not None:
             return Skip(what, line)
@@ -413,28 +380,12 @@ def format_tag(
 # ----------------------------------------------------------------------------- Microgate
 
 
-class RacetimeParser(_ParseEach):
+class RacetimeParser(_Parser):
     """Microgate Racetime2 ASCII record: ``QQQQSSSSRRRCCCLLLIOPHHMMSSttt`` (29 characters)."""
 
     name = "microgate"
 
-    #: the common record: a time of day (info 0) not skipped, all its columns digits
-    _FAST = re.compile(
-        r"[0-9]{17}0[^Ss][\s\S](?:[01][0-9]|2[0-3])[0-5][0-9][0-5][0-9][0-9]{3}"
-    ).fullmatch
-
-    def parse(self, s: str) -> Parsed:
-        """One line; the common record by fixed columns, every other by :meth:`parse_general`."""
-        if len(s) == 29 and self._FAST(s) is not None:
-            return _new(Impulse, (
-                s[14:17],
-                ((_TWO[s[20:22]] * 60 + _TWO[s[22:24]]) * 60 + _TWO[s[24:26]]) * 1_000_000
-                + int(s[26:29]) * 1000,
-                1000, "", s[4:8].lstrip("0"), None, s,
-            ))  # fmt: skip
-        return self.parse_general(s)
-
-    def parse_general(self, line: str) -> Parsed:
+    def parse(self, line: str) -> Parsed:
         """Any line, however damaged: what it is, or why it is nothing."""
         s = line
         if not s.strip():
@@ -445,7 +396,7 @@ class RacetimeParser(_ParseEach):
             return Unparsed("not a Racetime2 record", line)
         info, origin = s[17], s[18]
         t = s[20:29]
-        h, m, sec, ms = int(t[0:2]), int(t[2:4]), int(t[4:6]), int(t[6:9])
+        h, m, sec, ms = _TWO[t[0:2]], _TWO[t[2:4]], _TWO[t[4:6]], int(t[6:9])
         if h > 23 or m > 59 or sec > 59:
             return Unparsed(f"time {t!r} is not HHMMSSttt", line)
         tod = ((h * 60 + m) * 60 + sec) * 1_000_000 + ms * 1000
@@ -455,7 +406,7 @@ class RacetimeParser(_ParseEach):
             return Skip(f"not a time of day (info {info!r})", line)
         if origin in "Ss":
             return Skip("skipped time", line)
-        return Impulse(channel, tod, 1000, "", bib, None, line)
+        return _new(Impulse, (channel, tod, 1000, "", bib, None, line))
 
 
 def format_racetime(
