@@ -43,18 +43,14 @@ from station.session.comparing import Comparer
 from station.session.config import SerialConfig, StationConfig
 from station.session.day import Day, Effect
 from station.session.fitstore import FitStore
-from station.session.intake import AnnotationIntake
+from station.session.intake import AnnotationIntake, effect_now
 from station.session.jobs import STOP, End, Fit, Job, WriteResults
 from station.session.listener import Listener
-from station.session.processor import Processor
 from station.session.rawlog import Chunk, RawLogWriter
 from station.session.records import (
-    Annotation,
     DescentStatus,
     DescentTimes,
     LineCounts,
-    MetadataAnnotation,
-    ModelChange,
     ResultRow,
 )
 from station.session.replay import replay_chunks, write_events
@@ -132,7 +128,6 @@ class Acquisition(AnnotationIntake):
         self.comparer: Comparer | None = None
         #: what the timer sends against what the config expects (a live source only)
         self._watch: ConfigWatch | None = None
-        self._unparsed_seen = 0  # the processor's unparsed lines the watch has had
         if threaded:
             self._worker = threading.Thread(target=self._work, name="fit-worker", daemon=True)
             self._worker.start()
@@ -329,8 +324,9 @@ class Acquisition(AnnotationIntake):
                 self._tell(self.listener.impulses, new, proc.line_counts())
             if new or done:
                 self._tell(self.listener.progress, self.day.progress())
-        if self._watch is not None:
-            self._watch_config(proc, first_event)
+        if self._watch is not None:  # what the timer sent, against what the config expects
+            for text in self._watch.look(proc, first_event, time.monotonic()):
+                self._tell(self.listener.warning, text)
         if not self.keep_events:
             # a recording hands each impulse's fate to the listener once and keeps none: a
             # replay of the raw log lists them all (--events); 1.5 kB a descent otherwise
@@ -342,15 +338,6 @@ class Acquisition(AnnotationIntake):
                 self.finished_descents += 1
             jobs.append(Fit(times))
         return jobs
-
-    def _watch_config(self, proc: Processor, first_event: int) -> None:
-        """With the lock held: what the timer sent, against what the config expects."""
-        assert self._watch is not None
-        texts = [text for _line, _why, text in proc.unparsed[self._unparsed_seen :]]
-        self._unparsed_seen = len(proc.unparsed)
-        events = proc.events[first_event:]
-        for text in self._watch.note(events, proc.line_counts(), texts, time.monotonic()):
-            self._tell(self.listener.warning, text)
 
     def _first_end(self, number: int) -> bool:
         """With the lock held: descent ``number`` ends (not aborted) for the first time. An
@@ -434,7 +421,7 @@ class Acquisition(AnnotationIntake):
                 self._fit_from = max(self._fit_from, job.descent.number)
             else:
                 a = job.annotation
-                effect = _effect_now(day, a) if job.applied else day.annotate(a)
+                effect = effect_now(day, a) if job.applied else day.annotate(a)
                 # a refit after later descents gives the replay's fit: the survey covariance
                 # each descent takes does not hang on the order of the fits (Analyser)
                 fit_jobs = [day.fit_job(day.results[n].descent) for n in effect.refit]
@@ -601,16 +588,3 @@ class Acquisition(AnnotationIntake):
         rows, fitted = self._as_fitted()
         out = ResultsFile(session, self.results_file.header)
         return out.write_replay(rows, annotations_sha256, fitted)
-
-
-def _effect_now(day: Day, a: Annotation) -> Effect:
-    """What an annotation the day already has calls for, now: the descents it concerns that
-    are fitted by now (one fitted meanwhile was fitted before it, or with it: fitted again)."""
-    if isinstance(a, MetadataAnnotation):
-        numbers = sorted(a.descents or ())
-        return Effect(refit=tuple(n for n in numbers if n in day.results))
-    if a.descent not in day.results:
-        return Effect()
-    if isinstance(a, ModelChange):
-        return Effect(refit=(a.descent,))
-    return Effect(changed=(a.descent,))

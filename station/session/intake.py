@@ -18,10 +18,10 @@ from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 from station.session import folder as sessions
-from station.session.day import Day
+from station.session.day import Day, Effect
 from station.session.jobs import Annotate, Job
 from station.session.listener import Listener
-from station.session.records import Annotation, Metadata, MetadataAnnotation
+from station.session.records import Annotation, Metadata, MetadataAnnotation, ModelChange
 
 #: how long the recorder waits for another writer of the annotations file (it appends one
 #: record) before it appends its own without the lock
@@ -150,3 +150,16 @@ class AnnotationIntake:
             self._jobs.put(job)  # this worker runs them next, in order
         if jobs and self.listener.live_view:
             self._tell(self.listener.progress, progress)
+
+
+def effect_now(day: Day, a: Annotation) -> Effect:
+    """What an annotation the day already has calls for, now: the descents it concerns that
+    are fitted by now (one fitted meanwhile was fitted before it, or with it: fitted again)."""
+    if isinstance(a, MetadataAnnotation):
+        numbers = sorted(a.descents or ())
+        return Effect(refit=tuple(n for n in numbers if n in day.results))
+    if a.descent not in day.results:
+        return Effect()
+    if isinstance(a, ModelChange):
+        return Effect(refit=(a.descent,))
+    return Effect(changed=(a.descent,))

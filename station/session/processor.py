@@ -349,7 +349,7 @@ class Processor:
     def _line(self, line: str, t: float | None) -> list[TimedDescent]:
         return self._parsed(line, self.parser.parse(line), t)
 
-    def _parsed(self, line: str, parsed: Parsed, t: float | None) -> list[TimedDescent]:
+    def _parsed(self, line: str, parsed: Parsed, t: float | None) -> list[TimedDescent]:  # noqa: C901 - every line's dispatch by kind, in one place
         """One line and what the parser made of it."""
         self.lines += 1
         if self.download_line is not None and isinstance(parsed, Impulse | Edit):

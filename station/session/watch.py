@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Iterable, Mapping
 
+from station.session.processor import Processor
 from station.session.records import LineCounts
 from station.timing.assembly import ImpulseEvent
 from station.timing.impulses import Edit, Impulse
@@ -34,6 +35,13 @@ class ConfigWatch:
         self.unmapped: Counter[str] = Counter()
         self.unparsed: list[str] = []  # the latest lines that did not parse
         self._said: dict[str, float] = {}  # what was said last, by kind, and when
+        self._unparsed_seen = 0  # the processor's unparsed lines looked at
+
+    def look(self, proc: Processor, first_event: int, t: float) -> list[str]:
+        """:meth:`note` of what the processor did since its event ``first_event``."""
+        texts = [text for _line, _why, text in proc.unparsed[self._unparsed_seen :]]
+        self._unparsed_seen = len(proc.unparsed)
+        return self.note(proc.events[first_event:], proc.line_counts(), texts, t)
 
     def note(
         self, events: Iterable[ImpulseEvent], counts: LineCounts, unparsed: Iterable[str], t: float

@@ -110,7 +110,7 @@ class DescentAssembler(Edits, MemoryJoins, Recovery, Pairing, DeviceClock):
         per call (the state looked up again, a list made for each answer)."""
         return self._run(items, start, line, None, started, None, stop_unsure=True)
 
-    def _run(
+    def _run(  # noqa: C901, PLR0915 - the one loop every impulse goes through; a call per step costs the replay
         self, items: Sequence[object], start: int, line: int, now_us: int | None,
         started: Callable[[TimedDescent], None] | None, at: tuple[int, int | None] | None,
         stop_unsure: bool = False,

@@ -134,7 +134,19 @@ class Edits(AssemblerBase):
         t = self._time(e.tod_us, e.day)
         k = self.order[pc]
         when = format_tod(e.tod_us)
-        target = None
+        target = self._edit_target(t, k, pc, bib)
+        if target is None:
+            if k == 0:
+                self._start_by_edit(e, line, pc, t, bib)
+                return []
+            self._event(e, line, pc, False,
+                        f"{e.kind}: no descent{' of bib ' + bib if bib else ''} to enter "
+                        f"{pc} {when} into; nothing changed")  # fmt: skip
+            return []
+        return self._enter_into(target, e, line, pc, t)
+
+    def _edit_target(self, t: int, k: int, pc: str, bib: str) -> TimedDescent | None:
+        """The descent an edited time at photocell ``pc`` (index ``k``) belongs to."""
         for d in [*reversed(self.open), *reversed(self.finished)]:
             if not d.times_us or (bib and d.bib != bib):
                 continue
@@ -148,22 +160,27 @@ class Edits(AssemblerBase):
                         continue
             if abs(t - d.times_us[0]) > max(self.timeout_us) * len(self.photocells):
                 continue
-            target = d
-            break
-        if target is None:
-            if k == 0:
-                self.count += 1
-                d = TimedDescent(self.count, [pc], [t], first_line=line, channels=[e.channel],
-                                 bib=bib, day=e.day)  # fmt: skip
-                d.flags.append(f"start {when} {e.kind} at the timer")
-                self.open.append(d)
-                self._event(e, line, pc, True, f"{e.kind}: {pc} {when} starts descent "
-                            f"{d.number}", d.number)  # fmt: skip
-                return []
-            self._event(e, line, pc, False,
-                        f"{e.kind}: no descent{' of bib ' + bib if bib else ''} to enter "
-                        f"{pc} {when} into; nothing changed")  # fmt: skip
-            return []
+            return d
+        return None
+
+    def _start_by_edit(self, e: Edit, line: int, pc: str, t: int, bib: str) -> None:
+        """A start typed in at the timer that no descent has: it starts one."""
+        when = format_tod(e.tod_us)
+        self.count += 1
+        d = TimedDescent(self.count, [pc], [t], first_line=line, channels=[e.channel],
+                         bib=bib, day=e.day)  # fmt: skip
+        d.flags.append(f"start {when} {e.kind} at the timer")
+        self.open.append(d)
+        self._event(e, line, pc, True, f"{e.kind}: {pc} {when} starts descent "
+                    f"{d.number}", d.number)  # fmt: skip
+
+    def _enter_into(
+        self, target: TimedDescent, e: Edit, line: int, pc: str, t: int
+    ) -> list[TimedDescent]:
+        """The edited time in its descent, in photocell order; the descent ends again if it
+        now reaches the last photocell."""
+        k = self.order[pc]
+        when = format_tod(e.tod_us)
         d = target
         d.thaw()
         what = "entered"
