@@ -22,6 +22,7 @@ from station.cli.common import (
     output_path,
     plausible,
     reference_item,
+    whole_number,
 )
 from station.errors import InputError
 from station.limits import PLAUSIBLE
@@ -200,13 +201,7 @@ def add_parsers(sub: Any) -> None:
 
 
 def _descent_number(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a descent number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"descents are numbered from 1, got {text!r}")
-    return value
+    return whole_number(text, "a descent number", 1, "descents are numbered from 1")
 
 
 def _horizon(text: str) -> int:

@@ -111,6 +111,18 @@ class Parser(argparse.ArgumentParser):
         return ""
 
 
+def whole_number(text: str, kind: str, least: int, below: str) -> int:
+    """An option's whole number of at least ``least``: ``kind`` names what it must be when
+    it is no whole number, ``below`` what a smaller one is not."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be {kind}, got {text!r}") from None
+    if value < least:
+        raise argparse.ArgumentTypeError(f"{below}, got {text!r}")
+    return value
+
+
 def _positive(text: str) -> float:
     value = _number(text)
     if value <= 0:

@@ -14,7 +14,7 @@ import sys
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-from station.cli.common import _date, _positive, _warn, open_output, output_path
+from station.cli.common import _date, _positive, _warn, open_output, output_path, whole_number
 from station.errors import InputError
 
 if TYPE_CHECKING:
@@ -179,13 +179,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 def _descent_count(text: str) -> int:
     """``--max-descents``: a whole number of descents, at least one."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"at least 1 descent, got {text!r}")
-    return value
+    return whole_number(text, "a whole number", 1, "at least 1 descent")
 
 
 def add_parsers(sub: Any) -> None:
