@@ -144,7 +144,7 @@ def comparison_view(day: DayComparison) -> str:
     res = day.result
     if res is None:
         return f"no comparison yet: {day.error}"
-    text = format_comparison(res, len(day.compared)) + "".join(f"\n! {w}" for w in res.warnings)
+    text = format_comparison(res, len(day.numbers)) + "".join(f"\n! {w}" for w in res.warnings)
     block = decision_block(day)
     if not block:
         return text
@@ -190,7 +190,7 @@ def compare_text(day: DayComparison) -> str:
     standard error)."""
     assert day.result is not None
     block = decision_block(day)
-    text = format_comparison(day.result, len(day.compared))
+    text = format_comparison(day.result, len(day.numbers))
     return text + ("\n\n" + "\n".join(block) if block else "")
 
 

@@ -69,7 +69,8 @@ def serve(inp: BinaryIO, out: BinaryIO) -> None:
 
 def live_comparison(track: Track, results: dict[int, DescentResult]) -> DayComparison:
     """The day's comparison as the live views show it: none before two fitted descents."""
-    return compare_results(track, [results[n] for n in sorted(results)], at_least=2)
+    day = compare_results(track, [results[n] for n in sorted(results)], at_least=2)
+    return day.summary()
 
 
 def main() -> None:

@@ -9,7 +9,7 @@ decides each pair (:mod:`station.model.sequential`); every view renders the type
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from station.model.compare import collect, joint_fit
 from station.model.compare_types import CompareError, Comparison, DescentData, JointResult
@@ -36,16 +36,20 @@ class DayComparison:
     #: descents per item over which the decisions spend their error rate
     horizon: int = DEFAULT_HORIZON
     margin: float | None = None
-
-    @property
-    def run_items(self) -> list[str]:
-        """The item of each compared descent, in run order."""
-        return [d.item for d in self.compared]
+    #: the number of each compared descent, in run order (kept when ``compared`` is not:
+    #: :meth:`summary`)
+    numbers: tuple[int, ...] = ()
 
     @property
     def last_descent(self) -> int:
         """The number of the latest compared descent (0: none)."""
-        return self.compared[-1].number if self.compared else 0
+        return self.numbers[-1] if self.numbers else 0
+
+    def summary(self) -> DayComparison:
+        """The comparison without the descents' data, as the live views need it (at 2000
+        descents their times were 0.5 MB to send and 21 ms to read back, the interpreter's
+        lock held against the next descent's fit)."""
+        return replace(self, compared=[])
 
     def decision(self, comparison: Comparison) -> Decision | None:
         """The decision on one of the result's comparisons (None: not one of them)."""
@@ -86,10 +90,11 @@ def compare_results(
     the decision on every pair after the latest of them. With fewer than ``at_least``
     descents to compare there is no joint fit (the live views wait for two)."""
     data, excluded, windy = collect(results, wind_limit_ms)
+    numbers = tuple(d.number for d in data)
     if len(data) < at_least:
         return DayComparison(data, None, f"it needs at least {_WORDS.get(at_least, at_least)} "
                              "fitted descents",
-                             horizon=horizon, margin=margin)  # fmt: skip
+                             horizon=horizon, margin=margin, numbers=numbers)  # fmt: skip
     try:
         res = joint_fit(
             track, data, cda_fixed=cda_fixed, model=model, drift=drift,
@@ -97,7 +102,8 @@ def compare_results(
             wind_flagged=windy, wind_limit_ms=wind_limit_ms,
         )  # fmt: skip
     except CompareError as exc:
-        return DayComparison(data, None, str(exc), horizon=horizon, margin=margin)
+        return DayComparison(data, None, str(exc), horizon=horizon, margin=margin,
+                             numbers=numbers)  # fmt: skip
     run_items = [d.item for d in data]
     decisions = day_decisions(res.comparisons, run_items, horizon=horizon, margin=margin)
-    return DayComparison(data, res, "", tuple(decisions), horizon, margin)
+    return DayComparison(data, res, "", tuple(decisions), horizon, margin, numbers)
