@@ -86,7 +86,6 @@ class Acquisition(AnnotationIntake):
         self.listener = listener or Listener()
         self.session_dir = session_dir
         self.rawlog = rawlog
-        self.compare = compare
         #: a replay in line keeps every descent's speed curve and fit (the report draws them
         #: all); a recording or the UI keeps the curve only in what it hands to the listener
         #: (12 kB a descent, half a 2000-descent day's memory: the UI asks again for the one it
